@@ -1,0 +1,1 @@
+"""Robot descriptions (URDF) and scenes (TOML) shipped with ucontrol as ``ucontrol.robots``."""

@@ -1,0 +1,32 @@
+"""ucontrol: tracking control of robots under unilateral constraints."""
+
+from ucontrol.contact import ConstraintSet, JointStop, Plane, PointContact
+from ucontrol.control import ContactState, Controller, JointPD, ZeroTorque
+from ucontrol.integrators import MoreauJean
+from ucontrol.log import Log
+from ucontrol.model import RobotModel
+from ucontrol.scene import Scene, load_scene
+from ucontrol.simulate import SimulationResult, simulate
+from ucontrol.solvers import ContactSolution, ProxsuiteLCPSolver
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ConstraintSet",
+    "ContactSolution",
+    "ContactState",
+    "Controller",
+    "JointPD",
+    "JointStop",
+    "Log",
+    "MoreauJean",
+    "Plane",
+    "PointContact",
+    "ProxsuiteLCPSolver",
+    "RobotModel",
+    "Scene",
+    "SimulationResult",
+    "ZeroTorque",
+    "load_scene",
+    "simulate",
+]

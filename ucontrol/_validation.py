@@ -1,0 +1,64 @@
+"""Checks applied at the public boundary; each raises a typed error naming the value."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol.exceptions import InvalidParameterError, NonFiniteValueError, ShapeError
+
+
+def as_vector(name: str, value: Any, size: int | None = None) -> NDArray[np.float64]:
+    """Return ``value`` as a finite float vector, optionally of a given size.
+
+    Args:
+        name: Argument name used in error messages.
+        value: Array-like input.
+        size: Required length, or None for any.
+
+    Raises:
+        ShapeError: ``value`` is not one-dimensional of length ``size``.
+        NonFiniteValueError: ``value`` holds NaN or infinity.
+    """
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise InvalidParameterError(name, value, "a vector of numbers") from error
+    if array.ndim != 1 or (size is not None and array.shape[0] != size):
+        raise ShapeError(name, (size if size is not None else -1,), array.shape)
+    bad = np.flatnonzero(~np.isfinite(array))
+    if bad.size:
+        raise NonFiniteValueError(name, value, bad.tolist())
+    return array
+
+
+def as_positive(name: str, value: Any) -> float:
+    """Return ``value`` as a finite float > 0, or raise :class:`InvalidParameterError`."""
+    number = as_float(name, value)
+    if not number > 0.0:
+        raise InvalidParameterError(name, value, "> 0")
+    return number
+
+
+def as_float(name: str, value: Any) -> float:
+    """Return ``value`` as a finite float, or raise :class:`InvalidParameterError`."""
+    if isinstance(value, bool):
+        raise InvalidParameterError(name, value, "a finite number")
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as error:
+        raise InvalidParameterError(name, value, "a finite number") from error
+    if not math.isfinite(number):
+        raise InvalidParameterError(name, value, "a finite number")
+    return number
+
+
+def as_in_interval(name: str, value: Any, low: float, high: float) -> float:
+    """Return ``value`` as a float in the closed interval [low, high]."""
+    number = as_float(name, value)
+    if not low <= number <= high:
+        raise InvalidParameterError(name, value, f"in [{low:g}, {high:g}]")
+    return number

@@ -1,0 +1,6 @@
+"""Analysis of runs: summaries and analytic references."""
+
+from ucontrol.analysis.bouncing_ball import BouncingBall
+from ucontrol.analysis.summary import IMPACT_VELOCITY_THRESHOLD, impact_mask, summarize
+
+__all__ = ["IMPACT_VELOCITY_THRESHOLD", "BouncingBall", "impact_mask", "summarize"]

@@ -1,0 +1,59 @@
+"""Figures of merit of a run, as written to ``summary.json``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ucontrol.log import Log
+
+#: A constraint closing faster than this at the start of a step with a positive impulse is an
+#: impact, in [m/s] (or [rad/s] for stops); slower ones are persistent contact.
+IMPACT_VELOCITY_THRESHOLD = 1e-6
+
+
+def impact_mask(log: Log) -> np.ndarray:
+    """Boolean array (N, n): constraint i had an impact in the step starting at row k."""
+    return (log.impulse > 0.0) & (log.normal_velocity < -IMPACT_VELOCITY_THRESHOLD)
+
+
+def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, Any]:
+    """Summary of a run (keys documented in docs/outputs.md).
+
+    Args:
+        log: The run's log.
+        wall_time_s: Wall-clock duration of the run in [s].
+        theta: θ of the position update, used for the actuator work over a step.
+    """
+    t = log.t
+    steps = max(len(log) - 1, 0)
+    gap = log.gap
+    impacts = impact_mask(log)[:steps]
+    impact_steps = np.flatnonzero(impacts.any(axis=1))
+    energy_jump = 0.0
+    if impact_steps.size:
+        robot_actuated = np.asarray(log.metadata.get("actuated", []), dtype=int)
+        k = impact_steps
+        v_mid = (1.0 - theta) * log.v[k] + theta * log.v[k + 1]
+        dt = t[k + 1] - t[k]
+        work = dt * np.einsum("ij,ij->i", log.u[k], v_mid[:, robot_actuated])  # [J]
+        energy_jump = float(np.max(log.energy[k + 1] - log.energy[k] - work))
+    return {
+        "scene": log.metadata.get("scene", ""),
+        "integrator": log.metadata.get("integrator", ""),
+        "dt": log.metadata.get("dt"),
+        "steps": steps,
+        "final_time": float(t[-1]) if len(log) else 0.0,
+        "wall_time_s": float(wall_time_s),
+        "us_per_step": 1e6 * wall_time_s / steps if steps else None,
+        "constraints": log.constraint_names,
+        "max_penetration": float(max(0.0, -gap.min())) if gap.size else 0.0,
+        "n_impacts": int(impacts.sum()),
+        "n_impacts_per_constraint": impacts.sum(axis=0).astype(int).tolist(),
+        "energy_increase_at_impacts": max(0.0, energy_jump),
+        "initial_energy": float(log.energy[0]) if len(log) else None,
+        "final_energy": float(log.energy[-1]) if len(log) else None,
+        "max_complementarity_residual": float(log.complementarity_residual.max(initial=0.0)),
+        "max_solver_iterations": int(log.solver_iterations.max(initial=0)),
+    }

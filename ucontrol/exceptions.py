@@ -1,0 +1,202 @@
+"""Errors raised by ucontrol.
+
+Every error derives from :class:`UControlError` and carries the offending values as attributes,
+so that callers can react programmatically and users read what was wrong and what was expected.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+
+class UControlError(Exception):
+    """Base class of every error raised by ucontrol."""
+
+
+class InvalidParameterError(UControlError, ValueError):
+    """A parameter has a value outside its admissible set.
+
+    Attributes:
+        name: Name of the argument or scene key.
+        value: The value received.
+        expected: Human-readable description of the admissible values.
+    """
+
+    def __init__(self, name: str, value: Any, expected: str) -> None:
+        self.name = name
+        self.value = value
+        self.expected = expected
+        super().__init__(f"`{name}` must be {expected}, got {value!r}")
+
+
+class ShapeError(InvalidParameterError):
+    """An array argument has the wrong shape.
+
+    Attributes:
+        name: Name of the argument.
+        expected_shape: Required shape.
+        shape: Shape received.
+    """
+
+    def __init__(self, name: str, expected_shape: tuple[int, ...], shape: tuple[int, ...]) -> None:
+        self.expected_shape = tuple(expected_shape)
+        self.shape = tuple(shape)
+        UControlError.__init__(
+            self, f"`{name}` must have shape {self.expected_shape}, got {self.shape}"
+        )
+        self.name = name
+        self.value = shape
+        self.expected = f"shape {self.expected_shape}"
+
+
+class NonFiniteValueError(InvalidParameterError):
+    """An array argument holds NaN or infinite entries.
+
+    Attributes:
+        name: Name of the argument.
+        indices: Indices of the non-finite entries.
+    """
+
+    def __init__(self, name: str, value: Any, indices: Sequence[int]) -> None:
+        self.indices = list(indices)
+        UControlError.__init__(
+            self, f"`{name}` must be finite, got non-finite entries at {self.indices}: {value!r}"
+        )
+        self.name = name
+        self.value = value
+        self.expected = "finite"
+
+
+class URDFError(UControlError):
+    """A URDF file is missing or cannot be parsed.
+
+    Attributes:
+        path: Path of the URDF file.
+        reason: What went wrong.
+    """
+
+    def __init__(self, path: str, reason: str) -> None:
+        self.path = path
+        self.reason = reason
+        super().__init__(f"cannot load URDF {path!r}: {reason}")
+
+
+class NotFoundError(UControlError, KeyError):
+    """A name (frame, joint, integrator, ...) does not exist.
+
+    Attributes:
+        kind: What was looked up, e.g. ``"frame"``.
+        name: The name asked for.
+        available: The names that exist.
+    """
+
+    def __init__(self, kind: str, name: str, available: Iterable[str]) -> None:
+        self.kind = kind
+        self.name = name
+        self.available = sorted(available)
+        super().__init__(f"unknown {kind} {name!r}; available: {', '.join(self.available)}")
+
+    def __str__(self) -> str:  # KeyError would print the repr of the message
+        return str(self.args[0])
+
+
+class FrameNotFoundError(NotFoundError):
+    """A frame name is not in the robot model; :attr:`available` lists the frames that are."""
+
+    def __init__(self, name: str, available: Iterable[str]) -> None:
+        super().__init__("frame", name, available)
+
+
+class JointNotFoundError(NotFoundError):
+    """A joint name is not in the robot model; :attr:`available` lists the joints that are."""
+
+    def __init__(self, name: str, available: Iterable[str]) -> None:
+        super().__init__("joint", name, available)
+
+
+class InitialPenetrationError(UControlError):
+    """The initial configuration violates a unilateral constraint.
+
+    Attributes:
+        constraint: Name of the violated constraint.
+        gap: Its gap at the initial configuration in [m] (or [rad] for a rotational stop).
+        tolerance: The admissible penetration.
+    """
+
+    def __init__(self, constraint: str, gap: float, tolerance: float) -> None:
+        self.constraint = constraint
+        self.gap = gap
+        self.tolerance = tolerance
+        super().__init__(
+            f"initial configuration penetrates constraint {constraint!r}: gap {gap:.6g} < "
+            f"-{tolerance:.1g}; start the robot outside the obstacle"
+        )
+
+
+class SceneError(UControlError):
+    """A scene file is malformed."""
+
+
+class UnknownKeyError(SceneError, InvalidParameterError):
+    """A scene table holds keys that ucontrol does not know.
+
+    Attributes:
+        section: The table, e.g. ``"[robot]"``.
+        keys: The unknown keys.
+        allowed: The keys the table accepts.
+    """
+
+    def __init__(self, section: str, keys: Iterable[str], allowed: Iterable[str]) -> None:
+        self.section = section
+        self.keys = sorted(keys)
+        self.allowed = sorted(allowed)
+        UControlError.__init__(
+            self,
+            f"unknown key(s) {', '.join(map(repr, self.keys))} in {section}; "
+            f"allowed: {', '.join(self.allowed)}",
+        )
+        self.name = section
+        self.value = self.keys
+        self.expected = f"one of {self.allowed}"
+
+
+class SolverError(UControlError):
+    """A contact solver failed to return a usable solution.
+
+    Attributes:
+        solver: Name of the solver.
+        status: The backend's status.
+        residual: Complementarity residual reached, if known.
+    """
+
+    def __init__(self, solver: str, status: str, residual: float | None = None) -> None:
+        self.solver = solver
+        self.status = status
+        self.residual = residual
+        extra = "" if residual is None else f" (complementarity residual {residual:.3g})"
+        super().__init__(f"{solver} failed with status {status}{extra}")
+
+
+class SimulationError(UControlError):
+    """A run failed part-way; everything up to the failure is logged.
+
+    Attributes:
+        time: Simulation time of the last valid sample in [s].
+        step: Index of the failing step.
+        reason: Why the run stopped.
+        log: The :class:`ucontrol.log.Log` holding every sample up to the failure.
+        log_path: Where the partial log was saved, if the run had an output directory.
+    """
+
+    def __init__(self, time: float, step: int, reason: str, log: Any = None) -> None:
+        self.time = time
+        self.step = step
+        self.reason = reason
+        self.log = log
+        self.log_path: str | None = None
+        super().__init__(f"simulation failed at t = {time:.6g} s (step {step}): {reason}")
+
+    def __str__(self) -> str:
+        saved = f"; log up to the failure saved to {self.log_path}" if self.log_path else ""
+        return f"{self.args[0]}{saved}"

@@ -1,0 +1,176 @@
+"""The trajectory record of a run: preallocated arrays, incremental save, load."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Per-sample arrays of a log, with their shape after the sample axis (see docs/outputs.md).
+SAMPLE_FIELDS: dict[str, str] = {
+    "t": "()",
+    "q": "(nq,)",
+    "v": "(nv,)",
+    "u": "(nu,)",
+    "gap": "(n,)",
+    "normal_velocity": "(n,)",
+    "impulse": "(n,)",
+    "active": "(n,)",
+    "energy": "()",
+    "solver_iterations": "()",
+    "complementarity_residual": "()",
+}
+
+
+class Log:
+    """Samples of a run, one row per time step, stored in preallocated arrays.
+
+    Row k holds the state at ``t[k]`` (``q``, ``v``, ``gap``, ``normal_velocity``, ``energy``)
+    and what acts over the step that starts there: the torque ``u`` (zero-order hold), the
+    normal ``impulse`` of each constraint and its membership of the ``active`` set, and the
+    contact solve's ``solver_iterations`` and ``complementarity_residual``. The last row has no
+    step after it: its impulses are zero and its torque is the one last applied.
+
+    Args:
+        capacity: Maximum number of rows.
+        nq: Configuration size.
+        nv: Velocity size.
+        nu: Number of actuated coordinates.
+        constraint_names: One label per unilateral constraint.
+        metadata: Scalars and strings saved with the arrays (scene, integrator, dt, ...).
+    """
+
+    def __init__(
+        self,
+        capacity: int,
+        *,
+        nq: int,
+        nv: int,
+        nu: int,
+        constraint_names: list[str],
+        metadata: dict[str, Any] | None = None,
+    ) -> None:
+        n = len(constraint_names)
+        self.constraint_names = list(constraint_names)
+        self.metadata = dict(metadata or {})
+        self.size = 0
+        self._arrays: dict[str, NDArray[Any]] = {
+            "t": np.zeros(capacity),
+            "q": np.zeros((capacity, nq)),
+            "v": np.zeros((capacity, nv)),
+            "u": np.zeros((capacity, nu)),
+            "gap": np.zeros((capacity, n)),
+            "normal_velocity": np.zeros((capacity, n)),
+            "impulse": np.zeros((capacity, n)),
+            "active": np.zeros((capacity, n), dtype=bool),
+            "energy": np.zeros(capacity),
+            "solver_iterations": np.zeros(capacity, dtype=np.int64),
+            "complementarity_residual": np.zeros(capacity),
+        }
+        self._extras: dict[str, NDArray[Any]] = {}
+
+    def __len__(self) -> int:
+        return self.size
+
+    def __getattr__(self, name: str) -> NDArray[Any]:
+        arrays = self.__dict__.get("_arrays", {})
+        if name in arrays:
+            return arrays[name][: self.size]
+        extras = self.__dict__.get("_extras", {})
+        if name in extras:
+            return extras[name][: self.size]
+        raise AttributeError(name)
+
+    @property
+    def fields(self) -> list[str]:
+        """Names of the per-sample arrays held."""
+        return [*self._arrays, *self._extras]
+
+    def add_field(self, name: str, shape: tuple[int, ...], dtype: Any = float) -> None:
+        """Add a per-sample array, e.g. a controller's phase, of shape (capacity, *shape)."""
+        capacity = self._arrays["t"].shape[0]
+        self._extras[name] = np.zeros((capacity, *shape), dtype=dtype)
+
+    def row(self, name: str) -> NDArray[Any]:
+        """Writable view of the current row (index ``size``) of field ``name``."""
+        store = self._arrays if name in self._arrays else self._extras
+        return store[name][self.size]
+
+    def record_state(
+        self,
+        t: float,
+        q: NDArray[Any],
+        v: NDArray[Any],
+        gap: NDArray[Any],
+        normal_velocity: NDArray[Any],
+        energy: float,
+    ) -> None:
+        """Write the state part of the current row."""
+        arrays, k = self._arrays, self.size
+        arrays["t"][k] = t
+        arrays["q"][k] = q
+        arrays["v"][k] = v
+        arrays["gap"][k] = gap
+        arrays["normal_velocity"][k] = normal_velocity
+        arrays["energy"][k] = energy
+
+    def record_step(
+        self,
+        u: NDArray[Any],
+        impulse: NDArray[Any],
+        active: NDArray[Any],
+        iterations: int,
+        residual: float,
+    ) -> None:
+        """Write what acts over the step starting at the current row, then close the row."""
+        arrays, k = self._arrays, self.size
+        arrays["u"][k] = u
+        arrays["impulse"][k] = impulse
+        arrays["active"][k] = active
+        arrays["solver_iterations"][k] = iterations
+        arrays["complementarity_residual"][k] = residual
+        self.size = k + 1
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the filled rows to ``path`` (``.npz``) atomically and return the path."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        payload: dict[str, Any] = {name: getattr(self, name) for name in self.fields}
+        payload["constraint_names"] = np.array(self.constraint_names, dtype=str)
+        for key, value in self.metadata.items():
+            payload[f"meta_{key}"] = np.array(value)
+        np.savez(tmp, **payload)
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Log:
+        """Read a log written by :meth:`save`."""
+        with np.load(path) as archive:
+            content = {key: archive[key] for key in archive.files}
+        names = [str(name) for name in content.pop("constraint_names")]
+        metadata = {
+            key.removeprefix("meta_"): content.pop(key).item()
+            for key in list(content)
+            if key.startswith("meta_")
+        }
+        size = content["t"].shape[0]
+        log = cls(
+            size,
+            nq=content["q"].shape[1],
+            nv=content["v"].shape[1],
+            nu=content["u"].shape[1],
+            constraint_names=names,
+            metadata=metadata,
+        )
+        for key, value in content.items():
+            if key not in log._arrays:
+                log._extras[key] = value
+            else:
+                log._arrays[key] = value
+        log.size = size
+        return log

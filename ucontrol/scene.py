@@ -1,0 +1,284 @@
+"""Declarative scenes: a TOML file -> robot, constraints, integrator and controller.
+
+A scene builds only what it declares. The format is documented in ``docs/scene_format.md``;
+unknown keys are an error that names them.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_in_interval, as_positive, as_vector
+from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.contact.joint_stop import JointStop
+from ucontrol.contact.plane import Plane
+from ucontrol.contact.point_contact import PointContact
+from ucontrol.control.controller import Controller
+from ucontrol.control.joint_pd import JointPD
+from ucontrol.control.zero_torque import ZeroTorque
+from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError, UnknownKeyError
+from ucontrol.integrators.moreau_jean import MoreauJean
+from ucontrol.model.robot_model import RobotModel
+from ucontrol.model.urdf_path import resolve_urdf
+from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
+
+#: Scene run by ``ucontrol run`` without a scene argument.
+DEFAULT_SCENE = "two_link_drop.toml"
+
+INTEGRATORS = ("moreau_jean",)
+CONTROLLERS = ("joint_pd", "zero")
+
+_TOP_KEYS = {
+    "name",
+    "duration",
+    "robot",
+    "surfaces",
+    "contacts",
+    "stops",
+    "integrator",
+    "controller",
+}
+_ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity"}
+_SURFACE_KEYS = {"type", "point", "normal"}
+_CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
+_STOP_KEYS = {"joint", "lower", "upper", "restitution"}
+_INTEGRATOR_KEYS = {"name", "dt", "theta", "contact_tolerance", "max_iter"}
+_CONTROLLER_KEYS = {
+    "zero": {"type"},
+    "joint_pd": {"type", "kp", "kd", "q_ref", "gravity_compensation"},
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class IntegratorSettings:
+    """How a scene advances in time.
+
+    Attributes:
+        name: Integrator name, one of :data:`INTEGRATORS`.
+        dt: Time step in [s].
+        theta: θ of the Moreau–Jean position update, in [1/2, 1].
+        contact_tolerance: Absolute tolerance of the contact solver in [m/s].
+        max_iter: Iteration cap of the contact solver.
+    """
+
+    name: str = "moreau_jean"
+    dt: float = 1e-3
+    theta: float = 0.5
+    contact_tolerance: float = 1e-10
+    max_iter: int = 1000
+
+    def __post_init__(self) -> None:
+        if self.name not in INTEGRATORS:
+            raise NotFoundError("integrator", self.name, INTEGRATORS)
+        object.__setattr__(self, "dt", as_positive("dt", self.dt))
+        object.__setattr__(self, "theta", as_in_interval("theta", self.theta, 0.5, 1.0))
+        object.__setattr__(
+            self, "contact_tolerance", as_positive("contact_tolerance", self.contact_tolerance)
+        )
+        object.__setattr__(self, "max_iter", int(as_positive("max_iter", self.max_iter)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scene:
+    """A robot, what it can touch, its initial state, and how to run it.
+
+    Attributes:
+        name: Label used in logs.
+        robot: The robot.
+        contacts: Point contacts.
+        stops: Joint stops.
+        q0: Initial configuration, shape (nq,).
+        v0: Initial velocity, shape (nv,).
+        duration: Default simulated time in [s].
+        integrator: Default integrator settings.
+        controller: Controller table (``type`` plus parameters); ``{"type": "zero"}`` if none.
+    """
+
+    name: str
+    robot: RobotModel
+    contacts: tuple[PointContact, ...] = ()
+    stops: tuple[JointStop, ...] = ()
+    q0: NDArray[np.float64]
+    v0: NDArray[np.float64]
+    duration: float = 1.0
+    integrator: IntegratorSettings = field(default_factory=IntegratorSettings)
+    controller: Mapping[str, Any] = field(default_factory=lambda: {"type": "zero"})
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q0", self.robot.check_configuration("q0", self.q0))
+        object.__setattr__(self, "v0", self.robot.check_velocity("v0", self.v0))
+        object.__setattr__(self, "duration", as_positive("duration", self.duration))
+        object.__setattr__(self, "contacts", tuple(self.contacts))
+        object.__setattr__(self, "stops", tuple(self.stops))
+        object.__setattr__(
+            self, "_constraints", ConstraintSet(self.robot, self.contacts, self.stops)
+        )
+
+    @property
+    def constraints(self) -> ConstraintSet:
+        """The unilateral constraints, contacts first then stops."""
+        constraints: ConstraintSet = self.__dict__["_constraints"]
+        return constraints
+
+    def build_integrator(self, dt: float | None = None) -> MoreauJean:
+        """The integrator of this scene, optionally with another step ``dt`` in [s]."""
+        settings = self.integrator
+        solver = ProxsuiteLCPSolver(eps_abs=settings.contact_tolerance, max_iter=settings.max_iter)
+        return MoreauJean(
+            self.robot,
+            self.constraints,
+            dt=settings.dt if dt is None else dt,
+            theta=settings.theta,
+            solver=solver,
+        )
+
+    def build_controller(self) -> Controller:
+        """The controller declared by the scene's ``[controller]`` table."""
+        table = dict(self.controller)
+        kind = table.get("type", "zero")
+        if kind not in _CONTROLLER_KEYS:
+            raise NotFoundError("controller type", kind, CONTROLLERS)
+        _check_keys("[controller]", table, _CONTROLLER_KEYS[kind])
+        if kind == "joint_pd":
+            return JointPD(
+                self.robot,
+                q_ref=table.get("q_ref", self.q0),
+                kp=_require(table, "[controller]", "kp"),
+                kd=_require(table, "[controller]", "kd"),
+                gravity_compensation=bool(table.get("gravity_compensation", True)),
+            )
+        return ZeroTorque(self.robot.nu)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Scene:
+        """Load a scene file; relative URDF paths are taken from the file's folder.
+
+        Raises:
+            SceneError: The file is missing or not valid TOML.
+            UnknownKeyError: A table holds keys the format does not define.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise SceneError(f"scene file {str(path)!r} does not exist")
+        try:
+            table = tomllib.loads(path.read_text())
+        except tomllib.TOMLDecodeError as error:
+            raise SceneError(f"scene file {str(path)!r} is not valid TOML: {error}") from error
+        return cls.from_dict(table, base_dir=path.parent, default_name=path.stem)
+
+    @classmethod
+    def from_dict(
+        cls, table: Mapping[str, Any], *, base_dir: Path, default_name: str = "scene"
+    ) -> Scene:
+        """Build a scene from its parsed TOML table (see :meth:`from_toml`)."""
+        _check_keys("the scene", table, _TOP_KEYS)
+        robot_table = _require(table, "the scene", "robot")
+        _check_keys("[robot]", robot_table, _ROBOT_KEYS)
+        gravity = robot_table.get("gravity", [0.0, 0.0, -9.81])
+        robot = RobotModel.from_urdf(
+            resolve_urdf(str(_require(robot_table, "[robot]", "urdf")), base_dir),
+            floating_base=bool(robot_table.get("floating_base", False)),
+            gravity=as_vector("gravity", gravity, 3),
+        )
+        q0 = robot_table.get("q0", robot.neutral())
+        v0 = robot_table.get("v0", np.zeros(robot.nv))
+        surfaces = {
+            name: _plane(f"[surfaces.{name}]", name, spec)
+            for name, spec in table.get("surfaces", {}).items()
+        }
+        contacts = [_contact(spec, surfaces) for spec in table.get("contacts", [])]
+        stops = [_stop(spec, robot) for spec in table.get("stops", [])]
+        integrator_table = dict(table.get("integrator", {}))
+        _check_keys("[integrator]", integrator_table, _INTEGRATOR_KEYS)
+        return cls(
+            name=str(table.get("name", default_name)),
+            robot=robot,
+            contacts=tuple(contacts),
+            stops=tuple(stops),
+            q0=q0,
+            v0=v0,
+            duration=table.get("duration", 1.0),
+            integrator=IntegratorSettings(**integrator_table),
+            controller=dict(table.get("controller", {"type": "zero"})),
+        )
+
+
+def builtin_scene(name: str = DEFAULT_SCENE) -> Path:
+    """Path of a scene shipped with ucontrol (the repository's ``robots/`` folder)."""
+    path = Path(str(files("ucontrol.robots").joinpath(name)))
+    if not path.is_file():
+        available = [p.name for p in Path(str(files("ucontrol.robots"))).glob("*.toml")]
+        raise NotFoundError("built-in scene", name, available)
+    return path
+
+
+def load_scene(path: str | Path | None = None) -> Scene:
+    """Load a scene file, or the built-in default scene when ``path`` is None."""
+    return Scene.from_toml(builtin_scene() if path is None else path)
+
+
+def _check_keys(section: str, table: Mapping[str, Any], allowed: set[str]) -> None:
+    if not isinstance(table, Mapping):
+        raise SceneError(f"{section} must be a table, got {table!r}")
+    unknown = set(table) - allowed
+    if unknown:
+        raise UnknownKeyError(section, unknown, allowed)
+
+
+def _require(table: Mapping[str, Any], section: str, key: str) -> Any:
+    if key not in table:
+        raise SceneError(f"{section} needs the key {key!r}")
+    return table[key]
+
+
+def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
+    _check_keys(section, spec, _SURFACE_KEYS)
+    kind = spec.get("type", "plane")
+    if kind != "plane":
+        raise InvalidParameterError(f"{section} type", kind, "'plane'")
+    return Plane(
+        point=spec.get("point", [0.0, 0.0, 0.0]),
+        normal=_require(spec, section, "normal"),
+        name=name,
+    )
+
+
+def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointContact:
+    _check_keys("[[contacts]]", spec, _CONTACT_KEYS)
+    surface = _require(spec, "[[contacts]]", "surface")
+    if isinstance(surface, Mapping):
+        plane = _plane("[[contacts]] surface", "plane", surface)
+    elif surface in surfaces:
+        plane = surfaces[surface]
+    else:
+        raise NotFoundError("surface", str(surface), surfaces)
+    return PointContact(
+        frame=str(_require(spec, "[[contacts]]", "frame")),
+        surface=plane,
+        radius=spec.get("radius", 0.0),
+        restitution=spec.get("restitution", 0.0),
+        friction=spec.get("friction", 0.0),
+        name=str(spec.get("name", "")),
+    )
+
+
+def _stop(spec: Mapping[str, Any], robot: RobotModel) -> JointStop:
+    """A joint stop; without ``lower``/``upper`` it takes the URDF's position limits."""
+    _check_keys("[[stops]]", spec, _STOP_KEYS)
+    joint = str(_require(spec, "[[stops]]", "joint"))
+    lower, upper = spec.get("lower"), spec.get("upper")
+    if lower is None and upper is None:
+        joint_model = robot.model.joints[robot.joint_id(joint)]
+        lower = float(robot.model.lowerPositionLimit[joint_model.idx_q])
+        upper = float(robot.model.upperPositionLimit[joint_model.idx_q])
+    return JointStop(
+        joint=joint, lower=lower, upper=upper, restitution=spec.get("restitution", 0.0)
+    )

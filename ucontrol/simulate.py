@@ -1,0 +1,190 @@
+"""The closed loop: plant + controller (zero-order hold) + log."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ucontrol._validation import as_positive, as_vector
+from ucontrol.analysis.summary import summarize
+from ucontrol.control.controller import ContactState, Controller
+from ucontrol.exceptions import (
+    InitialPenetrationError,
+    SimulationError,
+    UControlError,
+)
+from ucontrol.log import Log
+from ucontrol.scene import Scene
+
+#: Largest initial penetration accepted, in [m] (or [rad] for stops).
+PENETRATION_TOLERANCE = 1e-9
+#: Runs of at least this many steps show a progress bar when ``progress`` is None.
+PROGRESS_MIN_STEPS = 20_000
+#: With an output directory, the log is rewritten at least this often, in [s] of wall time.
+CHECKPOINT_PERIOD_S = 10.0
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """A finished run.
+
+    Attributes:
+        log: Every sample.
+        summary: Figures of merit (see :func:`ucontrol.analysis.summarize`).
+        out: The output directory, if one was given.
+    """
+
+    log: Log
+    summary: dict[str, Any]
+    out: Path | None
+
+
+def simulate(
+    scene: Scene,
+    controller: Controller | None = None,
+    duration: float | None = None,
+    *,
+    dt: float | None = None,
+    control_period: float | None = None,
+    out: str | Path | None = None,
+    progress: bool | None = None,
+) -> SimulationResult:
+    """Run ``scene`` in closed loop with ``controller`` for ``duration`` seconds.
+
+    Args:
+        scene: The plant, its initial state and its default settings.
+        controller: Called as ``controller(t, q, v, contacts)``; default the scene's.
+        duration: Simulated time in [s]; default the scene's.
+        dt: Time step in [s]; default the scene's integrator step.
+        control_period: Controller period in [s] (zero-order hold); default every step.
+            Rounded to a whole number of steps.
+        out: Directory for ``log.npz`` and ``summary.json``; the log is also checkpointed there
+            during long runs and saved when a run fails.
+        progress: Show a progress bar; default for runs of at least 20 000 steps.
+
+    Raises:
+        InitialPenetrationError: The initial configuration violates a constraint.
+        SimulationError: The run failed part-way; its ``log`` holds every sample up to then.
+    """
+    integrator = scene.build_integrator(dt=dt)
+    h = integrator.dt
+    duration = as_positive("duration", scene.duration if duration is None else duration)
+    hold = (
+        1
+        if control_period is None
+        else max(1, round(as_positive("control_period", control_period) / h))
+    )
+    controller = scene.build_controller() if controller is None else controller
+    robot, constraints = scene.robot, integrator.constraints
+    q, v = scene.q0, scene.v0
+    gap0 = constraints.gaps(q)
+    if gap0.size and gap0.min() < -PENETRATION_TOLERANCE:
+        worst = int(np.argmin(gap0))
+        raise InitialPenetrationError(
+            constraints.names[worst], float(gap0[worst]), PENETRATION_TOLERANCE
+        )
+
+    n_steps = max(1, math.ceil(duration / h - 1e-9))
+    log = Log(
+        n_steps + 1,
+        nq=robot.nq,
+        nv=robot.nv,
+        nu=robot.nu,
+        constraint_names=constraints.names,
+        metadata={
+            "scene": scene.name,
+            "integrator": integrator.name,
+            "dt": h,
+            "theta": integrator.theta,
+            "control_period": hold * h,
+            "actuated": robot.actuated.tolist(),
+        },
+    )
+    out_dir = Path(out) if out is not None else None
+    bar = _progress_bar(n_steps, progress)
+    contacts_zero = np.zeros(constraints.size)
+    inactive = np.zeros(constraints.size, dtype=bool)
+    impulse, active = contacts_zero, inactive
+    tau = np.zeros(robot.nv)
+    actuated = robot.actuated
+    u = np.zeros(robot.nu)
+    start = last_checkpoint = time.perf_counter()
+    k, row_open = 0, False
+    try:
+        for k in range(n_steps + 1):
+            t = k * h
+            state = integrator.evaluate(q, v)
+            log.record_state(
+                t,
+                q,
+                v,
+                state.gap,
+                state.normal_velocity,
+                state.kinetic_energy + state.potential_energy,
+            )
+            row_open = True
+            if k == n_steps:
+                break
+            if k % hold == 0:
+                contacts = ContactState(
+                    constraints.names, state.gap, state.normal_velocity, impulse, active, h
+                )
+                u = as_vector("controller output u", controller(t, q, v, contacts), robot.nu)
+                tau[actuated] = u
+            outcome = integrator.step(state, tau)
+            solution = outcome.solution
+            log.record_step(
+                u,
+                outcome.impulse,
+                outcome.active,
+                0 if solution is None else solution.iterations,
+                0.0 if solution is None else solution.residual,
+            )
+            row_open = False
+            q, v, impulse, active = outcome.q, outcome.v, outcome.impulse, outcome.active
+            if not math.isfinite(float(q.sum() + v.sum())):
+                raise _NonFiniteState(f"the state became non-finite at t = {t + h:.6g} s")
+            if k % 1000 == 0:
+                if bar is not None:
+                    bar.update(min(1000, n_steps - bar.n))
+                if (
+                    out_dir is not None
+                    and time.perf_counter() - last_checkpoint > CHECKPOINT_PERIOD_S
+                ):
+                    log.save(out_dir / "log.npz")
+                    last_checkpoint = time.perf_counter()
+        log.record_step(u, contacts_zero, inactive, 0, 0.0)
+    except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
+        if row_open:  # the state at t_k is stored, its step is not: close the row
+            log.record_step(u, contacts_zero, inactive, 0, 0.0)
+        failure = SimulationError(float(log.t[-1]) if len(log) else 0.0, k, str(error), log)
+        if out_dir is not None:
+            failure.log_path = str(log.save(out_dir / "log.npz"))
+        raise failure from error
+    finally:
+        if bar is not None:
+            bar.close()
+    wall_time = time.perf_counter() - start
+    summary = summarize(log, wall_time_s=wall_time, theta=integrator.theta)
+    if out_dir is not None:
+        log.save(out_dir / "log.npz")
+        (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return SimulationResult(log, summary, out_dir)
+
+
+class _NonFiniteState(ArithmeticError):
+    """Internal signal: the state left the finite numbers."""
+
+
+def _progress_bar(n_steps: int, progress: bool | None) -> Any:
+    if progress is False or (progress is None and n_steps < PROGRESS_MIN_STEPS):
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=n_steps, unit="step", unit_scale=True, desc="simulate")

@@ -1,0 +1,122 @@
+r"""Frictionless contact impulses as a proxsuite QP.
+
+The velocity-level Signorini–Newton problem of one Moreau–Jean step,
+
+.. math:: 0 \le P \perp D P + b \ge 0, \qquad D = J W^{-1} J^T,\;
+          b = J v_\text{free} + e \odot J v_k,
+
+is the optimality system of the convex QP :math:`\min_{P \ge 0} \tfrac12 P^T D P + b^T P`,
+solved here with proxsuite's dense solver. Redundant constraints make :math:`D` singular; the
+proximal method still converges and the velocity :math:`v = v_\text{free} + W^{-1} J^T P` is unique.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import proxsuite
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_positive
+from ucontrol.solvers.contact_solution import ContactSolution, complementarity_residual
+
+_SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
+_WARM_START = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+
+
+class ProxsuiteLCPSolver:
+    """Solve frictionless contact LCPs with reused, warm-started proxsuite QP objects.
+
+    One QP object is kept per problem size and updated in place; each solve starts from the
+    previous solution of that size. The QP solution is then polished: the linear system of its
+    active set is solved directly and kept when it satisfies complementarity better, which
+    brings restitution to machine precision.
+
+    Args:
+        eps_abs: Absolute tolerance of proxsuite in [m/s].
+        max_iter: Iteration cap of proxsuite.
+        polish: Refine on the active set after the QP solve.
+    """
+
+    name = "proxsuite"
+
+    def __init__(self, *, eps_abs: float = 1e-10, max_iter: int = 1000, polish: bool = True):
+        self.eps_abs = as_positive("eps_abs", eps_abs)
+        self.max_iter = int(as_positive("max_iter", max_iter))
+        self.polish = polish
+        self._qps: dict[int, proxsuite.proxqp.dense.QP] = {}
+
+    def _solved_qp(
+        self, D: NDArray[np.float64], b: NDArray[np.float64]
+    ) -> proxsuite.proxqp.dense.QP:
+        """The QP object of this size, updated with (D, b) and solved."""
+        m = b.size
+        qp = self._qps.get(m)
+        if qp is None:
+            qp = proxsuite.proxqp.dense.QP(m, 0, m)
+            qp.settings.eps_abs = self.eps_abs
+            qp.settings.eps_rel = 0.0
+            qp.settings.max_iter = self.max_iter
+            qp.settings.verbose = False
+            qp.init(D, b, None, None, np.eye(m), np.zeros(m), np.full(m, 1e20))
+            qp.solve()
+            # Only once a result exists: warm-starting from none crashes proxsuite 0.8.
+            qp.settings.initial_guess = _WARM_START
+            self._qps[m] = qp
+            return qp
+        qp.update(D, b, None, None, None, None, None)
+        qp.solve()
+        return qp
+
+    def solve(self, D: NDArray[np.float64], b: NDArray[np.float64]) -> ContactSolution:
+        """Impulses P >= 0 with D P + b >= 0 and P · (D P + b) = 0.
+
+        Args:
+            D: Delassus matrix, symmetric positive semidefinite, shape (m, m), [m/s per N s].
+            b: Free constraint velocity plus restitution term in [m/s], shape (m,).
+        """
+        start = time.perf_counter()
+        qp = self._solved_qp(D, b)
+        info = qp.results.info
+        impulses = np.maximum(qp.results.x, 0.0)
+        residual = complementarity_residual(D, b, impulses)
+        polished = False
+        if self.polish and residual > 0.0:
+            candidate = _polish(D, b, impulses)
+            if candidate is not None:
+                candidate_residual = complementarity_residual(D, b, candidate)
+                if candidate_residual <= residual:
+                    impulses, residual, polished = candidate, candidate_residual, True
+        solved = info.status == _SOLVED or residual <= self.eps_abs
+        return ContactSolution(
+            impulses=impulses,
+            velocity=D @ impulses + b,
+            status="solved" if solved else str(info.status),
+            iterations=int(info.iter),
+            residual=residual,
+            solve_time_s=time.perf_counter() - start,
+            polished=polished,
+        )
+
+
+def _polish(
+    D: NDArray[np.float64], b: NDArray[np.float64], impulses: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """Solve ``D_AA P_A = -b_A`` on the active set A of ``impulses``; None if inadmissible."""
+    scale = np.diag(D)
+    active = scale * impulses > D @ impulses + b
+    if not active.any():
+        return np.zeros_like(impulses)
+    D_active = D[np.ix_(active, active)]
+    if D_active.shape[0] == 1:
+        if D_active[0, 0] <= 0.0:
+            return None
+        P_active = -b[active] / D_active[0, 0]
+    else:
+        P_active = np.linalg.lstsq(D_active, -b[active], rcond=1e-12)[0]
+    if np.any(P_active < 0.0):
+        return None
+    candidate = np.zeros_like(impulses)
+    candidate[active] = P_active
+    return candidate
