@@ -94,10 +94,9 @@ class Log:
         capacity = self._arrays["t"].shape[0]
         self._extras[name] = np.zeros((capacity, *shape), dtype=dtype)
 
-    def row(self, name: str) -> NDArray[Any]:
-        """Writable view of the current row (index ``size``) of field ``name``."""
-        store = self._arrays if name in self._arrays else self._extras
-        return store[name][self.size]
+    def record_extra(self, name: str, value: Any) -> None:
+        """Write ``value`` into the current row of a field added by :meth:`add_field`."""
+        self._extras[name][self.size] = value
 
     def record_state(
         self,

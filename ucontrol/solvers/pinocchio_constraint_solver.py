@@ -1,0 +1,417 @@
+r"""Pinocchio 4.1's ADMM and PGS constraint solvers, as a reference for our contact solver.
+
+Two entry points, both for verification and benchmarks (the plant uses
+:class:`~ucontrol.solvers.proxsuite_lcp.ProxsuiteLCPSolver`):
+
+- :class:`PinocchioContactSolver` solves the same frictionless LCP as our solver,
+  :math:`0 \le P \perp D P + b \ge 0`, from the Delassus matrix D and the term b of one
+  Moreau–Jean step, with ``pin.ADMMConstraintSolver`` or ``pin.PGSConstraintSolver``.
+- :class:`PinocchioStepper` (and :func:`pinocchio_step`) runs one whole velocity-level step
+  "the Pinocchio way": ``aba`` for the free velocity, ``crba`` in the WORLD convention,
+  ``PointContactConstraintModel`` contacts, the Delassus operator of a
+  ``ConstraintCholeskyDecomposition``, the ADMM or PGS solve and ``aba`` again for
+  :math:`v_{k+1}` — what a Pinocchio user would write.
+
+**Which Pinocchio constraint.** Pinocchio 4.1 has no one-dimensional unilateral point contact:
+``PointContactConstraintModel`` is a 3D contact whose impulse lives in a Coulomb cone
+(``CoulombFrictionCone``, axis = local z) and whose velocity lives in the dual cone. With the
+friction coefficient set to 0 the cone is the half-line :math:`\{P_t = 0, P_n \ge 0\}` and its
+dual the half-space :math:`\{u_n \ge 0\}` (tangential velocities free, De Saxcé correction
+:math:`\mu \|u_t\| = 0`), so the conic problem is exactly the frictionless LCP in the normal
+components. We therefore use one frictionless ``PointContactConstraintModel`` per contact:
+
+- in :class:`PinocchioContactSolver`, the m normal rows are embedded in a 3m problem whose
+  local z components carry D and b, the tangential block is the identity and the tangential
+  drift is 0 (so the tangential impulses are 0 and do not couple);
+- in :class:`PinocchioStepper`, joint 1 is the universe with a placement whose z axis is the
+  plane normal and joint 2 is the contact frame's parent joint with the frame's placement; the
+  constraint velocity is then (velocity of point 2 - velocity of point 1) in the axes of
+  placement 1, whose z row is :math:`n^T J_{lin}(F)` — the row of our
+  :class:`~ucontrol.contact.constraint_set.ConstraintSet`.
+
+**Facts of pin 4.1 relied on** (DESIGN §6): ADMM updates the damping of the Delassus operator
+it is given in place, so a dense operator is rebuilt for every solve; PGS divides by the
+diagonal of the Delassus matrix, so a small compliance (default 1e-10) is added for it, which
+also makes redundant contacts solvable.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_in_interval, as_positive, as_vector
+from ucontrol.contact.point_contact import PointContact
+from ucontrol.exceptions import (
+    FrameNotFoundError,
+    InvalidParameterError,
+    NonFiniteValueError,
+    ShapeError,
+    SolverError,
+)
+from ucontrol.solvers.contact_solution import ContactSolution, complementarity_residual
+
+Vector = NDArray[np.float64]
+
+#: Methods accepted by :class:`PinocchioContactSolver` and :class:`PinocchioStepper`.
+METHODS = ("admm", "pgs")
+
+_DEFAULT_COMPLIANCE = {"admm": 0.0, "pgs": 1e-10}  # [m/s per N s] added to diag(D)
+_LWA = pin.LOCAL_WORLD_ALIGNED
+
+
+def _check_method(method: str) -> str:
+    if method not in METHODS:
+        raise InvalidParameterError("method", method, f"one of {METHODS}")
+    return method
+
+
+def _compliance(method: str, compliance: float | None) -> float:
+    if compliance is None:
+        return _DEFAULT_COMPLIANCE[method]
+    value = float(compliance)
+    if not value >= 0.0:
+        raise InvalidParameterError("compliance", compliance, ">= 0")
+    return value
+
+
+def _backend(method: str, size: int, tolerance: float, max_iter: int) -> tuple[Any, Any, Any]:
+    """A Pinocchio solver of ``method`` for ``size`` unknowns, its settings and result."""
+    if method == "admm":
+        solver, settings, result = (
+            pin.ADMMConstraintSolver(size),
+            pin.ADMMSolverSettings(),
+            pin.ADMMSolverResult(),
+        )
+    else:
+        solver, settings, result = (
+            pin.PGSConstraintSolver(size),
+            pin.PGSSolverSettings(),
+            pin.PGSSolverResult(),
+        )
+    settings.absolute_feasibility_tol = tolerance
+    settings.relative_feasibility_tol = tolerance
+    settings.absolute_complementarity_tol = tolerance
+    settings.relative_complementarity_tol = tolerance
+    settings.max_iterations = max_iter
+    return solver, settings, result
+
+
+def _frictionless(contact_model: pin.PointContactConstraintModel) -> pin.ConstraintModel:
+    """``contact_model`` with friction 0, wrapped in a generic constraint model."""
+    contact_model.setFriction(0.0)
+    return pin.ConstraintModel(contact_model)
+
+
+class PinocchioContactSolver:
+    r"""Frictionless contact LCPs solved by Pinocchio's ADMM or PGS constraint solver.
+
+    Same interface as :class:`~ucontrol.solvers.proxsuite_lcp.ProxsuiteLCPSolver`: given the
+    Delassus matrix D and the term b, return the impulses of :math:`0 \le P \perp D P + b \ge 0`.
+    The m normal constraints are frictionless 3D ``PointContactConstraintModel`` cones whose
+    local z rows carry (D, b) (see the module docstring). Solver objects are kept per size.
+
+    Args:
+        method: ``"admm"`` or ``"pgs"``.
+        tolerance: Absolute and relative feasibility and complementarity tolerance of the
+            backend, in [m/s] (its natural unit for impulses in [N s]).
+        max_iter: Iteration cap of the backend.
+        compliance: Added to the diagonal of D in [m/s per N s]; default 0 for ADMM and
+            1e-10 for PGS (which divides by that diagonal).
+    """
+
+    def __init__(
+        self,
+        method: str = "admm",
+        *,
+        tolerance: float = 1e-12,
+        max_iter: int = 10_000,
+        compliance: float | None = None,
+    ) -> None:
+        self.method = _check_method(method)
+        self.name = f"pinocchio-{method}"
+        self.tolerance = as_positive("tolerance", tolerance)
+        self.max_iter = int(as_positive("max_iter", max_iter))
+        self.compliance = _compliance(method, compliance)
+        self._empty_model = pin.Model()
+        self._problems: dict[int, tuple[Any, ...]] = {}
+
+    def _problem(self, m: int) -> tuple[Any, ...]:
+        """Constraint models, datas, solver, settings, result and buffers for m contacts."""
+        problem = self._problems.get(m)
+        if problem is None:
+            models = pin.StdVec_ConstraintModel()
+            datas = pin.StdVec_ConstraintData()
+            for _ in range(m):
+                models.append(_frictionless(pin.PointContactConstraintModel(self._empty_model)))
+                datas.append(models[-1].createData())
+            solver, settings, result = _backend(self.method, 3 * m, self.tolerance, self.max_iter)
+            G = np.eye(3 * m)  # tangential block: identity, uncoupled
+            g = np.zeros(3 * m)  # tangential drift: 0
+            problem = (models, datas, solver, settings, result, G, g)
+            self._problems[m] = problem
+        return problem
+
+    def solve(self, D: NDArray[np.float64], b: NDArray[np.float64]) -> ContactSolution:
+        """Impulses P >= 0 with D P + b >= 0 and P · (D P + b) = 0.
+
+        Args:
+            D: Delassus matrix, symmetric positive semidefinite, shape (m, m), [m/s per N s].
+            b: Free constraint velocity plus restitution term in [m/s], shape (m,).
+
+        Raises:
+            ShapeError: ``b`` is not a vector, or ``D`` is not (m, m) for ``b`` of shape (m,).
+            NonFiniteValueError: ``D`` or ``b`` holds NaN or infinity (flat indices).
+            SolverError: Pinocchio raised, or returned non-finite impulses.
+        """
+        start = time.perf_counter()
+        b = as_vector("b", b)
+        D = np.asarray(D, dtype=float)
+        m = b.shape[0]
+        if D.shape != (m, m):
+            raise ShapeError("D", (m, m), D.shape)
+        bad = np.flatnonzero(~np.isfinite(D))
+        if bad.size:
+            raise NonFiniteValueError("D", D, bad.tolist())
+        if m == 0:
+            return ContactSolution(
+                impulses=np.zeros(0),
+                velocity=np.zeros(0),
+                status="solved",
+                iterations=0,
+                residual=0.0,
+                solve_time_s=time.perf_counter() - start,
+            )
+        models, datas, solver, settings, result, G, g = self._problem(m)
+        G[2::3, 2::3] = D
+        g[2::3] = b
+        delassus = pin.DelassusOperatorDense(G)  # fresh: ADMM changes its damping in place
+        if self.compliance > 0.0:
+            delassus.updateCompliance(self.compliance)
+        try:
+            converged = solver.solve(delassus, g, models, datas, settings, result)
+        except (RuntimeError, ValueError, ArithmeticError) as error:
+            raise SolverError(self.name, f"raised {error!r}") from error
+        impulses = result.retrieveConstraintImpulses()[2::3]
+        if not np.all(np.isfinite(impulses)):
+            raise SolverError(self.name, "non-finite impulses")
+        impulses = np.maximum(impulses, 0.0)
+        return ContactSolution(
+            impulses=impulses,
+            velocity=D @ impulses + b,
+            status="solved" if converged else "max_iterations_reached",
+            iterations=int(result.iterations),
+            residual=complementarity_residual(D, b, impulses),
+            solve_time_s=time.perf_counter() - start,
+        )
+
+
+@dataclass(frozen=True)
+class PinocchioStepOutcome:
+    """The result of one step of :class:`PinocchioStepper`.
+
+    Attributes:
+        q: Configuration at the end of the step, shape (nq,).
+        v: Velocity at the end of the step, shape (nv,).
+        impulse: Normal impulse of each contact over the step in [N s], shape (n,).
+        active: Which contacts were in the active set, shape (n,).
+        converged: Whether the backend reported convergence (True without active contacts).
+        iterations: Backend iterations (0 without active contacts).
+    """
+
+    q: Vector
+    v: Vector
+    impulse: Vector
+    active: NDArray[np.bool_]
+    converged: bool
+    iterations: int
+
+
+class PinocchioStepper:
+    r"""One frictionless Moreau–Jean step written with Pinocchio's own contact machinery.
+
+    Per step, with :math:`h` = ``dt``:
+
+    1. ``aba`` gives :math:`v_\text{free} = v_k + h M^{-1}(\tau - h(q_k, v_k))`;
+    2. ``crba`` (WORLD convention, also the joint placements) and the frame placements give the
+       gaps and normal velocities; contact a is active iff :math:`g_a + (h/2) u_a \le 0`, the
+       rule of :class:`~ucontrol.integrators.moreau_jean.MoreauJean`;
+    3. the active ``PointContactConstraintModel`` are evaluated (``calc``), a
+       ``ConstraintCholeskyDecomposition`` is computed and its Delassus operator handed to
+       ``ADMMConstraintSolver`` / ``PGSConstraintSolver`` with drift
+       :math:`J v_\text{free} + e \odot J_n v_k` (restitution on the normal rows);
+    4. :math:`v_{k+1} = v_k + h\,\mathrm{aba}(q_k, v_k, \tau + J^T P / h)` and
+       :math:`q_{k+1} = q_k \oplus h((1-\theta) v_k + \theta v_{k+1})`.
+
+    Constraint models are built once per contact (their placements are constant: the normal
+    is fixed in the world, the point fixed on the body); the Cholesky decomposition and the
+    solver are built once per active set. Joint stops are not modelled.
+
+    Args:
+        model: The Pinocchio model.
+        contacts: Point contacts against planes (frame, plane, radius, restitution; friction
+            is ignored, the step is frictionless).
+        dt: Time step h in [s].
+        theta: θ of the position update, in [1/2, 1].
+        method: ``"admm"`` or ``"pgs"``.
+        tolerance: Feasibility and complementarity tolerance of the backend in [m/s].
+        max_iter: Iteration cap of the backend.
+        compliance: Regularization of the Cholesky decomposition (added to the Delassus
+            diagonal) in [m/s per N s]; default 0 for ADMM and 1e-10 for PGS.
+        data: Pinocchio data buffer to use; default a private one.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        contacts: Sequence[PointContact],
+        *,
+        dt: float,
+        theta: float = 0.5,
+        method: str = "admm",
+        tolerance: float = 1e-12,
+        max_iter: int = 10_000,
+        compliance: float | None = None,
+        data: pin.Data | None = None,
+    ) -> None:
+        self.model = model
+        self.data = data if data is not None else model.createData()
+        self.contacts = tuple(contacts)
+        self.dt = as_positive("dt", dt)
+        self.theta = as_in_interval("theta", theta, 0.5, 1.0)
+        self.method = _check_method(method)
+        self.tolerance = as_positive("tolerance", tolerance)
+        self.max_iter = int(as_positive("max_iter", max_iter))
+        self.compliance = _compliance(method, compliance)
+        self._frame_ids: list[int] = []
+        self._contact_models: list[pin.ConstraintModel] = []
+        for contact in self.contacts:
+            if not model.existFrame(contact.frame):
+                raise FrameNotFoundError(contact.frame, [f.name for f in model.frames])
+            frame_id = int(model.getFrameId(contact.frame))
+            frame = model.frames[frame_id]
+            normal = contact.surface.normal
+            world_placement = pin.SE3(_rotation_with_z(normal), contact.surface.point)
+            self._frame_ids.append(frame_id)
+            self._contact_models.append(
+                _frictionless(
+                    pin.PointContactConstraintModel(
+                        model, 0, world_placement, frame.parentJoint, frame.placement
+                    )
+                )
+            )
+        self._normals = np.array([c.surface.normal for c in self.contacts]).reshape(-1, 3)
+        self._offsets = np.array(
+            [c.surface.normal @ c.surface.point + c.radius for c in self.contacts]
+        )
+        self._restitution = np.array([c.restitution for c in self.contacts], dtype=float)
+        self._active_sets: dict[tuple[int, ...], tuple[Any, ...]] = {}
+
+    def _active_set(self, indices: tuple[int, ...]) -> tuple[Any, ...]:
+        """Models, datas, Cholesky decomposition and solver of the active set ``indices``."""
+        entry = self._active_sets.get(indices)
+        if entry is None:
+            models = pin.StdVec_ConstraintModel()
+            datas = pin.StdVec_ConstraintData()
+            for i in indices:
+                models.append(self._contact_models[i])
+                datas.append(models[-1].createData())
+                models[-1].calc(self.model, self.data, datas[-1])
+            cholesky = pin.ConstraintCholeskyDecomposition(self.model, self.data, models, datas)
+            solver, settings, result = _backend(
+                self.method, 3 * len(indices), self.tolerance, self.max_iter
+            )
+            restitution = self._restitution[list(indices)]
+            entry = (models, datas, cholesky, solver, settings, result, restitution)
+            self._active_sets[indices] = entry
+        return entry
+
+    def step(self, q: Vector, v: Vector, tau: Vector) -> PinocchioStepOutcome:
+        """Advance one step from (q, v) under generalized forces ``tau`` (nv,) in [N m] or [N].
+
+        Raises:
+            SolverError: Pinocchio raised, or returned non-finite impulses.
+        """
+        model, data, h = self.model, self.data, self.dt
+        v_free = v + h * pin.aba(model, data, q, v, tau)
+        pin.crba(model, data, q, pin.Convention.WORLD)  # M, oMi; data.v comes from aba
+        n = len(self.contacts)
+        gap = np.empty(n)
+        normal_velocity = np.empty(n)
+        for i, frame_id in enumerate(self._frame_ids):
+            placement = pin.updateFramePlacement(model, data, frame_id)
+            gap[i] = self._normals[i] @ placement.translation - self._offsets[i]
+            velocity = pin.getFrameVelocity(model, data, frame_id, _LWA).linear
+            normal_velocity[i] = self._normals[i] @ velocity
+        active = gap + 0.5 * h * normal_velocity <= 0.0
+        impulse = np.zeros(n)
+        converged, iterations = True, 0
+        if active.any():
+            indices = tuple(np.flatnonzero(active).tolist())
+            models, datas, cholesky, solver, settings, result, restitution = self._active_set(
+                indices
+            )
+            try:
+                for constraint_model, constraint_data in zip(models, datas, strict=True):
+                    constraint_model.calc(model, data, constraint_data)
+                cholesky.compute(model, data, models, datas, self.compliance)
+                delassus = cholesky.getDelassusOperatorCholeskyExpression()
+                J = pin.getConstraintsJacobian(model, data, models, datas)
+                drift = J @ v_free
+                drift[2::3] += restitution * normal_velocity[list(indices)]
+                converged = solver.solve(delassus, drift, models, datas, settings, result)
+            except (RuntimeError, ValueError, ArithmeticError) as error:
+                raise SolverError(f"pinocchio-{self.method}", f"raised {error!r}") from error
+            impulses = result.retrieveConstraintImpulses()
+            if not np.all(np.isfinite(impulses)):
+                raise SolverError(f"pinocchio-{self.method}", "non-finite impulses")
+            iterations = int(result.iterations)
+            impulse[list(indices)] = impulses[2::3]
+            v_next = v + h * pin.aba(model, data, q, v, tau + J.T @ impulses / h)
+        else:
+            v_next = v_free
+        q_next = pin.integrate(model, q, h * ((1.0 - self.theta) * v + self.theta * v_next))
+        return PinocchioStepOutcome(q_next, v_next, impulse, active, bool(converged), iterations)
+
+
+def pinocchio_step(
+    model: pin.Model,
+    data: pin.Data,
+    q: Vector,
+    v: Vector,
+    tau: Vector,
+    dt: float,
+    contacts: Sequence[PointContact],
+    **options: Any,
+) -> PinocchioStepOutcome:
+    """One Moreau–Jean step the Pinocchio way; see :class:`PinocchioStepper`.
+
+    Builds the constraint models and the solver for this call only; loops should keep a
+    :class:`PinocchioStepper` instead.
+
+    Args:
+        model: The Pinocchio model.
+        data: Its data buffer (overwritten).
+        q: Configuration, shape (nq,).
+        v: Velocity, shape (nv,).
+        tau: Generalized forces, shape (nv,), in [N m] or [N].
+        dt: Time step in [s].
+        contacts: Point contacts against planes.
+        **options: ``theta``, ``method``, ``tolerance``, ``max_iter``, ``compliance`` of
+            :class:`PinocchioStepper`.
+    """
+    return PinocchioStepper(model, contacts, dt=dt, data=data, **options).step(q, v, tau)
+
+
+def _rotation_with_z(normal: Vector) -> Vector:
+    """A rotation matrix (3, 3) whose third column is the unit vector ``normal``."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x_axis = np.cross(helper, normal)
+    x_axis /= np.linalg.norm(x_axis)
+    return np.column_stack((x_axis, np.cross(normal, x_axis), normal))
