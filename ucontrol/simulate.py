@@ -16,6 +16,8 @@ from ucontrol.analysis.summary import summarize
 from ucontrol.control.controller import ContactState, Controller
 from ucontrol.exceptions import (
     InitialPenetrationError,
+    InvalidParameterError,
+    ShapeError,
     SimulationError,
     UControlError,
 )
@@ -135,7 +137,10 @@ def simulate(
                 contacts = ContactState(
                     constraints.names, state.gap, state.normal_velocity, impulse, active, h
                 )
-                u = as_vector("controller output u", controller(t, q, v, contacts), robot.nu)
+                output = _as_array(controller(t, q, v, contacts))
+                if output.shape != (robot.nu,):
+                    raise ShapeError("controller output u", (robot.nu,), output.shape)
+                u = output
                 tau[actuated] = u
             outcome = integrator.step(state, tau)
             solution = outcome.solution
@@ -148,7 +153,8 @@ def simulate(
             )
             row_open = False
             q, v, impulse, active = outcome.q, outcome.v, outcome.impulse, outcome.active
-            if not math.isfinite(float(q.sum() + v.sum())):
+            if not math.isfinite(float(q.sum() + v.sum() + u.sum())):
+                as_vector("controller output u", u)  # names the culprit if it is the controller
                 raise _NonFiniteState(f"the state became non-finite at t = {t + h:.6g} s")
             if k % 1000 == 0:
                 if bar is not None:
@@ -180,6 +186,14 @@ def simulate(
 
 class _NonFiniteState(ArithmeticError):
     """Internal signal: the state left the finite numbers."""
+
+
+def _as_array(value: Any) -> np.ndarray:
+    """A controller's output as a float array, or a typed error naming it."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise InvalidParameterError("controller output u", value, "a vector of numbers") from error
 
 
 def _progress_bar(n_steps: int, progress: bool | None) -> Any:

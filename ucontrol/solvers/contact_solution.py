@@ -19,10 +19,21 @@ def complementarity_residual(
     """
     if impulses.size == 0:
         return 0.0
-    scale = np.diag(D).copy()
+    return natural_map_residual(velocity_scale(D), impulses, D @ impulses + b)
+
+
+def velocity_scale(D: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Diagonal of ``D`` (1 where it vanishes): turns impulses [N s] into velocities [m/s]."""
+    scale = D.diagonal().copy()
     scale[scale <= 0.0] = 1.0
-    residual = np.minimum(scale * impulses, D @ impulses + b)
-    return float(np.max(np.abs(residual)))
+    return scale
+
+
+def natural_map_residual(
+    scale: NDArray[np.float64], impulses: NDArray[np.float64], velocity: NDArray[np.float64]
+) -> float:
+    """``max |min(scale ⊙ P, w)|`` in [m/s] for impulses P and velocities w = D P + b."""
+    return float(np.max(np.abs(np.minimum(scale * impulses, velocity))))
 
 
 @dataclass(frozen=True)

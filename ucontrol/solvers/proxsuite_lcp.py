@@ -19,7 +19,11 @@ import proxsuite
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
-from ucontrol.solvers.contact_solution import ContactSolution, complementarity_residual
+from ucontrol.solvers.contact_solution import (
+    ContactSolution,
+    natural_map_residual,
+    velocity_scale,
+)
 
 _SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 _WARM_START = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
@@ -79,19 +83,23 @@ class ProxsuiteLCPSolver:
         start = time.perf_counter()
         qp = self._solved_qp(D, b)
         info = qp.results.info
+        scale = velocity_scale(D)
         impulses = np.maximum(qp.results.x, 0.0)
-        residual = complementarity_residual(D, b, impulses)
+        velocity = D @ impulses + b
+        residual = natural_map_residual(scale, impulses, velocity)
         polished = False
         if self.polish and residual > 0.0:
-            candidate = _polish(D, b, impulses)
+            candidate = _solve_on_active_set(D, b, scale * impulses > velocity)
             if candidate is not None:
-                candidate_residual = complementarity_residual(D, b, candidate)
+                candidate_velocity = D @ candidate + b
+                candidate_residual = natural_map_residual(scale, candidate, candidate_velocity)
                 if candidate_residual <= residual:
-                    impulses, residual, polished = candidate, candidate_residual, True
+                    impulses, velocity, residual = candidate, candidate_velocity, candidate_residual
+                    polished = True
         solved = info.status == _SOLVED or residual <= self.eps_abs
         return ContactSolution(
             impulses=impulses,
-            velocity=D @ impulses + b,
+            velocity=velocity,
             status="solved" if solved else str(info.status),
             iterations=int(info.iter),
             residual=residual,
@@ -100,23 +108,25 @@ class ProxsuiteLCPSolver:
         )
 
 
-def _polish(
-    D: NDArray[np.float64], b: NDArray[np.float64], impulses: NDArray[np.float64]
+def _solve_on_active_set(
+    D: NDArray[np.float64], b: NDArray[np.float64], active: NDArray[np.bool_]
 ) -> NDArray[np.float64] | None:
-    """Solve ``D_AA P_A = -b_A`` on the active set A of ``impulses``; None if inadmissible."""
-    scale = np.diag(D)
-    active = scale * impulses > D @ impulses + b
+    """Impulses with ``D_AA P_A = -b_A`` on ``active`` and 0 elsewhere; None if some P_A < 0."""
+    candidate = np.zeros(b.size)
     if not active.any():
-        return np.zeros_like(impulses)
-    D_active = D[np.ix_(active, active)]
-    if D_active.shape[0] == 1:
+        return candidate
+    if active.all():
+        D_active, b_active = D, b
+    else:
+        D_active, b_active = D[np.ix_(active, active)], b[active]
+    if b_active.size == 1:
         if D_active[0, 0] <= 0.0:
             return None
-        P_active = -b[active] / D_active[0, 0]
+        P_active = -b_active / D_active[0, 0]
     else:
-        P_active = np.linalg.lstsq(D_active, -b[active], rcond=1e-12)[0]
+        # Least squares: redundant constraints make D_AA singular.
+        P_active = np.linalg.lstsq(D_active, -b_active, rcond=1e-12)[0]
     if np.any(P_active < 0.0):
         return None
-    candidate = np.zeros_like(impulses)
     candidate[active] = P_active
     return candidate
