@@ -13,15 +13,33 @@ from conftest import ROBOTS
 
 from ucontrol.cli import main
 
-SUMMARY_KEYS = {"wall_time_s", "steps", "max_penetration", "n_impacts",
-                "energy_increase_at_impacts"}
+SUMMARY_KEYS = {
+    "wall_time_s",
+    "steps",
+    "max_penetration",
+    "n_impacts",
+    "energy_increase_at_impacts",
+}
 LOG_KEYS = {"t", "q", "v", "u", "gap", "impulse"}
 
 
 def test_run_writes_log_and_summary(tmp_path: Path) -> None:
     out = tmp_path / "ball"
-    status = main(["run", str(ROBOTS / "ball.toml"), "--out", str(out), "--dt", "5e-4",
-                   "--duration", "1.0", "--integrator", "moreau_jean", "--no-progress"])
+    status = main(
+        [
+            "run",
+            str(ROBOTS / "ball.toml"),
+            "--out",
+            str(out),
+            "--dt",
+            "5e-4",
+            "--duration",
+            "1.0",
+            "--integrator",
+            "moreau_jean",
+            "--no-progress",
+        ]
+    )
     assert status == 0
     summary = json.loads((out / "summary.json").read_text())
     assert SUMMARY_KEYS <= set(summary)
@@ -33,8 +51,10 @@ def test_run_writes_log_and_summary(tmp_path: Path) -> None:
 
 def test_run_without_a_scene_runs_the_builtin_default(tmp_path: Path) -> None:
     completed = subprocess.run(
-        [sys.executable, "-m", "ucontrol.cli", "run", "--out", str(tmp_path), "--duration",
-         "0.5"], capture_output=True, text=True, check=True,
+        [sys.executable, "-m", "ucontrol.cli", "run", "--out", str(tmp_path), "--duration", "0.5"],
+        capture_output=True,
+        text=True,
+        check=True,
     )
     assert "two_link_drop" in completed.stdout
     summary = json.loads((tmp_path / "summary.json").read_text())

@@ -145,8 +145,12 @@ def test_redundant_corner_contacts_on_the_arm(two_link_scene: Scene) -> None:
         two_link_scene,
         contacts=(
             *two_link_scene.contacts,
-            PointContact(frame="end_effector", surface=two_link_scene.contacts[0].surface,
-                         restitution=0.0, name="end_effector/ground/twin"),
+            PointContact(
+                frame="end_effector",
+                surface=two_link_scene.contacts[0].surface,
+                restitution=0.0,
+                name="end_effector/ground/twin",
+            ),
         ),
     )
     controller = JointPD(corner.robot, q_ref=np.array([0.3, -0.9]), kp=400.0, kd=5.0)

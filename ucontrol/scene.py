@@ -73,7 +73,7 @@ class IntegratorSettings:
     dt: float = 1e-3
     theta: float = 0.5
     contact_tolerance: float = 1e-10
-    max_iter: int = 1000
+    max_iter: int = 5000
 
     def __post_init__(self) -> None:
         if self.name not in INTEGRATORS:

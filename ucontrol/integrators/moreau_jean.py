@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_in_interval, as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.exceptions import SolverError
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
@@ -137,6 +138,8 @@ class MoreauJean:
             D = J @ Minv_Jt
             b = J @ v_free + self.constraints.restitution[indices] * state.normal_velocity[indices]
             solution = self.solver.solve(D, b)
+            if solution.status != "solved":
+                raise SolverError(self.solver.name, solution.status, solution.residual)
             impulse[indices] = solution.impulses
             v_next = v_free + Minv_Jt @ solution.impulses
         else:

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 import proxsuite
+import scipy.optimize
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
@@ -25,7 +26,6 @@ from ucontrol.solvers.contact_solution import (
     velocity_scale,
 )
 
-_SOLVED = proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
 _WARM_START = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
 
 
@@ -37,17 +37,29 @@ class ProxsuiteLCPSolver:
     active set is solved directly and kept when it satisfies complementarity better, which
     brings restitution to machine precision.
 
+    The status is ``"solved"`` when the complementarity residual, measured by us, is at most
+    ``residual_tolerance``; otherwise it is proxsuite's status and the caller decides.
+
     Args:
         eps_abs: Absolute tolerance of proxsuite in [m/s].
         max_iter: Iteration cap of proxsuite.
         polish: Refine on the active set after the QP solve.
+        residual_tolerance: Largest complementarity residual accepted as solved, in [m/s].
     """
 
     name = "proxsuite"
 
-    def __init__(self, *, eps_abs: float = 1e-10, max_iter: int = 1000, polish: bool = True):
+    def __init__(
+        self,
+        *,
+        eps_abs: float = 1e-10,
+        max_iter: int = 5000,
+        polish: bool = True,
+        residual_tolerance: float = 1e-8,
+    ):
         self.eps_abs = as_positive("eps_abs", eps_abs)
         self.max_iter = int(as_positive("max_iter", max_iter))
+        self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
         self.polish = polish
         self._qps: dict[int, proxsuite.proxqp.dense.QP] = {}
 
@@ -96,11 +108,10 @@ class ProxsuiteLCPSolver:
                 if candidate_residual <= residual:
                     impulses, velocity, residual = candidate, candidate_velocity, candidate_residual
                     polished = True
-        solved = info.status == _SOLVED or residual <= self.eps_abs
         return ContactSolution(
             impulses=impulses,
             velocity=velocity,
-            status="solved" if solved else str(info.status),
+            status="solved" if residual <= self.residual_tolerance else str(info.status),
             iterations=int(info.iter),
             residual=residual,
             solve_time_s=time.perf_counter() - start,
@@ -124,8 +135,11 @@ def _solve_on_active_set(
             return None
         P_active = -b_active / D_active[0, 0]
     else:
-        # Least squares: redundant constraints make D_AA singular.
+        # Redundant constraints make D_AA singular: the minimum-norm least-squares solution may
+        # be negative where a non-negative one exists, which non-negative least squares finds.
         P_active = np.linalg.lstsq(D_active, -b_active, rcond=1e-12)[0]
+        if np.any(P_active < 0.0):
+            P_active = scipy.optimize.nnls(D_active, -b_active)[0]
     if np.any(P_active < 0.0):
         return None
     candidate[active] = P_active
