@@ -73,6 +73,10 @@ class ConstraintSet:
         self.restitution = np.array(restitution, dtype=float)
         self.n_contacts = len(self.contacts)
         self.size = len(names)
+        self._has_stops = self.size > self.n_contacts
+        self._contact_terms = list(
+            zip(self._frame_ids, list(self._normals), self._offsets.tolist(), strict=True)
+        )
 
     def evaluate(self, data: pin.Data, q: Vector, v: Vector) -> tuple[Vector, Vector]:
         """Gaps and normal velocities, each of shape (n,).
@@ -81,14 +85,18 @@ class ConstraintSet:
         (``pin.computeAllTerms`` then ``pin.updateFramePlacements``).
         """
         model = self.robot.model
+        gap = np.empty(self.size)
         velocity = np.empty(self.size)
-        for i, frame_id in enumerate(self._frame_ids):
-            frame_velocity = pin.getFrameVelocity(model, data, frame_id, _LWA).linear
-            velocity[i] = self._normals[i] @ frame_velocity
-        velocity[self.n_contacts :] = self._stop_sign * v[self._stop_v]
-        return self._gap(data, q), velocity
+        for i, (frame_id, normal, offset) in enumerate(self._contact_terms):
+            gap[i] = normal.dot(data.oMf[frame_id].translation) - offset
+            velocity[i] = normal.dot(pin.getFrameVelocity(model, data, frame_id, _LWA).linear)
+        if self._has_stops:
+            k = self.n_contacts
+            gap[k:] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
+            velocity[k:] = self._stop_sign * v[self._stop_v]
+        return gap, velocity
 
-    def jacobian(self, data: pin.Data, indices: Sequence[int]) -> Vector:
+    def jacobian(self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]) -> Vector:
         """Normal Jacobian rows of the constraints ``indices``, shape (len(indices), nv).
 
         ``data`` must hold joint Jacobians and frame placements (``pin.computeAllTerms`` then
@@ -99,8 +107,8 @@ class ConstraintSet:
         k = self.n_contacts
         for row, i in enumerate(indices):
             if i < k:
-                J_frame = pin.getFrameJacobian(model, data, self._frame_ids[i], _LWA)
-                rows[row] = self._normals[i] @ J_frame[:3]
+                frame_id, normal, _ = self._contact_terms[i]
+                rows[row] = normal.dot(pin.getFrameJacobian(model, data, frame_id, _LWA)[:3])
             else:
                 rows[row, self._stop_v[i - k]] = self._stop_sign[i - k]
         return rows
@@ -114,7 +122,7 @@ class ConstraintSet:
     def _gap(self, data: pin.Data, q: Vector) -> Vector:
         """Gaps from frame placements already in ``data``, shape (n,)."""
         gap = np.empty(self.size)
-        for i, frame_id in enumerate(self._frame_ids):
-            gap[i] = self._normals[i] @ data.oMf[frame_id].translation - self._offsets[i]
+        for i, (frame_id, normal, offset) in enumerate(self._contact_terms):
+            gap[i] = normal.dot(data.oMf[frame_id].translation) - offset
         gap[self.n_contacts :] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
         return gap

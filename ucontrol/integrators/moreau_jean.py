@@ -16,7 +16,7 @@ locating them, and enforces Newton's law exactly at every impact.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -32,8 +32,7 @@ from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 Vector = NDArray[np.float64]
 
 
-@dataclass(frozen=True)
-class PlantEvaluation:
+class PlantEvaluation(NamedTuple):
     """Everything the plant knows at the start of a step, at (q_k, v_k).
 
     Attributes:
@@ -53,8 +52,7 @@ class PlantEvaluation:
     potential_energy: float
 
 
-@dataclass(frozen=True)
-class StepOutcome:
+class StepOutcome(NamedTuple):
     """The result of one step from a :class:`PlantEvaluation`.
 
     Attributes:
@@ -63,6 +61,8 @@ class StepOutcome:
         impulse: Normal impulse of each constraint over the step in [N s], shape (n,).
         active: Which constraints were in the active set, shape (n,).
         solution: The contact solve, or None when the active set was empty.
+        events: Events located within the step (impacts, contact closures and releases) by
+            event-driven integrators; 0 for time-stepping, which locates none.
     """
 
     q: Vector
@@ -70,6 +70,7 @@ class StepOutcome:
     impulse: Vector
     active: NDArray[np.bool_]
     solution: ContactSolution | None
+    events: int = 0
 
 
 class MoreauJean:
@@ -128,20 +129,26 @@ class MoreauJean:
         model, data, h = self._model, self._data, self.dt
         pin.cholesky.decompose(model, data)
         v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)
-        active = state.gap + self.gamma * h * state.normal_velocity <= 0.0
+        active = state.gap + (self.gamma * h) * state.normal_velocity <= 0.0
+        indices = active.nonzero()[0]
         impulse = np.zeros(self.constraints.size)
         solution = None
-        if active.any():
-            indices = np.flatnonzero(active)
+        if indices.size:
             J = self.constraints.jacobian(data, indices)
-            Minv_Jt = pin.cholesky.computeMinv(model, data) @ J.T
-            D = J @ Minv_Jt
-            b = J @ v_free + self.constraints.restitution[indices] * state.normal_velocity[indices]
+            if indices.size == 1:  # M⁻¹ Jᵀ by one triangular solve instead of M⁻¹
+                Minv_Jt = pin.cholesky.solve(model, data, J[0])[:, None]
+            else:
+                Minv_Jt = pin.cholesky.computeMinv(model, data) @ J.T
+            D = J.dot(Minv_Jt)
+            b = (
+                J.dot(v_free)
+                + self.constraints.restitution[indices] * state.normal_velocity[indices]
+            )
             solution = self.solver.solve(D, b)
             if solution.status != "solved":
                 raise SolverError(self.solver.name, solution.status, solution.residual)
             impulse[indices] = solution.impulses
-            v_next = v_free + Minv_Jt @ solution.impulses
+            v_next = v_free + Minv_Jt.dot(solution.impulses)
         else:
             v_next = v_free
         q_next = pin.integrate(

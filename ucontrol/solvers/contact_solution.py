@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,8 +36,7 @@ def natural_map_residual(
     return float(np.max(np.abs(np.minimum(scale * impulses, velocity))))
 
 
-@dataclass(frozen=True)
-class ContactSolution:
+class ContactSolution(NamedTuple):
     r"""Impulses solving :math:`0 \le P \perp D P + b \ge 0` and how they were obtained.
 
     Attributes:

@@ -29,10 +29,23 @@ components. We therefore use one frictionless ``PointContactConstraintModel`` pe
   placement 1, whose z row is :math:`n^T J_{lin}(F)` — the row of our
   :class:`~ucontrol.contact.constraint_set.ConstraintSet`.
 
-**Facts of pin 4.1 relied on** (DESIGN §6): ADMM updates the damping of the Delassus operator
-it is given in place, so a dense operator is rebuilt for every solve; PGS divides by the
-diagonal of the Delassus matrix, so a small compliance (default 1e-10) is added for it, which
-also makes redundant contacts solvable.
+**Facts of pin 4.1 relied on** (DESIGN §6, checked here):
+
+- ADMM updates the damping of the Delassus operator it is given in place, so a dense operator is
+  rebuilt for every solve.
+- The ``ConstraintCholeskyDecomposition`` of redundant contacts is singular without
+  regularization (NaN impulses); PGS needs a small compliance (default 1e-10, passed as the
+  decomposition's ``mu``), ADMM does not (it damps the operator itself).
+- PGS's stopping test evaluates each contact's complementarity right after that contact's own
+  update, inside the sweep, so with frictionless contacts it can be met after the first sweep
+  although later updates in that sweep changed the earlier contacts' velocities. On
+  :math:`D = [[2, 1], [1, 2]]`, :math:`b = (-1, -1)` it returns :math:`P = (0.5, 0.25)` (one
+  Gauss–Seidel sweep; the solution is :math:`(1/3, 1/3)`) with ``converged``,
+  ``iterations == 0`` and ``complementarity == 0``. A ``solve`` call starts from the guess of
+  ``result.setConstraintImpulseGuess``, so :class:`PinocchioContactSolver` repeats
+  warm-started solves until *our* complementarity residual is below the tolerance;
+  :class:`PinocchioStepper` does so only when ``pgs_until_solved`` is set (by default it is the
+  loop a Pinocchio user writes).
 """
 
 from __future__ import annotations
@@ -62,8 +75,8 @@ Vector = NDArray[np.float64]
 #: Methods accepted by :class:`PinocchioContactSolver` and :class:`PinocchioStepper`.
 METHODS = ("admm", "pgs")
 
-_DEFAULT_COMPLIANCE = {"admm": 0.0, "pgs": 1e-10}  # [m/s per N s] added to diag(D)
 _LWA = pin.LOCAL_WORLD_ALIGNED
+_NORMAL = slice(2, None, 3)  # local z components of stacked 3D contacts
 
 
 def _check_method(method: str) -> str:
@@ -72,9 +85,7 @@ def _check_method(method: str) -> str:
     return method
 
 
-def _compliance(method: str, compliance: float | None) -> float:
-    if compliance is None:
-        return _DEFAULT_COMPLIANCE[method]
+def _check_compliance(compliance: float) -> float:
     value = float(compliance)
     if not value >= 0.0:
         raise InvalidParameterError("compliance", compliance, ">= 0")
@@ -109,6 +120,54 @@ def _frictionless(contact_model: pin.PointContactConstraintModel) -> pin.Constra
     return pin.ConstraintModel(contact_model)
 
 
+def _normal_residual(G: Vector, drift: Vector, impulses: Vector) -> float:
+    """Natural-map residual of the normal components of a stacked 3D contact problem, [m/s]."""
+    velocity = G[_NORMAL] @ impulses + drift[_NORMAL]
+    scale = np.diag(G)[_NORMAL]
+    return float(np.max(np.abs(np.minimum(scale * impulses[_NORMAL], velocity)), initial=0.0))
+
+
+def _solve(
+    name: str,
+    backend: tuple[Any, Any, Any],
+    delassus: Any,
+    drift: Vector,
+    models: Any,
+    datas: Any,
+    *,
+    pgs_until: tuple[Vector, float, int] | None = None,
+) -> tuple[Vector, bool, int]:
+    """Run the backend; for PGS with ``pgs_until = (G, tolerance, max_sweeps)`` sweep again.
+
+    Returns:
+        The stacked impulses (3m,), whether the backend (or our residual check) converged, and
+        the iterations (ADMM) or sweeps (PGS).
+
+    Raises:
+        SolverError: Pinocchio raised, or returned non-finite impulses.
+    """
+    solver, settings, result = backend
+    try:
+        converged = solver.solve(delassus, drift, models, datas, settings, result)
+        impulses = result.retrieveConstraintImpulses()
+        iterations = int(result.iterations)
+        if pgs_until is not None:
+            G, tolerance, max_sweeps = pgs_until
+            iterations += 1  # pin counts PGS sweeps from 0
+            converged = _normal_residual(G, drift, impulses) <= tolerance
+            while not converged and iterations < max_sweeps and np.all(np.isfinite(impulses)):
+                result.setConstraintImpulseGuess(impulses)
+                solver.solve(delassus, drift, models, datas, settings, result)
+                impulses = result.retrieveConstraintImpulses()
+                iterations += int(result.iterations) + 1
+                converged = _normal_residual(G, drift, impulses) <= tolerance
+    except (RuntimeError, ValueError, ArithmeticError) as error:
+        raise SolverError(name, f"raised {error!r}") from error
+    if not np.all(np.isfinite(impulses)):
+        raise SolverError(name, "non-finite impulses")
+    return impulses, bool(converged), iterations
+
+
 class PinocchioContactSolver:
     r"""Frictionless contact LCPs solved by Pinocchio's ADMM or PGS constraint solver.
 
@@ -116,14 +175,15 @@ class PinocchioContactSolver:
     Delassus matrix D and the term b, return the impulses of :math:`0 \le P \perp D P + b \ge 0`.
     The m normal constraints are frictionless 3D ``PointContactConstraintModel`` cones whose
     local z rows carry (D, b) (see the module docstring). Solver objects are kept per size.
+    PGS is swept again, warm-started, until our complementarity residual is below
+    ``tolerance`` (pin's own PGS stopping test is not reliable, see the module docstring).
 
     Args:
         method: ``"admm"`` or ``"pgs"``.
         tolerance: Absolute and relative feasibility and complementarity tolerance of the
-            backend, in [m/s] (its natural unit for impulses in [N s]).
-        max_iter: Iteration cap of the backend.
-        compliance: Added to the diagonal of D in [m/s per N s]; default 0 for ADMM and
-            1e-10 for PGS (which divides by that diagonal).
+            backend, and bound on our residual for PGS, in [m/s].
+        max_iter: Iteration cap of ADMM, or cap on the total PGS sweeps.
+        compliance: Added to the diagonal of D in [m/s per N s], >= 0.
     """
 
     def __init__(
@@ -132,18 +192,18 @@ class PinocchioContactSolver:
         *,
         tolerance: float = 1e-12,
         max_iter: int = 10_000,
-        compliance: float | None = None,
+        compliance: float = 0.0,
     ) -> None:
         self.method = _check_method(method)
         self.name = f"pinocchio-{method}"
         self.tolerance = as_positive("tolerance", tolerance)
         self.max_iter = int(as_positive("max_iter", max_iter))
-        self.compliance = _compliance(method, compliance)
+        self.compliance = _check_compliance(compliance)
         self._empty_model = pin.Model()
         self._problems: dict[int, tuple[Any, ...]] = {}
 
     def _problem(self, m: int) -> tuple[Any, ...]:
-        """Constraint models, datas, solver, settings, result and buffers for m contacts."""
+        """Constraint models, datas, backend and buffers for m contacts."""
         problem = self._problems.get(m)
         if problem is None:
             models = pin.StdVec_ConstraintModel()
@@ -151,10 +211,10 @@ class PinocchioContactSolver:
             for _ in range(m):
                 models.append(_frictionless(pin.PointContactConstraintModel(self._empty_model)))
                 datas.append(models[-1].createData())
-            solver, settings, result = _backend(self.method, 3 * m, self.tolerance, self.max_iter)
+            backend = _backend(self.method, 3 * m, self.tolerance, self.max_iter)
             G = np.eye(3 * m)  # tangential block: identity, uncoupled
             g = np.zeros(3 * m)  # tangential drift: 0
-            problem = (models, datas, solver, settings, result, G, g)
+            problem = (models, datas, backend, G, g)
             self._problems[m] = problem
         return problem
 
@@ -188,25 +248,22 @@ class PinocchioContactSolver:
                 residual=0.0,
                 solve_time_s=time.perf_counter() - start,
             )
-        models, datas, solver, settings, result, G, g = self._problem(m)
-        G[2::3, 2::3] = D
-        g[2::3] = b
+        models, datas, backend, G, g = self._problem(m)
+        G[_NORMAL, _NORMAL] = D
+        g[_NORMAL] = b
         delassus = pin.DelassusOperatorDense(G)  # fresh: ADMM changes its damping in place
         if self.compliance > 0.0:
             delassus.updateCompliance(self.compliance)
-        try:
-            converged = solver.solve(delassus, g, models, datas, settings, result)
-        except (RuntimeError, ValueError, ArithmeticError) as error:
-            raise SolverError(self.name, f"raised {error!r}") from error
-        impulses = result.retrieveConstraintImpulses()[2::3]
-        if not np.all(np.isfinite(impulses)):
-            raise SolverError(self.name, "non-finite impulses")
-        impulses = np.maximum(impulses, 0.0)
+        pgs_until = (G, self.tolerance, self.max_iter) if self.method == "pgs" else None
+        stacked, converged, iterations = _solve(
+            self.name, backend, delassus, g, models, datas, pgs_until=pgs_until
+        )
+        impulses = np.maximum(stacked[_NORMAL], 0.0)
         return ContactSolution(
             impulses=impulses,
             velocity=D @ impulses + b,
             status="solved" if converged else "max_iterations_reached",
-            iterations=int(result.iterations),
+            iterations=iterations,
             residual=complementarity_residual(D, b, impulses),
             solve_time_s=time.perf_counter() - start,
         )
@@ -222,7 +279,7 @@ class PinocchioStepOutcome:
         impulse: Normal impulse of each contact over the step in [N s], shape (n,).
         active: Which contacts were in the active set, shape (n,).
         converged: Whether the backend reported convergence (True without active contacts).
-        iterations: Backend iterations (0 without active contacts).
+        iterations: ADMM iterations or PGS sweeps (0 without active contacts).
     """
 
     q: Vector
@@ -261,10 +318,15 @@ class PinocchioStepper:
         theta: θ of the position update, in [1/2, 1].
         method: ``"admm"`` or ``"pgs"``.
         tolerance: Feasibility and complementarity tolerance of the backend in [m/s].
-        max_iter: Iteration cap of the backend.
-        compliance: Regularization of the Cholesky decomposition (added to the Delassus
+        max_iter: Iteration cap of the backend (total sweeps with ``pgs_until_solved``).
+        compliance: Regularization ``mu`` of the Cholesky decomposition (added to the Delassus
             diagonal) in [m/s per N s]; default 0 for ADMM and 1e-10 for PGS.
+        pgs_until_solved: Sweep PGS again, warm-started, until the normal complementarity
+            residual is below ``tolerance`` (off: trust pin's stopping test, as a user would).
         data: Pinocchio data buffer to use; default a private one.
+
+    Raises:
+        FrameNotFoundError: A contact frame is not in ``model``.
     """
 
     def __init__(
@@ -278,6 +340,7 @@ class PinocchioStepper:
         tolerance: float = 1e-12,
         max_iter: int = 10_000,
         compliance: float | None = None,
+        pgs_until_solved: bool = False,
         data: pin.Data | None = None,
     ) -> None:
         self.model = model
@@ -286,18 +349,24 @@ class PinocchioStepper:
         self.dt = as_positive("dt", dt)
         self.theta = as_in_interval("theta", theta, 0.5, 1.0)
         self.method = _check_method(method)
+        self.name = f"pinocchio-{method}"
         self.tolerance = as_positive("tolerance", tolerance)
         self.max_iter = int(as_positive("max_iter", max_iter))
-        self.compliance = _compliance(method, compliance)
+        default_compliance = 1e-10 if method == "pgs" else 0.0
+        self.compliance = _check_compliance(
+            default_compliance if compliance is None else compliance
+        )
+        self.pgs_until_solved = pgs_until_solved and method == "pgs"
         self._frame_ids: list[int] = []
         self._contact_models: list[pin.ConstraintModel] = []
         for contact in self.contacts:
             if not model.existFrame(contact.frame):
-                raise FrameNotFoundError(contact.frame, [f.name for f in model.frames])
+                raise FrameNotFoundError(contact.frame, [frame.name for frame in model.frames])
             frame_id = int(model.getFrameId(contact.frame))
             frame = model.frames[frame_id]
-            normal = contact.surface.normal
-            world_placement = pin.SE3(_rotation_with_z(normal), contact.surface.point)
+            world_placement = pin.SE3(
+                _rotation_with_z(contact.surface.normal), contact.surface.point
+            )
             self._frame_ids.append(frame_id)
             self._contact_models.append(
                 _frictionless(
@@ -314,7 +383,7 @@ class PinocchioStepper:
         self._active_sets: dict[tuple[int, ...], tuple[Any, ...]] = {}
 
     def _active_set(self, indices: tuple[int, ...]) -> tuple[Any, ...]:
-        """Models, datas, Cholesky decomposition and solver of the active set ``indices``."""
+        """Models, datas, Cholesky decomposition and backend of the active set ``indices``."""
         entry = self._active_sets.get(indices)
         if entry is None:
             models = pin.StdVec_ConstraintModel()
@@ -324,11 +393,9 @@ class PinocchioStepper:
                 datas.append(models[-1].createData())
                 models[-1].calc(self.model, self.data, datas[-1])
             cholesky = pin.ConstraintCholeskyDecomposition(self.model, self.data, models, datas)
-            solver, settings, result = _backend(
-                self.method, 3 * len(indices), self.tolerance, self.max_iter
-            )
+            backend = _backend(self.method, 3 * len(indices), self.tolerance, self.max_iter)
             restitution = self._restitution[list(indices)]
-            entry = (models, datas, cholesky, solver, settings, result, restitution)
+            entry = (models, datas, cholesky, backend, restitution)
             self._active_sets[indices] = entry
         return entry
 
@@ -354,30 +421,29 @@ class PinocchioStepper:
         converged, iterations = True, 0
         if active.any():
             indices = tuple(np.flatnonzero(active).tolist())
-            models, datas, cholesky, solver, settings, result, restitution = self._active_set(
-                indices
-            )
+            models, datas, cholesky, backend, restitution = self._active_set(indices)
             try:
                 for constraint_model, constraint_data in zip(models, datas, strict=True):
                     constraint_model.calc(model, data, constraint_data)
                 cholesky.compute(model, data, models, datas, self.compliance)
                 delassus = cholesky.getDelassusOperatorCholeskyExpression()
                 J = pin.getConstraintsJacobian(model, data, models, datas)
-                drift = J @ v_free
-                drift[2::3] += restitution * normal_velocity[list(indices)]
-                converged = solver.solve(delassus, drift, models, datas, settings, result)
             except (RuntimeError, ValueError, ArithmeticError) as error:
-                raise SolverError(f"pinocchio-{self.method}", f"raised {error!r}") from error
-            impulses = result.retrieveConstraintImpulses()
-            if not np.all(np.isfinite(impulses)):
-                raise SolverError(f"pinocchio-{self.method}", "non-finite impulses")
-            iterations = int(result.iterations)
-            impulse[list(indices)] = impulses[2::3]
+                raise SolverError(self.name, f"raised {error!r}") from error
+            drift = J @ v_free
+            drift[_NORMAL] += restitution * normal_velocity[list(indices)]
+            pgs_until = None
+            if self.pgs_until_solved:
+                pgs_until = (delassus.matrix(), self.tolerance, self.max_iter)
+            impulses, converged, iterations = _solve(
+                self.name, backend, delassus, drift, models, datas, pgs_until=pgs_until
+            )
+            impulse[list(indices)] = impulses[_NORMAL]
             v_next = v + h * pin.aba(model, data, q, v, tau + J.T @ impulses / h)
         else:
             v_next = v_free
         q_next = pin.integrate(model, q, h * ((1.0 - self.theta) * v + self.theta * v_next))
-        return PinocchioStepOutcome(q_next, v_next, impulse, active, bool(converged), iterations)
+        return PinocchioStepOutcome(q_next, v_next, impulse, active, converged, iterations)
 
 
 def pinocchio_step(
@@ -403,8 +469,11 @@ def pinocchio_step(
         tau: Generalized forces, shape (nv,), in [N m] or [N].
         dt: Time step in [s].
         contacts: Point contacts against planes.
-        **options: ``theta``, ``method``, ``tolerance``, ``max_iter``, ``compliance`` of
-            :class:`PinocchioStepper`.
+        **options: ``theta``, ``method``, ``tolerance``, ``max_iter``, ``compliance``,
+            ``pgs_until_solved`` of :class:`PinocchioStepper`.
+
+    Returns:
+        The step's outcome; ``outcome.v`` is :math:`v_{k+1}`.
     """
     return PinocchioStepper(model, contacts, dt=dt, data=data, **options).step(q, v, tau)
 

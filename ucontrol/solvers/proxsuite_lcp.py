@@ -28,14 +28,19 @@ from ucontrol.solvers.contact_solution import (
 
 _WARM_START = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
 
+#: QP solutions with a complementarity residual above this, in [m/s], are polished: Newton's
+#: law then holds to this accuracy at every impact whatever proxsuite's tolerance.
+POLISH_THRESHOLD = 1e-13
+
 
 class ProxsuiteLCPSolver:
     """Solve frictionless contact LCPs with reused, warm-started proxsuite QP objects.
 
     One QP object is kept per problem size and updated in place; each solve starts from the
-    previous solution of that size. The QP solution is then polished: the linear system of its
-    active set is solved directly and kept when it satisfies complementarity better, which
-    brings restitution to machine precision.
+    previous solution of that size. A QP solution whose complementarity residual exceeds
+    :data:`POLISH_THRESHOLD` is then polished: the linear system of its active set is solved
+    directly and kept when it satisfies complementarity better, which brings restitution to
+    machine precision.
 
     The status is ``"solved"`` when the complementarity residual, measured by us, is at most
     ``residual_tolerance``; otherwise it is proxsuite's status and the caller decides.
@@ -45,6 +50,8 @@ class ProxsuiteLCPSolver:
         max_iter: Iteration cap of proxsuite.
         polish: Refine on the active set after the QP solve.
         residual_tolerance: Largest complementarity residual accepted as solved, in [m/s].
+        exact_single: Solve one-constraint problems by their closed form
+            ``P = max(0, -b / D)`` (the QP's exact solution) instead of calling proxsuite.
     """
 
     name = "proxsuite"
@@ -56,10 +63,12 @@ class ProxsuiteLCPSolver:
         max_iter: int = 5000,
         polish: bool = True,
         residual_tolerance: float = 1e-8,
+        exact_single: bool = True,
     ):
         self.eps_abs = as_positive("eps_abs", eps_abs)
         self.max_iter = int(as_positive("max_iter", max_iter))
         self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
+        self.exact_single = exact_single
         self.polish = polish
         self._qps: dict[int, proxsuite.proxqp.dense.QP] = {}
 
@@ -93,6 +102,8 @@ class ProxsuiteLCPSolver:
             b: Free constraint velocity plus restitution term in [m/s], shape (m,).
         """
         start = time.perf_counter()
+        if b.size == 1 and self.exact_single:
+            return _single_constraint_solution(D, b, start)
         qp = self._solved_qp(D, b)
         info = qp.results.info
         scale = velocity_scale(D)
@@ -100,7 +111,7 @@ class ProxsuiteLCPSolver:
         velocity = D @ impulses + b
         residual = natural_map_residual(scale, impulses, velocity)
         polished = False
-        if self.polish and residual > 0.0:
+        if self.polish and residual > POLISH_THRESHOLD:
             candidate = _solve_on_active_set(D, b, scale * impulses > velocity)
             if candidate is not None:
                 candidate_velocity = D @ candidate + b
@@ -109,14 +120,33 @@ class ProxsuiteLCPSolver:
                     impulses, velocity, residual = candidate, candidate_velocity, candidate_residual
                     polished = True
         return ContactSolution(
-            impulses=impulses,
-            velocity=velocity,
-            status="solved" if residual <= self.residual_tolerance else str(info.status),
-            iterations=int(info.iter),
-            residual=residual,
-            solve_time_s=time.perf_counter() - start,
-            polished=polished,
+            impulses,
+            velocity,
+            "solved" if residual <= self.residual_tolerance else str(info.status),
+            int(info.iter),
+            residual,
+            time.perf_counter() - start,
+            polished,
         )
+
+
+def _single_constraint_solution(
+    D: NDArray[np.float64], b: NDArray[np.float64], start: float
+) -> ContactSolution:
+    """Exact solution of a one-constraint LCP, the projection ``P = max(0, -b / D)``."""
+    d, beta = float(D[0, 0]), float(b[0])
+    impulse = -beta / d if beta < 0.0 and d > 0.0 else 0.0
+    velocity = d * impulse + beta
+    residual = abs(min(d * impulse if d > 0.0 else impulse, velocity))
+    return ContactSolution(
+        np.array([impulse]),
+        np.array([velocity]),
+        "solved" if d > 0.0 or beta >= 0.0 else "infeasible",
+        0,
+        residual,
+        time.perf_counter() - start,
+        False,
+    )
 
 
 def _solve_on_active_set(
@@ -135,12 +165,27 @@ def _solve_on_active_set(
             return None
         P_active = -b_active / D_active[0, 0]
     else:
-        # Redundant constraints make D_AA singular: the minimum-norm least-squares solution may
-        # be negative where a non-negative one exists, which non-negative least squares finds.
-        P_active = np.linalg.lstsq(D_active, -b_active, rcond=1e-12)[0]
-        if np.any(P_active < 0.0):
-            P_active = scipy.optimize.nnls(D_active, -b_active)[0]
+        P_active = _non_negative_solve(D_active, -b_active)
     if np.any(P_active < 0.0):
         return None
     candidate[active] = P_active
     return candidate
+
+
+def _non_negative_solve(A: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A solution x >= 0 of the consistent system ``A x = y`` (A symmetric PSD), if one exists.
+
+    A direct solve first (regular A); redundant constraints make A singular, where the
+    minimum-norm least-squares solution may be negative although a non-negative one exists,
+    which non-negative least squares finds.
+    """
+    try:
+        x = np.linalg.solve(A, y)
+        if np.all(x >= 0.0) and np.max(np.abs(A @ x - y)) <= 1e-12 * (1.0 + np.max(np.abs(y))):
+            return x
+    except np.linalg.LinAlgError:
+        pass
+    x = np.linalg.lstsq(A, y, rcond=1e-12)[0]
+    if np.any(x < 0.0):
+        x = scipy.optimize.nnls(A, y)[0]
+    return x
