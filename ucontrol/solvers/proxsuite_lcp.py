@@ -172,13 +172,14 @@ def _solve_on_active_set(
     return candidate
 
 
-def _non_negative_solve(A: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
+def _non_negative_solve(A: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.floating]:
     """A solution x >= 0 of the consistent system ``A x = y`` (A symmetric PSD), if one exists.
 
     A direct solve first (regular A); redundant constraints make A singular, where the
     minimum-norm least-squares solution may be negative although a non-negative one exists,
     which non-negative least squares finds.
     """
+    x: NDArray[np.floating]
     try:
         x = np.linalg.solve(A, y)
         if np.all(x >= 0.0) and np.max(np.abs(A @ x - y)) <= 1e-12 * (1.0 + np.max(np.abs(y))):
