@@ -48,3 +48,21 @@ def test_bench_step_runs(capsys: pytest.CaptureFixture[str]) -> None:
         assert row.active_fraction > 0.0
     output = capsys.readouterr().out
     assert "| contacts |" in output and "Target ucontrol" in output
+
+
+def test_work_precision_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    work_precision = _load("work_precision")
+    flags = (
+        "--ball-duration 0.5 --arm-duration 0.2 --tracking-duration 0.1 --dts 1e-2 1e-3 "
+        "--tolerances 1e-6 --stiffnesses 1e5 --tracking-stiffnesses 1e5 "
+        "--hunt-crossley-stiffnesses 1e6 --sample-dt 1e-2 --zeno-velocities 1e-2 "
+        "--zeno-sample-dt 1e-3"
+    )
+    studies = work_precision.main([*flags.split(), "--out", str(tmp_path)])
+    assert set(studies) == {"ball_e09", "ball_e05", "two_link_drop", "two_link_tracking"}
+    for case, study in studies.items():
+        assert (tmp_path / f"work_precision_{case}.png").is_file()
+        assert all(np.isfinite(run.error) for run in study.runs)
+    for name in ("compliant_stiffness.png", "compliant_stiffness.md", "zeno_threshold.md"):
+        assert (tmp_path / name).is_file()
+    assert "observed order" in capsys.readouterr().out

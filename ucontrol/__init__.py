@@ -2,7 +2,7 @@
 
 from ucontrol.contact import ConstraintSet, JointStop, Plane, PointContact
 from ucontrol.control import ContactState, Controller, JointPD, ZeroTorque
-from ucontrol.integrators import MoreauJean
+from ucontrol.integrators import Compliant, EventDriven, MoreauJean
 from ucontrol.log import Log
 from ucontrol.model import RobotModel
 from ucontrol.scene import Scene, load_scene
@@ -12,10 +12,12 @@ from ucontrol.solvers import ContactSolution, ProxsuiteLCPSolver
 __version__ = "0.1.0"
 
 __all__ = [
+    "Compliant",
     "ConstraintSet",
     "ContactSolution",
     "ContactState",
     "Controller",
+    "EventDriven",
     "JointPD",
     "JointStop",
     "Log",

@@ -134,6 +134,30 @@ class InitialPenetrationError(UControlError):
         )
 
 
+class PathThroughSurfaceError(InvalidParameterError):
+    """A desired path enters an obstacle where no contact phase is declared for it.
+
+    Attributes:
+        constraint: Name of the crossed constraint (a point contact).
+        time: Time within the period at which the path is deepest inside, in [s].
+        gap: The path's gap there, in [m] (negative).
+    """
+
+    def __init__(self, constraint: str, time: float, gap: float) -> None:
+        self.constraint = constraint
+        self.time = time
+        self.gap = gap
+        UControlError.__init__(
+            self,
+            f"the desired path goes through {constraint!r} (gap {gap:.4g} m at t = {time:.4g} s "
+            "of the period) outside any declared contact phase; declare a contact phase "
+            "covering that time or move the path out of the obstacle",
+        )
+        self.name = "path"
+        self.value = gap
+        self.expected = f"a gap >= 0 for {constraint!r} outside its contact phases"
+
+
 class SceneError(UControlError):
     """A scene file is malformed."""
 
@@ -200,3 +224,19 @@ class SimulationError(UControlError):
     def __str__(self) -> str:
         saved = f"; log up to the failure saved to {self.log_path}" if self.log_path else ""
         return f"{self.args[0]}{saved}"
+
+
+class IntegrationError(UControlError):
+    """A continuous-time integrator cannot advance: its ODE solver failed or it met a limit.
+
+    Attributes:
+        integrator: Name of the integrator.
+        time: Time within the step at which it stopped, in [s] from the start of the step.
+        reason: What limit was met and how to get past it.
+    """
+
+    def __init__(self, integrator: str, time: float, reason: str) -> None:
+        self.integrator = integrator
+        self.time = time
+        self.reason = reason
+        super().__init__(f"{integrator} cannot advance ({time:.6g} s into the step): {reason}")

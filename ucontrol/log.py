@@ -153,7 +153,7 @@ class Log:
             content = {key: archive[key] for key in archive.files}
         names = [str(name) for name in content.pop("constraint_names")]
         metadata = {
-            key.removeprefix("meta_"): content.pop(key).item()
+            key.removeprefix("meta_"): _metadata_value(content.pop(key))
             for key in list(content)
             if key.startswith("meta_")
         }
@@ -173,3 +173,8 @@ class Log:
                 log._arrays[key] = value
         log.size = size
         return log
+
+
+def _metadata_value(value: NDArray[Any]) -> Any:
+    """A saved metadata entry back as a Python scalar, string or list."""
+    return value.item() if value.ndim == 0 else value.tolist()

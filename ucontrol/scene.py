@@ -7,8 +7,8 @@ unknown keys are an error that names them.
 from __future__ import annotations
 
 import tomllib
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from importlib.resources import files
 from pathlib import Path
 from typing import Any
@@ -21,10 +21,17 @@ from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
 from ucontrol.contact.point_contact import PointContact
+from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.controller import Controller
+from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
 from ucontrol.control.joint_pd import JointPD
+from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError, UnknownKeyError
+from ucontrol.integrators import compliant, event_driven
+from ucontrol.integrators.compliant import Compliant
+from ucontrol.integrators.event_driven import EventDriven
 from ucontrol.integrators.moreau_jean import MoreauJean
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.model.urdf_path import resolve_urdf
@@ -33,8 +40,10 @@ from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 #: Scene run by ``ucontrol run`` without a scene argument.
 DEFAULT_SCENE = "two_link_drop.toml"
 
-INTEGRATORS = ("moreau_jean",)
-CONTROLLERS = ("joint_pd", "zero")
+INTEGRATORS = ("moreau_jean", "event_driven", "compliant")
+#: Analytic references a scene may declare in its ``[reference]`` table.
+REFERENCES = ("bouncing_ball",)
+CONTROLLERS = ("brogliato", "joint_pd", "zero")
 
 _TOP_KEYS = {
     "name",
@@ -45,16 +54,60 @@ _TOP_KEYS = {
     "stops",
     "integrator",
     "controller",
+    "reference",
 }
 _ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity"}
 _SURFACE_KEYS = {"type", "point", "normal"}
 _CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
 _STOP_KEYS = {"joint", "lower", "upper", "restitution"}
-_INTEGRATOR_KEYS = {"name", "dt", "theta", "contact_tolerance", "max_iter"}
+_INTEGRATOR_KEYS = {
+    "name",
+    "dt",
+    "theta",
+    "contact_tolerance",
+    "max_iter",
+    "rtol",
+    "atol",
+    "method",
+    "zeno_velocity",
+    "stiffness",
+    "contact_model",
+}
+_METHODS = {"event_driven": event_driven.METHODS, "compliant": compliant.METHODS}
+_REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
+_CYCLE_KEYS = (
+    "approach_time",
+    "depth_gain",
+    "depth_exponent",
+    "depth_min",
+    "depth_max",
+    "rest_time",
+    "force_fall_time",
+    "takeoff_acceleration",
+    "takeoff_time",
+    "blend_time",
+)
+_BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
 _CONTROLLER_KEYS = {
     "zero": {"type"},
     "joint_pd": {"type", "kp", "kd", "q_ref", "gravity_compensation"},
+    "brogliato": {
+        "type",
+        "frame",
+        "contacts",
+        "tangents",
+        "gamma1",
+        "gamma2",
+        "posture",
+        "mass_scale",
+        "path",
+        "contact_phases",
+        *_BROGLIATO_GAIN_KEYS,
+        *_CYCLE_KEYS,
+    },
 }
+_PATH_KEYS = {"type", "centre", "radius", "period", "axes", "start_angle"}
+_CONTACT_PHASE_KEYS = {"contact", "start", "end", "force"}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,6 +120,20 @@ class IntegratorSettings:
         theta: θ of the Moreau–Jean position update, in [1/2, 1].
         contact_tolerance: Absolute tolerance of the contact solver in [m/s].
         max_iter: Iteration cap of the contact solver.
+        rtol: Relative tolerance of solve_ivp (event_driven, compliant); None: the
+            integrator's default (1e-10 event_driven, 1e-8 compliant).
+        atol: Absolute tolerance of solve_ivp in the state's units; None: the integrator's
+            default (1e-12 event_driven, 1e-10 compliant).
+        method: solve_ivp method: ``"DOP853"`` or ``"RK45"`` (event_driven), ``"Radau"``,
+            ``"BDF"`` or ``"LSODA"`` (compliant); None: DOP853 or Radau.
+        zeno_velocity: Rebound speed in [m/s] below which event_driven makes an impact
+            plastic, cutting accumulations of impacts.
+        stiffness: Contact stiffness of compliant, in [N/m] (linear) or [N/m^1.5]
+            (Hunt–Crossley).
+        contact_model: Force law of compliant, ``"linear"`` or ``"hunt_crossley"``.
+
+    Keys that do not concern the chosen integrator are checked and ignored, so one scene can
+    be run with every integrator.
     """
 
     name: str = "moreau_jean"
@@ -74,6 +141,12 @@ class IntegratorSettings:
     theta: float = 0.5
     contact_tolerance: float = 1e-10
     max_iter: int = 5000
+    rtol: float | None = None
+    atol: float | None = None
+    method: str | None = None
+    zeno_velocity: float = 1e-5
+    stiffness: float = 1e6
+    contact_model: str = "linear"
 
     def __post_init__(self) -> None:
         if self.name not in INTEGRATORS:
@@ -84,6 +157,26 @@ class IntegratorSettings:
             self, "contact_tolerance", as_positive("contact_tolerance", self.contact_tolerance)
         )
         object.__setattr__(self, "max_iter", int(as_positive("max_iter", self.max_iter)))
+        for key in ("rtol", "atol"):
+            if getattr(self, key) is not None:
+                object.__setattr__(self, key, as_positive(key, getattr(self, key)))
+        methods = _METHODS.get(self.name, (*event_driven.METHODS, *compliant.METHODS))
+        if self.method is not None and self.method not in methods:
+            raise InvalidParameterError("method", self.method, f"one of {list(methods)}")
+        object.__setattr__(self, "zeno_velocity", as_positive("zeno_velocity", self.zeno_velocity))
+        object.__setattr__(self, "stiffness", as_positive("stiffness", self.stiffness))
+        if self.contact_model not in compliant.CONTACT_MODELS:
+            raise InvalidParameterError(
+                "contact_model", self.contact_model, f"one of {list(compliant.CONTACT_MODELS)}"
+            )
+
+    def solver_options(self) -> dict[str, Any]:
+        """The solve_ivp settings given (rtol, atol, method), as keyword arguments."""
+        return {
+            key: getattr(self, key)
+            for key in ("rtol", "atol", "method")
+            if getattr(self, key) is not None
+        }
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -100,6 +193,9 @@ class Scene:
         duration: Default simulated time in [s].
         integrator: Default integrator settings.
         controller: Controller table (``type`` plus parameters); ``{"type": "zero"}`` if none.
+        reference: Analytic reference table (``type`` plus parameters), checked when the scene
+            is loaded, or None; used by
+            :func:`ucontrol.analysis.convergence.run_convergence`.
     """
 
     name: str
@@ -111,6 +207,7 @@ class Scene:
     duration: float = 1.0
     integrator: IntegratorSettings = field(default_factory=IntegratorSettings)
     controller: Mapping[str, Any] = field(default_factory=lambda: {"type": "zero"})
+    reference: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q0", self.robot.check_configuration("q0", self.q0))
@@ -128,14 +225,36 @@ class Scene:
         constraints: ConstraintSet = self.__dict__["_constraints"]
         return constraints
 
-    def build_integrator(self, dt: float | None = None) -> MoreauJean:
+    def build_integrator(self, dt: float | None = None) -> MoreauJean | EventDriven | Compliant:
         """The integrator of this scene, optionally with another step ``dt`` in [s]."""
         settings = self.integrator
+        h = settings.dt if dt is None else dt
+        if settings.name == "compliant":
+            return Compliant(
+                self.robot,
+                self.constraints,
+                dt=h,
+                stiffness=settings.stiffness,
+                contact_model=settings.contact_model,
+                **settings.solver_options(),
+            )
         solver = ProxsuiteLCPSolver(eps_abs=settings.contact_tolerance, max_iter=settings.max_iter)
+        if settings.name == "event_driven":
+            return EventDriven(
+                self.robot,
+                self.constraints,
+                dt=h,
+                zeno_velocity=settings.zeno_velocity,
+                impact_solver=solver,
+                acceleration_solver=ProxsuiteLCPSolver(
+                    eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
+                ),
+                **settings.solver_options(),
+            )
         return MoreauJean(
             self.robot,
             self.constraints,
-            dt=settings.dt if dt is None else dt,
+            dt=h,
             theta=settings.theta,
             solver=solver,
         )
@@ -155,6 +274,8 @@ class Scene:
                 kd=_require(table, "[controller]", "kd"),
                 gravity_compensation=bool(table.get("gravity_compensation", True)),
             )
+        if kind == "brogliato":
+            return _brogliato(self, table)
         return ZeroTorque(self.robot.nu)
 
     @classmethod
@@ -198,7 +319,7 @@ class Scene:
         stops = [_stop(spec, robot) for spec in table.get("stops", [])]
         integrator_table = dict(table.get("integrator", {}))
         _check_keys("[integrator]", integrator_table, _INTEGRATOR_KEYS)
-        return cls(
+        scene = cls(
             name=str(table.get("name", default_name)),
             robot=robot,
             contacts=tuple(contacts),
@@ -209,6 +330,9 @@ class Scene:
             integrator=IntegratorSettings(**integrator_table),
             controller=dict(table.get("controller", {"type": "zero"})),
         )
+        if "reference" not in table:
+            return scene
+        return replace(scene, reference=_reference(table["reference"], scene.contacts))
 
 
 def builtin_scene(name: str = DEFAULT_SCENE) -> Path:
@@ -237,6 +361,27 @@ def _require(table: Mapping[str, Any], section: str, key: str) -> Any:
     if key not in table:
         raise SceneError(f"{section} needs the key {key!r}")
     return table[key]
+
+
+def _reference(table: Mapping[str, Any], contacts: Sequence[PointContact]) -> dict[str, Any]:
+    """A checked ``[reference]`` table, with ``contact`` resolved to a contact name.
+
+    ``bouncing_ball``: the gap of ``contact`` (default the first) follows
+    :class:`ucontrol.analysis.BouncingBall`, its parameters read from the scene.
+    """
+    if not isinstance(table, Mapping):
+        raise SceneError(f"[reference] must be a table, got {table!r}")
+    kind = _require(table, "[reference]", "type")
+    if kind not in _REFERENCE_KEYS:
+        raise NotFoundError("reference type", str(kind), REFERENCES)
+    _check_keys("[reference]", table, _REFERENCE_KEYS[kind])
+    names = [contact.name for contact in contacts]
+    if not names:
+        raise SceneError("[reference] type 'bouncing_ball' needs a [[contacts]] entry")
+    contact = str(table.get("contact", names[0]))
+    if contact not in names:
+        raise NotFoundError("contact", contact, names)
+    return {"type": kind, "contact": contact}
 
 
 def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
@@ -282,3 +427,46 @@ def _stop(spec: Mapping[str, Any], robot: RobotModel) -> JointStop:
     return JointStop(
         joint=joint, lower=lower, upper=upper, restitution=spec.get("restitution", 0.0)
     )
+
+
+def _brogliato(scene: Scene, table: Mapping[str, Any]) -> BrogliatoController:
+    """The ``type = "brogliato"`` controller of a scene (keys in docs/scene_format.md)."""
+    section = "[controller]"
+    frame = str(_require(table, section, "frame"))
+    contacts = {contact.name: contact for contact in scene.contacts}
+    names = table.get("contacts", [c.name for c in scene.contacts if c.frame == frame])
+    for name in names:
+        if name not in contacts:
+            raise NotFoundError("contact", str(name), contacts)
+    task = TaskCoordinates(
+        scene.robot, frame, [contacts[name] for name in names], table.get("tangents", ())
+    )
+    path_table = _require(table, section, "path")
+    _check_keys("[controller.path]", path_table, _PATH_KEYS)
+    if path_table.get("type", "circle") != "circle":
+        raise InvalidParameterError("[controller.path] type", path_table["type"], "'circle'")
+    path = CirclePath(
+        centre=_require(path_table, "[controller.path]", "centre"),
+        radius=_require(path_table, "[controller.path]", "radius"),
+        period=_require(path_table, "[controller.path]", "period"),
+        **{key: path_table[key] for key in ("axes", "start_angle") if key in path_table},
+    )
+    phases = []
+    for spec in _require(table, section, "contact_phases"):
+        entry = "[[controller.contact_phases]]"
+        _check_keys(entry, spec, _CONTACT_PHASE_KEYS)
+        phases.append(
+            ContactPhase(**{key: _require(spec, entry, key) for key in _CONTACT_PHASE_KEYS})
+        )
+    cycle = DesiredCycle(
+        path=path,
+        contact_phases=tuple(phases),
+        **{key: table[key] for key in _CYCLE_KEYS if key in table},
+    )
+    gains = BrogliatoGains(
+        gamma1=_require(table, section, "gamma1"),
+        gamma2=_require(table, section, "gamma2"),
+        **{key: table[key] for key in _BROGLIATO_GAIN_KEYS if key in table},
+    )
+    robot = scene.robot.with_scaled_inertia(table.get("mass_scale", 1.0))
+    return BrogliatoController(robot, task, cycle, gains, posture=table.get("posture", scene.q0))

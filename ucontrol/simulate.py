@@ -13,7 +13,7 @@ import numpy as np
 
 from ucontrol._validation import as_positive, as_vector
 from ucontrol.analysis.summary import summarize
-from ucontrol.control.controller import ContactState, Controller
+from ucontrol.control.controller import ContactState, Controller, LoggingController
 from ucontrol.exceptions import (
     InitialPenetrationError,
     InvalidParameterError,
@@ -61,7 +61,8 @@ def simulate(
 
     Args:
         scene: The plant, its initial state and its default settings.
-        controller: Called as ``controller(t, q, v, contacts)``; default the scene's.
+        controller: Called as ``controller(t, q, v, contacts)``; default the scene's. A
+            :class:`~ucontrol.control.LoggingController` also adds its own fields to the log.
         duration: Simulated time in [s]; default the scene's.
         dt: Time step in [s]; default the scene's integrator step.
         control_period: Controller period in [s] (zero-order hold); default every step.
@@ -108,6 +109,9 @@ def simulate(
             "actuated": robot.actuated.tolist(),
         },
     )
+    recorder = controller if isinstance(controller, LoggingController) else None
+    if recorder is not None:
+        recorder.prepare_log(log)
     out_dir = Path(out) if out is not None else None
     bar = _progress_bar(n_steps, progress)
     contacts_zero = np.zeros(constraints.size)
@@ -117,7 +121,7 @@ def simulate(
     actuated = robot.actuated
     u = np.zeros(robot.nu)
     start = last_checkpoint = time.perf_counter()
-    k, row_open = 0, False
+    k, row_open, n_events = 0, False, 0
     try:
         for k in range(n_steps + 1):
             t = k * h
@@ -142,6 +146,8 @@ def simulate(
                     raise ShapeError("controller output u", (robot.nu,), output.shape)
                 u = output
                 tau[actuated] = u
+            if recorder is not None:
+                recorder.record(log)
             outcome = integrator.step(state, tau)
             solution = outcome.solution
             log.record_step(
@@ -153,6 +159,7 @@ def simulate(
             )
             row_open = False
             q, v, impulse, active = outcome.q, outcome.v, outcome.impulse, outcome.active
+            n_events += outcome.events
             if not math.isfinite(float(q.sum() + v.sum() + u.sum())):
                 as_vector("controller output u", u)  # names the culprit if it is the controller
                 raise _NonFiniteState(f"the state became non-finite at t = {t + h:.6g} s")
@@ -165,6 +172,8 @@ def simulate(
                 ):
                     log.save(out_dir / "log.npz")
                     last_checkpoint = time.perf_counter()
+        if recorder is not None:
+            recorder.record(log)
         log.record_step(u, contacts_zero, inactive, 0, 0.0)
     except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
         if row_open:  # the state at t_k is stored, its step is not: close the row
@@ -178,6 +187,7 @@ def simulate(
             bar.close()
     wall_time = time.perf_counter() - start
     summary = summarize(log, wall_time_s=wall_time, theta=integrator.theta)
+    summary["n_events"] = n_events  # located by event-driven integrators; 0 otherwise
     if out_dir is not None:
         log.save(out_dir / "log.npz")
         (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

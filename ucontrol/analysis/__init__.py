@@ -1,6 +1,7 @@
 """Analysis of runs: summaries and analytic references."""
 
 from ucontrol.analysis.bouncing_ball import BouncingBall
-from ucontrol.analysis.summary import IMPACT_VELOCITY_THRESHOLD, impact_mask, summarize
+from ucontrol.analysis.impacts import IMPACT_VELOCITY_THRESHOLD, impact_mask
+from ucontrol.analysis.summary import summarize
 
 __all__ = ["IMPACT_VELOCITY_THRESHOLD", "BouncingBall", "impact_mask", "summarize"]

@@ -6,16 +6,11 @@ from typing import Any
 
 import numpy as np
 
+from ucontrol.analysis.cycles import CYCLE_FIELDS
+from ucontrol.analysis.impacts import impact_mask
+from ucontrol.analysis.tracking import tracking
+from ucontrol.analysis.weak_stability import weak_stability
 from ucontrol.log import Log
-
-#: A constraint closing faster than this at the start of a step with a positive impulse is an
-#: impact, in [m/s] (or [rad/s] for stops); slower ones are persistent contact.
-IMPACT_VELOCITY_THRESHOLD = 1e-6
-
-
-def impact_mask(log: Log) -> np.ndarray:
-    """Boolean array (N, n): constraint i had an impact in the step starting at row k."""
-    return (log.impulse > 0.0) & (log.normal_velocity < -IMPACT_VELOCITY_THRESHOLD)
 
 
 def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, Any]:
@@ -39,7 +34,7 @@ def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, 
         dt = t[k + 1] - t[k]
         work = dt * np.einsum("ij,ij->i", log.u[k], v_mid[:, robot_actuated])  # [J]
         energy_jump = float(np.max(log.energy[k + 1] - log.energy[k] - work))
-    return {
+    summary = {
         "scene": log.metadata.get("scene", ""),
         "integrator": log.metadata.get("integrator", ""),
         "dt": log.metadata.get("dt"),
@@ -57,3 +52,7 @@ def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, 
         "max_complementarity_residual": float(log.complementarity_residual.max(initial=0.0)),
         "max_solver_iterations": int(log.solver_iterations.max(initial=0)),
     }
+    if CYCLE_FIELDS <= set(log.fields):  # a phase-machine controller ran
+        summary["weak_stability"] = weak_stability(log).to_dict()
+        summary["tracking"] = tracking(log).to_dict()
+    return summary

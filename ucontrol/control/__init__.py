@@ -1,7 +1,31 @@
 """Controllers and the protocol they follow."""
 
-from ucontrol.control.controller import ContactState, Controller
+from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+from ucontrol.control.circle_path import CirclePath
+from ucontrol.control.controller import ContactState, Controller, LoggingController
+from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle, NominalPath
 from ucontrol.control.joint_pd import JointPD
+from ucontrol.control.phase import Event, Phase
+from ucontrol.control.phase_machine import DesiredState, PhaseMachine
+from ucontrol.control.task_coordinates import TaskCoordinates, TaskState
 from ucontrol.control.zero_torque import ZeroTorque
 
-__all__ = ["ContactState", "Controller", "JointPD", "ZeroTorque"]
+__all__ = [
+    "BrogliatoController",
+    "BrogliatoGains",
+    "CirclePath",
+    "ContactPhase",
+    "ContactState",
+    "Controller",
+    "DesiredCycle",
+    "DesiredState",
+    "Event",
+    "JointPD",
+    "LoggingController",
+    "NominalPath",
+    "Phase",
+    "PhaseMachine",
+    "TaskCoordinates",
+    "TaskState",
+    "ZeroTorque",
+]

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from ucontrol.log import Log
 
 Vector = NDArray[np.float64]
 
@@ -47,4 +50,23 @@ class Controller(Protocol):
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Torques to apply from time ``t`` [s] at state (q (nq,), v (nv,))."""
+        ...
+
+
+@runtime_checkable
+class LoggingController(Protocol):
+    """A controller that writes its own per-sample fields (phase, Lyapunov function, ...).
+
+    :func:`ucontrol.simulate` calls :meth:`prepare_log` once before the run and :meth:`record`
+    once per log row, after the controller call of that row if there is one: on rows between
+    two calls (``control_period`` longer than the step) and on the last row, the fields hold the
+    values of the last call, like the torque ``u`` (zero-order hold).
+    """
+
+    def prepare_log(self, log: Log) -> None:
+        """Declare the fields with :meth:`Log.add_field` (and metadata in ``log.metadata``)."""
+        ...
+
+    def record(self, log: Log) -> None:
+        """Write the current row of every declared field with :meth:`Log.record_extra`."""
         ...

@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from ucontrol._validation import as_vector
+from ucontrol._validation import as_positive, as_vector
 from ucontrol.exceptions import FrameNotFoundError, JointNotFoundError, URDFError
 
 Vector = NDArray[np.float64]
@@ -78,6 +78,23 @@ class RobotModel:
         if gravity is not None:
             model.gravity.linear = as_vector("gravity", gravity, 3)
         return cls(model, floating_base=floating_base)
+
+    def with_scaled_inertia(self, factor: float) -> RobotModel:
+        """A copy whose link masses and rotational inertias are multiplied by ``factor``.
+
+        The kinematics and the centres of mass are unchanged. Used to give a controller a
+        wrong model of the plant (robustness studies).
+
+        Args:
+            factor: Scale of every mass and inertia, > 0 (1.2: 20 % heavier).
+        """
+        factor = as_positive("factor", factor)
+        model = self.model.copy()
+        for i, inertia in enumerate(model.inertias):
+            model.inertias[i] = pin.Inertia(
+                inertia.mass * factor, inertia.lever, inertia.inertia * factor
+            )
+        return RobotModel(model, floating_base=self.floating_base)
 
     @property
     def gravity(self) -> Vector:

@@ -1,0 +1,493 @@
+r"""Error against run time: each integrator over a range of steps, tolerances or stiffnesses.
+
+:func:`run_convergence` runs a scene through :func:`ucontrol.simulate.simulate` with
+
+- ``moreau_jean`` over time steps h (``dts``), whose observed order is the slope of
+  :math:`\log(\text{error})` against :math:`\log h`;
+- ``event_driven`` over solve_ivp tolerances (``tolerances``: rtol, with atol = rtol / 100),
+  sampled every ``sample_dt``; its order is the slope against :math:`\log(\text{rtol})`;
+- ``compliant`` over contact stiffnesses (``stiffnesses``), sampled every ``sample_dt``; its
+  order is the slope against :math:`\log k` (about -1/2: the error is the penetration and the
+  contact duration, both :math:`\propto k^{-1/2}`),
+
+and measures each run's error against a reference:
+
+- analytic, where the scene declares one (``[reference] type = "bouncing_ball"``): the largest
+  difference in [m] between the gap of the declared contact and the
+  :class:`~ucontrol.analysis.BouncingBall` height over every sample of the run;
+- otherwise the tightest event-driven run (rtol = ``reference_tolerance``), made with the other
+  Runge–Kutta pair than the event-driven runs (RK45 against DOP853 and conversely) so that it
+  does not repeat their computation: the largest configuration difference
+  :math:`\|q \ominus q_\text{ref}\|_\infty` in [m] or [rad] at the times the runs share
+  (multiples of the largest step).
+
+The wall time is the simulation loop's. :meth:`ConvergenceStudy.equal_error` puts each
+event-driven run beside the Moreau–Jean wall time at the same error, interpolated (or
+extrapolated, and flagged) along Moreau–Jean's power law of time against error.
+
+This module imports the simulation loop, so it is not re-exported by ``ucontrol.analysis``
+(whose summary the loop itself imports).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_positive
+from ucontrol.analysis.bouncing_ball import BouncingBall
+from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.log import Log
+from ucontrol.scene import INTEGRATORS, Scene
+from ucontrol.simulate import simulate
+
+#: Default Moreau–Jean steps in [s].
+DEFAULT_DTS = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4)
+#: Default event-driven relative tolerances.
+DEFAULT_TOLERANCES = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
+#: Default compliant stiffnesses in [N/m] (linear law).
+DEFAULT_STIFFNESSES = (1e4, 1e5, 1e6, 1e7)
+#: Parameter swept for each integrator.
+PARAMETERS = {"moreau_jean": "dt", "event_driven": "rtol", "compliant": "stiffness"}
+#: atol / rtol of the event-driven and compliant runs, in the state's units.
+ATOL_RATIO = 1e-2
+#: Relative tolerance of the compliant runs.
+COMPLIANT_RTOL = 1e-8
+
+_CSV_FIELDS = (
+    "integrator",
+    "parameter",
+    "value",
+    "dt_s",
+    "error",
+    "wall_time_s",
+    "steps",
+    "n_events",
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ConvergenceRun:
+    """One run of a convergence study.
+
+    Attributes:
+        integrator: Integrator name.
+        parameter: What was varied: ``"dt"`` [s], ``"rtol"`` [-] or ``"stiffness"`` [N/m].
+        value: Its value.
+        dt: Step (Moreau–Jean) or sampling period (others) in [s].
+        error: Error against the reference, in [m] (or [rad] for joint coordinates).
+        wall_time_s: Wall time of the simulation loop in [s].
+        steps: Number of steps.
+        n_events: Events located (event-driven and compliant integrators).
+    """
+
+    integrator: str
+    parameter: str
+    value: float
+    dt: float
+    error: float
+    wall_time_s: float
+    steps: int
+    n_events: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class EqualError:
+    """An event-driven run beside Moreau–Jean's wall time at the same error.
+
+    Attributes:
+        error: The event-driven run's error.
+        event_driven_s: Its wall time in [s].
+        moreau_jean_s: Moreau–Jean's wall time at that error in [s], from its power law.
+        extrapolated: Whether that error lies outside the Moreau–Jean runs' range.
+    """
+
+    error: float
+    event_driven_s: float
+    moreau_jean_s: float
+    extrapolated: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class ConvergenceStudy:
+    """The runs of :func:`run_convergence` and what they show.
+
+    Attributes:
+        scene: Scene name.
+        duration: Simulated time of every run in [s].
+        reference: How the error was measured.
+        runs: Every run, grouped by integrator.
+    """
+
+    scene: str
+    duration: float
+    reference: str
+    runs: tuple[ConvergenceRun, ...]
+
+    def of(self, integrator: str) -> list[ConvergenceRun]:
+        """The runs of one integrator, in the order they were made."""
+        return [run for run in self.runs if run.integrator == integrator]
+
+    def orders(self) -> dict[str, float]:
+        """Observed order of each integrator with two runs or more of positive error.
+
+        Least-squares slope of log(error) against log(parameter): against h for
+        Moreau–Jean, rtol for event-driven, k for compliant. NaN when the error does not vary.
+        """
+        orders = {}
+        for integrator in dict.fromkeys(run.integrator for run in self.runs):
+            runs = [run for run in self.of(integrator) if run.error > 0.0]
+            if len(runs) >= 2:
+                x = np.log([run.value for run in runs])
+                y = np.log([run.error for run in runs])
+                orders[integrator] = float(np.polyfit(x, y, 1)[0]) if np.ptp(y) > 0 else math.nan
+        return orders
+
+    def equal_error(self) -> list[EqualError]:
+        """Each event-driven run beside Moreau–Jean's wall time at its error.
+
+        Moreau–Jean's time is the power law time = C error^s fitted (least squares in log-log)
+        to its runs; empty without two Moreau–Jean and one event-driven run. Event-driven runs
+        of zero error (equal to their reference to the last bit) are left out.
+        """
+        reference = [run for run in self.of("moreau_jean") if run.error > 0.0]
+        if len(reference) < 2:
+            return []
+        log_error = np.log([run.error for run in reference])
+        slope, intercept = np.polyfit(log_error, np.log([run.wall_time_s for run in reference]), 1)
+        low, high = log_error.min(), log_error.max()
+        rows = []
+        for run in self.of("event_driven"):
+            if run.error <= 0.0:
+                continue
+            log_run_error = math.log(run.error)
+            rows.append(
+                EqualError(
+                    error=run.error,
+                    event_driven_s=run.wall_time_s,
+                    moreau_jean_s=float(np.exp(intercept + slope * log_run_error)),
+                    extrapolated=not low <= log_run_error <= high,
+                )
+            )
+        return rows
+
+    def to_csv(self) -> str:
+        """The runs as CSV text, one row per run (columns of ``_CSV_FIELDS``)."""
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        writer.writerow(_CSV_FIELDS)
+        for run in self.runs:
+            writer.writerow(
+                [
+                    run.integrator,
+                    run.parameter,
+                    f"{run.value:.6g}",
+                    f"{run.dt:.6g}",
+                    f"{run.error:.6e}",
+                    f"{run.wall_time_s:.6g}",
+                    run.steps,
+                    run.n_events,
+                ]
+            )
+        return buffer.getvalue()
+
+    def to_markdown(self) -> str:
+        """Runs, observed orders and the equal-error comparison as markdown tables."""
+        lines = [
+            f"Scene `{self.scene}`, {self.duration:g} s; error: {self.reference}.",
+            "",
+            "| integrator | parameter | value | step / sampling [s] | error | wall time [s] "
+            "| steps | events |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {run.integrator} | {run.parameter} | {run.value:.3g} | {run.dt:.3g} "
+            f"| {run.error:.3e} | {run.wall_time_s:.3g} | {run.steps} | {run.n_events} |"
+            for run in self.runs
+        ]
+        orders = self.orders()
+        if orders:
+            lines += ["", "| integrator | observed order | against |", "|---|---|---|"]
+            lines += [
+                f"| {name} | {_order_text(order)} | log {PARAMETERS[name]} |"
+                for name, order in orders.items()
+            ]
+        best = min(self.of("moreau_jean"), key=lambda run: run.error, default=None)
+        if best is not None and self.of("event_driven"):
+            worst = max(self.of("event_driven"), key=lambda run: run.error)
+            slowest = max(run.wall_time_s for run in self.of("event_driven"))
+            lines += [
+                "",
+                f"Most accurate moreau_jean run: h = {best.value:.3g} s, error "
+                f"{best.error:.3e} in {best.wall_time_s:.3g} s; event_driven: error at most "
+                f"{worst.error:.3e} in at most {slowest:.3g} s.",
+            ]
+        equal = self.equal_error()
+        if equal:
+            lines += [
+                "",
+                "| error | event_driven [s] | moreau_jean at equal error [s] | ratio |",
+                "|---|---|---|---|",
+            ]
+            lines += [
+                f"| {row.error:.3e} | {row.event_driven_s:.3g} | {row.moreau_jean_s:.3g}"
+                f"{' (extrapolated)' if row.extrapolated else ''} "
+                f"| {row.moreau_jean_s / row.event_driven_s:.3g} |"
+                for row in equal
+            ]
+        return "\n".join(lines) + "\n"
+
+
+def run_convergence(
+    scene: Scene,
+    *,
+    duration: float | None = None,
+    integrators: Sequence[str] = INTEGRATORS,
+    dts: Sequence[float] = DEFAULT_DTS,
+    tolerances: Sequence[float] = DEFAULT_TOLERANCES,
+    stiffnesses: Sequence[float] = DEFAULT_STIFFNESSES,
+    sample_dt: float | None = None,
+    control_period: float | None = None,
+    reference_tolerance: float = 1e-12,
+) -> ConvergenceStudy:
+    """Run ``scene`` with each integrator over its parameter range and measure the errors.
+
+    Args:
+        scene: The scene; its ``[reference]`` table, if any, gives the analytic reference.
+        duration: Simulated time in [s]; default the scene's.
+        integrators: Which integrators to run, among :data:`ucontrol.scene.INTEGRATORS`.
+        dts: Moreau–Jean steps in [s].
+        tolerances: Event-driven relative tolerances (atol = rtol / 100).
+        stiffnesses: Compliant stiffnesses in [N/m] (or [N/m^1.5] for Hunt–Crossley).
+        sample_dt: Sampling period of the event-driven and compliant runs in [s]; default the
+            scene's step.
+        control_period: Controller period in [s] of every run (zero-order hold), which every
+            step and sampling period must divide; default every step. A closed loop is only
+            the same system across runs with a common control period.
+        reference_tolerance: rtol of the event-driven reference run when the scene declares
+            no analytic reference.
+
+    Raises:
+        NotFoundError: An integrator name is unknown.
+        InvalidParameterError: A range is empty or holds a non-positive value, a step does
+            not divide the control period, or (numerical reference) the largest step.
+    """
+    duration = as_positive("duration", scene.duration if duration is None else duration)
+    for name in integrators:
+        if name not in INTEGRATORS:
+            raise NotFoundError("integrator", name, INTEGRATORS)
+    sample_dt = as_positive("sample_dt", scene.integrator.dt if sample_dt is None else sample_dt)
+    sweeps = {
+        "moreau_jean": _positive_range("dts", dts),
+        "event_driven": _positive_range("tolerances", tolerances),
+        "compliant": _positive_range("stiffnesses", stiffnesses),
+    }
+    settings = [
+        (name, value, _settings(name, value, sample_dt))
+        for name in integrators
+        for value in sweeps[name]
+    ]
+    if control_period is not None:
+        control_period = as_positive("control_period", control_period)
+        for _, _, (step, _) in settings:
+            _check_divides(step, control_period, "the control period")
+    if scene.reference is not None:
+        ball, index = _bouncing_ball(scene, scene.reference["contact"])
+        reference = (
+            f"largest |gap - BouncingBall height| of contact "
+            f"{scene.constraints.names[index]!r} over every sample, in [m]"
+        )
+
+        def error(log: Log) -> float:
+            height, _ = ball.state(log.t)
+            return float(np.max(np.abs(log.gap[:, index] - height)))
+
+    else:
+        period = max(sample_dt, *(step for _, _, (step, _) in settings))
+        for _, _, (step, _) in settings:
+            _check_divides(step, period, "the largest step or sampling period")
+        method = "DOP853" if scene.integrator.method == "RK45" else "RK45"
+        options = {
+            "rtol": reference_tolerance,
+            "atol": ATOL_RATIO * reference_tolerance,
+            "method": method,
+        }
+        reference_log, _ = _simulate(
+            scene, "event_driven", period, options, duration, control_period
+        )
+        reference = (
+            f"largest |q - q_ref| (inf-norm, [m] or [rad]) every {period:g} s against "
+            f"event_driven ({method}) at rtol = {reference_tolerance:g}"
+        )
+
+        def error(log: Log) -> float:
+            return _configuration_error(scene, log, reference_log, period)
+
+    runs = []
+    for name, value, (step, options) in settings:
+        log, summary = _simulate(scene, name, step, options, duration, control_period)
+        runs.append(
+            ConvergenceRun(
+                integrator=name,
+                parameter=PARAMETERS[name],
+                value=value,
+                dt=step,
+                error=error(log),
+                wall_time_s=summary["wall_time_s"],
+                steps=summary["steps"],
+                n_events=summary["n_events"],
+            )
+        )
+    return ConvergenceStudy(
+        scene=scene.name, duration=duration, reference=reference, runs=tuple(runs)
+    )
+
+
+def plot_work_precision(study: ConvergenceStudy, path: str | Path) -> Path:
+    """Log-log plot of error against wall time, one line per integrator, saved to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(figsize=(6.4, 4.4), layout="constrained")
+    floor = np.finfo(float).eps
+    for name, marker in zip(INTEGRATORS, "osD", strict=True):
+        runs = study.of(name)
+        if not runs:
+            continue
+        times = [run.wall_time_s for run in runs]
+        errors = [max(run.error, floor) for run in runs]
+        axes.loglog(times, errors, marker=marker, label=name)
+        labelled: list[tuple[float, float]] = []
+        for run, time, err in zip(runs, times, errors, strict=True):
+            if any(
+                abs(math.log(time / t)) < 0.3 and abs(math.log(err / e)) < 0.3 for t, e in labelled
+            ):
+                continue  # a point on top of a labelled one: its label would hide it
+            labelled.append((time, err))
+            axes.annotate(
+                f"{run.value:.0e}",
+                (time, err),
+                textcoords="offset points",
+                xytext=(4, 3),
+                fontsize=7,
+            )
+    axes.set_xlabel("wall time [s]")
+    axes.set_ylabel("error")
+    axes.set_title(f"{study.scene}: error against run time ({study.duration:g} s simulated)")
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(title="labels: h [s], rtol, k [N/m]", fontsize=8, title_fontsize=8)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+    return path
+
+
+def write_report(study: ConvergenceStudy, out: str | Path) -> dict[str, Path]:
+    """Write ``convergence.csv``, ``convergence.md`` and ``work_precision.png`` into ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {
+        "csv": out / "convergence.csv",
+        "markdown": out / "convergence.md",
+        "png": out / "work_precision.png",
+    }
+    paths["csv"].write_text(study.to_csv())
+    paths["markdown"].write_text(study.to_markdown())
+    plot_work_precision(study, paths["png"])
+    return paths
+
+
+def _settings(name: str, value: float, sample_dt: float) -> tuple[float, dict[str, Any]]:
+    """Step [s] and integrator settings of one run."""
+    if name == "moreau_jean":
+        return value, {}
+    if name == "event_driven":
+        return sample_dt, {"rtol": value, "atol": ATOL_RATIO * value}
+    return sample_dt, {
+        "stiffness": value,
+        "rtol": COMPLIANT_RTOL,
+        "atol": ATOL_RATIO * COMPLIANT_RTOL,
+    }
+
+
+def _simulate(
+    scene: Scene,
+    name: str,
+    dt: float,
+    options: dict[str, Any],
+    duration: float,
+    control_period: float | None,
+) -> tuple[Log, dict[str, Any]]:
+    settings = dataclasses.replace(scene.integrator, name=name, dt=dt, **options)
+    result = simulate(
+        dataclasses.replace(scene, integrator=settings),
+        duration=duration,
+        control_period=control_period,
+        progress=False,
+    )
+    return result.log, result.summary
+
+
+def _bouncing_ball(scene: Scene, name: str) -> tuple[BouncingBall, int]:
+    """The analytic motion of the gap of contact ``name``, and that contact's index."""
+    names = [contact.name for contact in scene.contacts]
+    if name not in names:
+        raise NotFoundError("contact", name, names)
+    index = names.index(name)  # contacts come first among the constraints
+    contact = scene.contacts[index]
+    gravity = -float(contact.surface.normal @ scene.robot.gravity)  # [m/s²] into the surface
+    if gravity <= 0.0:
+        raise InvalidParameterError(
+            "[reference] bouncing_ball",
+            gravity,
+            f"gravity pressing contact {contact.name!r} onto its surface (> 0 along -normal)",
+        )
+    start = scene.build_integrator().evaluate(scene.q0, scene.v0)
+    ball = BouncingBall(
+        height=float(start.gap[index]),
+        velocity=float(start.normal_velocity[index]),
+        restitution=contact.restitution,
+        gravity=gravity,
+    )
+    return ball, index
+
+
+def _configuration_error(scene: Scene, log: Log, reference: Log, period: float) -> float:
+    """Largest ‖q ⊖ q_ref‖∞ at the multiples of ``period`` [s] both logs hold."""
+    stride = round(period / float(log.metadata["dt"]))
+    reference_stride = round(period / float(reference.metadata["dt"]))
+    q = log.q[::stride]
+    q_reference = reference.q[::reference_stride]
+    n = min(len(q), len(q_reference))
+    model = scene.robot.model
+    return max(float(np.max(np.abs(pin.difference(model, q_reference[j], q[j])))) for j in range(n))
+
+
+def _order_text(order: float) -> str:
+    return "- (the error does not vary)" if math.isnan(order) else f"{order:.3f}"
+
+
+def _positive_range(name: str, values: Sequence[float]) -> NDArray[np.float64]:
+    array = np.array([as_positive(name, value) for value in values], dtype=float)
+    if array.size == 0:
+        raise InvalidParameterError(name, list(values), "at least one value")
+    return array
+
+
+def _check_divides(step: float, period: float, what: str) -> None:
+    ratio = period / step
+    if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+        raise InvalidParameterError("dts", step, f"a step that divides {what}, {period:g} s")

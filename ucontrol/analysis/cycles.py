@@ -1,0 +1,88 @@
+r"""Cycles of a run logged by a phase-machine controller, cut at the approach times.
+
+Cycle k spans the rows from :math:`\tau_0^k` of the first declared contact to
+:math:`\tau_0^{k+1}` (exclusive; the end of the log for the last cycle). It holds the
+transition :math:`I_k`, the constrained phase, the takeoff and the free phase that leads to the
+next approach. The log must hold the fields ``events`` and ``contact_phase`` of
+:class:`ucontrol.control.BrogliatoController`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ucontrol.control.phase import Event
+from ucontrol.log import Log
+
+#: Log fields a phase-machine controller writes and the cycle analyses read.
+CYCLE_FIELDS = frozenset({"events", "contact_phase", "phase", "V"})
+
+
+@dataclass(frozen=True)
+class CycleEvents:
+    r"""Rows and event times of one cycle.
+
+    Times are NaN for events that did not happen in the cycle. Each list has one entry per
+    declared contact, in the controller's order.
+
+    Attributes:
+        index: Cycle number k, from 0.
+        start: Row of :math:`\tau_0^k` of the first declared contact.
+        stop: Row of the next cycle's start, or the number of rows.
+        tau0: Start of each approach :math:`\tau_0` in [s].
+        first_impact: First impact :math:`t_0` in [s].
+        accumulation_end: End of the accumulation of impacts :math:`t_f` in [s].
+        takeoff: Takeoff :math:`t_d` in [s].
+    """
+
+    index: int
+    start: int
+    stop: int
+    tau0: list[float]
+    first_impact: list[float]
+    accumulation_end: list[float]
+    takeoff: list[float]
+
+    @property
+    def complete(self) -> bool:
+        """Every contact settled on its surface (:math:`t_f`) and took off (:math:`t_d`)."""
+        return all(
+            math.isfinite(t_f) and math.isfinite(t_d)
+            for t_f, t_d in zip(self.accumulation_end, self.takeoff, strict=True)
+        )
+
+
+def cycle_events(log: Log) -> list[CycleEvents]:
+    """The cycles of ``log``, each with its rows and event times (see the module docstring)."""
+    events = log.events
+    starts = np.flatnonzero(events[:, 0] & Event.TAU0)
+    bounds = [*starts.tolist(), len(log)]
+    cycles = []
+    for k in range(len(starts)):
+        window = slice(bounds[k], bounds[k + 1])
+
+        def times(flag: Event, window: slice = window) -> list[float]:
+            rows = events[window]
+            found = [np.flatnonzero(rows[:, i] & flag) for i in range(rows.shape[1])]
+            return [float(log.t[window][f[0]]) if f.size else math.nan for f in found]
+
+        cycles.append(
+            CycleEvents(
+                index=k,
+                start=bounds[k],
+                stop=bounds[k + 1],
+                tau0=times(Event.TAU0),
+                first_impact=times(Event.FIRST_IMPACT),
+                accumulation_end=times(Event.ACCUMULATION_END),
+                takeoff=times(Event.TAKEOFF),
+            )
+        )
+    return cycles
+
+
+def finite_or_none(value: float) -> float | None:
+    """``value`` for JSON: None when it is NaN or infinite."""
+    return float(value) if math.isfinite(value) else None

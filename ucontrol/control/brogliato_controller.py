@@ -1,0 +1,312 @@
+r"""Tracking control through free, transition, constrained and takeoff phases (Brogliato ch. 8).
+
+Task coordinates :math:`X = \phi(q)` with the constraints :math:`X_1 \ge 0`
+(:class:`TaskCoordinates`), errors :math:`\tilde X = X - X_d`,
+:math:`s = \dot{\tilde X} + \gamma_2 \tilde X`, :math:`\dot X_r = \dot X_d - \gamma_2 \tilde X`.
+The law is written in joint space with the reference velocity
+:math:`\dot q_r = J^+ \dot X_r + N \xi` (:math:`J^+ = J^T (J J^T)^{-1}`, :math:`N = I - J^+ J`,
+posture velocity :math:`\xi = -\gamma_p (q \ominus q_p)`) and :math:`s_q = \dot q - \dot q_r`:
+
+.. math::
+
+    \tau = M \ddot q_r + C(q, \dot q) \dot q_r + g(q) - \gamma_1 J^T s
+           - \gamma_N N^T M N s_q
+           + J_c^T \big(-\lambda_d + K_f (\lambda - \lambda_d)\big).
+
+For a square task (m = nv, the two-link arm) :math:`N = 0`, :math:`s_q = J^{-1} s` and this is
+exactly the task-space Slotine–Li law
+:math:`\tau = J^T(\bar M \ddot X_r + \bar C \dot X_r + \bar g - \gamma_1 s)` of the book with
+:math:`\bar M = J^{-T} M J^{-1}`; for a redundant arm the null space tracks the posture. The
+Lyapunov function is :math:`V = V_1 + \gamma_1 \gamma_2 \tilde X^T \tilde X`,
+:math:`V_1 = \tfrac12 s_q^T M s_q` (:math:`= \tfrac12 s^T \bar M s` when square), with
+:math:`\dot V = -\gamma_1(\|\dot{\tilde X}\|^2 + \gamma_2^2\|\tilde X\|^2) - \gamma_N
+\|N s_q\|_M^2` in free motion. The last term acts in the constrained phase only, on the
+contacts :math:`c` held there; λ is the measured contact *force*, the impulse of the last step
+divided by its length.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_positive
+from ucontrol.control.controller import ContactState, Vector
+from ucontrol.control.desired_cycle import DesiredCycle
+from ucontrol.control.phase import Phase
+from ucontrol.control.phase_machine import DesiredState, PhaseMachine
+from ucontrol.control.task_coordinates import TaskCoordinates, TaskState
+from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.model.robot_model import RobotModel
+
+if TYPE_CHECKING:
+    from ucontrol.log import Log
+
+Matrix = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class BrogliatoGains:
+    r"""Gains of :class:`BrogliatoController`.
+
+    Attributes:
+        gamma1: :math:`\gamma_1` in [N s/m], > 0: damping of the sliding variable s.
+        gamma2: :math:`\gamma_2` in [1/s], > 0: bandwidth of :math:`s = 0`.
+        force_gain: :math:`K_f` in [0, 1): feedback on the contact force error. The force
+            measured is that of the previous step, so the loop
+            :math:`\lambda_k - \lambda_d = r - K_f(\lambda_{k-1} - \lambda_d)` (r: model
+            residual) is stable only for :math:`K_f < 1`; it divides the error by
+            :math:`1 + K_f`.
+        posture_gain: :math:`\gamma_p` in [1/s], > 0: posture velocity in the null space.
+        null_space_gain: :math:`\gamma_N` in [1/s], > 0: damping of the null-space motion.
+    """
+
+    gamma1: float
+    gamma2: float
+    force_gain: float = 0.5
+    posture_gain: float = 2.0
+    null_space_gain: float = 10.0
+
+    def __post_init__(self) -> None:
+        for name in ("gamma1", "gamma2", "posture_gain", "null_space_gain"):
+            object.__setattr__(self, name, as_positive(name, getattr(self, name)))
+        force_gain = float(self.force_gain)
+        if not 0.0 <= force_gain < 1.0:
+            raise InvalidParameterError("force_gain", self.force_gain, "in [0, 1)")
+        object.__setattr__(self, "force_gain", force_gain)
+
+
+#: A contact closing faster than this at the start of a step is impacting, in [m/s]: the
+#: impulse of that step is not used as a force measurement.
+IMPACT_SPEED = 1e-6
+
+#: Per-sample fields written to the log (name: shape, with m task coordinates and n contacts).
+LOG_FIELDS = {
+    "phase": "()",
+    "contact_phase": "(n,)",
+    "events": "(n,)",
+    "V": "()",
+    "V1": "()",
+    "virtual_depth": "(n,)",
+    "task_position": "(m,)",
+    "task_desired": "(m,)",
+    "task_target": "(m,)",
+    "lambda_d": "(n,)",
+    "contact_force": "(n,)",
+}
+
+
+class BrogliatoController:
+    """Phase-machine tracking controller for a robot under unilateral constraints.
+
+    Call it as ``controller(t, q, v, contacts)`` (see :class:`ucontrol.control.Controller`)
+    with non-decreasing times; it is stateful (call :meth:`reset` before reusing it). Its
+    contact names must be those of the plant's constraints.
+
+    Args:
+        robot: The controller's model of the robot (may differ from the plant's, see
+            :meth:`RobotModel.with_scaled_inertia`); fully actuated.
+        task: Task coordinates: the contact frame, its constraints and tangential directions.
+        cycle: The desired cycle (nominal path, contact phases, transition design).
+        gains: γ1, γ2, K_f and the null-space gains.
+        posture: Posture :math:`q_p` of the null-space task, shape (nq,); default the neutral
+            configuration (unused when the task is square).
+
+    Raises:
+        InvalidParameterError: The robot is not fully actuated.
+        NotFoundError: The cycle names a contact that is not a task constraint.
+        PathThroughSurfaceError: The nominal path crosses an obstacle outside its contact
+            phases.
+    """
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        task: TaskCoordinates,
+        cycle: DesiredCycle,
+        gains: BrogliatoGains,
+        *,
+        posture: Vector | None = None,
+    ) -> None:
+        if robot.nu != robot.nv:
+            raise InvalidParameterError("robot", robot.name, "a fully actuated robot (nu = nv)")
+        self.robot = robot
+        self.task = task
+        self.cycle = cycle
+        self.gains = gains
+        self.posture = robot.check_configuration(
+            "posture", robot.neutral() if posture is None else posture
+        )
+        self.machine = PhaseMachine(task, cycle)
+        self._model = robot.model
+        self._data = robot.model.createData()
+        self._redundant = task.m < robot.nv
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the run: phases back to free, events and measurements cleared."""
+        self.machine.reset()
+        n, m = len(self.machine.contacts), self.task.m
+        self._plant_index: NDArray[np.int64] | None = None
+        self._last_t = -np.inf
+        self.V = self.V1 = 0.0
+        self.X = np.zeros(m)
+        self.desired = DesiredState(
+            (np.zeros(m), np.zeros(m), np.zeros(m)),
+            (np.zeros(m), np.zeros(m)),
+            np.zeros(n),
+            np.zeros(n, dtype=bool),
+        )
+        self.contact_force = np.zeros(n)
+        self._settled = np.zeros(n, dtype=bool)
+        self._persistent = np.zeros(n, dtype=bool)
+
+    @property
+    def phase(self) -> Phase:
+        """Phase of the cycle at the last call."""
+        return self.machine.phase
+
+    def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
+        """Torques, shape (nu,), in [N m] (or [N] for prismatic joints)."""
+        if t < self._last_t:
+            raise InvalidParameterError(
+                "t", t, f">= {self._last_t} (the controller is stateful: reset() it per run)"
+            )
+        self._last_t = t
+        if self._plant_index is None:
+            self._plant_index = self._find_contacts(contacts.names)
+        index = self._plant_index
+        self.contact_force = contacts.force[index]
+        # The impulse / dt of a step is a contact force only if the contact stayed closed over
+        # it without impact: feeding an impact back would push the robot off the surface.
+        closed = self.contact_force > 0.0
+        self._persistent = closed & self._settled
+        self._settled = closed & (contacts.normal_velocity[index] >= -IMPACT_SPEED)
+        state, M, dyn = self._kinematics(q, v)
+        machine = self.machine
+        desired = machine.desired(t)
+        s_q = self._sliding(state, desired.reference[0], desired.reference[1], dyn)
+        V1 = float(0.5 * s_q @ M @ s_q)  # [J]
+        if machine.update(t, closed, V1, desired):
+            desired = machine.desired(t)
+            s_q = self._sliding(state, desired.reference[0], desired.reference[1], dyn)
+            V1 = float(0.5 * s_q @ M @ s_q)
+        X_error = state.X - desired.reference[0]
+        self.V1 = V1
+        self.V = float(V1 + self.gains.gamma1 * self.gains.gamma2 * X_error @ X_error)
+        self.X = state.X
+        self.desired = desired
+        return self._torque(state, M, dyn, desired)
+
+    def prepare_log(self, log: Log) -> None:
+        """Declare the fields of :data:`LOG_FIELDS` and the contact names (metadata)."""
+        n, m = len(self.machine.contacts), self.task.m
+        shapes = {"()": (), "(n,)": (n,), "(m,)": (m,)}
+        for name, shape in LOG_FIELDS.items():
+            dtype = np.int64 if name in ("phase", "contact_phase", "events") else float
+            log.add_field(name, shapes[shape], dtype)
+        log.metadata["controller"] = "brogliato"
+        log.metadata["controller_contacts"] = list(self.machine.contacts)
+        log.metadata["gamma1"] = self.gains.gamma1
+        log.metadata["gamma2"] = self.gains.gamma2
+        log.metadata["period"] = self.cycle.period
+
+    def record(self, log: Log) -> None:
+        """Write the values of the last call into the current row (events only once)."""
+        machine, desired = self.machine, self.desired
+        log.record_extra("phase", int(machine.phase))
+        log.record_extra("contact_phase", [int(phase) for phase in machine.phases])
+        log.record_extra("events", machine.take_events())
+        log.record_extra("V", self.V)
+        log.record_extra("V1", self.V1)
+        log.record_extra("virtual_depth", machine.depth)
+        log.record_extra("task_position", self.X)
+        log.record_extra("task_desired", desired.reference[0])
+        log.record_extra("task_target", desired.target[0])
+        log.record_extra("lambda_d", desired.force)
+        log.record_extra("contact_force", self.contact_force)
+
+    def _find_contacts(self, names: list[str]) -> NDArray[np.int64]:
+        missing = [name for name in self.machine.contacts if name not in names]
+        if missing:
+            raise NotFoundError("plant contact", missing[0], names)
+        return np.array([names.index(name) for name in self.machine.contacts])
+
+    def _kinematics(self, q: Vector, v: Vector) -> tuple[TaskState, Matrix, _Dynamics]:
+        """Task state, mass matrix and the terms of the law at (q, v)."""
+        model, data = self._model, self._data
+        pin.computeAllTerms(model, data, q, v)
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        M = np.triu(data.M) + np.triu(data.M, 1).T
+        state = self.task.evaluate(model, data, v)
+        J, dJ = state.J, state.dJ
+        JJt = J @ J.T
+        J_pinv = np.asarray(np.linalg.solve(JJt, J).T, dtype=float)  # J⁺ = Jᵀ(JJᵀ)⁻¹, (nv, m)
+        dJ_pinv = -J_pinv @ dJ @ J_pinv
+        if self._redundant:
+            N = np.eye(self.robot.nv) - J_pinv @ J
+            dJ_pinv += N @ np.linalg.solve(JJt, dJ).T
+            dN = -(dJ_pinv @ J + J_pinv @ dJ)
+            xi = -self.gains.posture_gain * pin.difference(model, self.posture, q)  # [rad/s]
+            d_xi = -self.gains.posture_gain * v
+            null = (N, N @ xi, dN @ xi + N @ d_xi)
+        else:
+            null = None
+        coriolis = pin.computeCoriolisMatrix(model, data, q, v)
+        return state, M, _Dynamics(v, J_pinv, dJ_pinv, null, data.nle.copy(), coriolis)
+
+    def _sliding(self, state: TaskState, X_d: Vector, dX_d: Vector, dyn: _Dynamics) -> Vector:
+        r""":math:`s_q = v - \dot q_r` for the desired (X_d, dX_d), shape (nv,), in [rad/s]."""
+        dX_r = dX_d - self.gains.gamma2 * (state.X - X_d)  # [m/s]
+        dq_r = dyn.J_pinv @ dX_r
+        if dyn.null is not None:
+            dq_r += dyn.null[1]
+        return dyn.v - dq_r
+
+    def _torque(self, state: TaskState, M: Matrix, dyn: _Dynamics, desired: DesiredState) -> Vector:
+        gains = self.gains
+        X_d, dX_d, ddX_d = desired.target
+        dX_r = dX_d - gains.gamma2 * (state.X - X_d)  # [m/s]
+        ddX_r = ddX_d - gains.gamma2 * (state.dX - dX_d)  # [m/s²]
+        s_q = self._sliding(state, X_d, dX_d, dyn)
+        ddq_r = dyn.dJ_pinv @ dX_r + dyn.J_pinv @ ddX_r
+        J = state.J
+        s = J @ s_q  # task sliding variable [m/s]
+        tau = M @ ddq_r + dyn.nle - dyn.coriolis @ s_q - gains.gamma1 * (J.T @ s)
+        if dyn.null is not None:
+            N, _, null_acceleration = dyn.null
+            tau += M @ null_acceleration - gains.null_space_gain * (N.T @ (M @ (N @ s_q)))
+        if desired.constrained.any():
+            held = desired.constrained
+            J_c = J[self.machine.coordinates[held]]
+            lambda_d = desired.force[held]
+            force = np.where(self._persistent[held], self.contact_force[held], lambda_d)  # [N]
+            tau += J_c.T @ (-lambda_d + gains.force_gain * (force - lambda_d))
+        return tau[self.robot.actuated]
+
+
+@dataclass(frozen=True)
+class _Dynamics:
+    r"""Terms of the law at (q, v) shared by the reference and the torque.
+
+    Attributes:
+        v: Velocity, shape (nv,).
+        J_pinv: :math:`J^+`, shape (nv, m).
+        dJ_pinv: Its time derivative, shape (nv, m).
+        null: For a redundant task: N (nv, nv), :math:`N\xi` (nv,) and
+            :math:`\frac{d}{dt}(N \xi)` (nv,); None for a square task.
+        nle: :math:`C(q, v) v + g(q)`, shape (nv,).
+        coriolis: C(q, v) with :math:`\dot M - 2C` skew-symmetric, shape (nv, nv).
+    """
+
+    v: Vector
+    J_pinv: Matrix
+    dJ_pinv: Matrix
+    null: tuple[Matrix, Vector, Vector] | None
+    nle: Vector
+    coriolis: Matrix

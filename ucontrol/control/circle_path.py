@@ -1,0 +1,64 @@
+"""A periodic nominal path: a circle in the world frame."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_float, as_positive, as_vector
+from ucontrol.exceptions import InvalidParameterError
+
+Vector = NDArray[np.float64]
+
+
+@dataclass(frozen=True, kw_only=True)
+class CirclePath:
+    r"""A circle run counter-clockwise in the plane of its axes (u, w).
+
+    :math:`p(t) = c + r (\cos\varphi\,u + \sin\varphi\,w)` with
+    :math:`\varphi = \varphi_0 + 2\pi t / P`.
+
+    It is the *nominal* path of a cycle: it may cross obstacles, where the desired trajectory
+    is its projection on the surface during a declared contact phase.
+
+    Attributes:
+        centre: Centre c in the world frame in [m], shape (3,).
+        radius: Radius r in [m], > 0.
+        period: Period P in [s], > 0.
+        axes: Orthonormal in-plane directions (u, w), shape (2, 3); normalised and checked.
+        start_angle: Angle :math:`\varphi_0` at t = 0 in [rad].
+    """
+
+    centre: Vector
+    radius: float
+    period: float
+    axes: NDArray[np.float64] = field(
+        default_factory=lambda: np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    )
+    start_angle: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "centre", as_vector("centre", self.centre, 3))
+        object.__setattr__(self, "radius", as_positive("radius", self.radius))
+        object.__setattr__(self, "period", as_positive("period", self.period))
+        object.__setattr__(self, "start_angle", as_float("start_angle", self.start_angle))
+        axes = np.array(self.axes, dtype=float)
+        if axes.shape != (2, 3):
+            raise InvalidParameterError("axes", self.axes, "two 3-vectors (u, w)")
+        norms = np.linalg.norm(axes, axis=1)
+        if np.any(norms < 1e-12) or abs(axes[0] @ axes[1]) > 1e-9 * norms.prod():
+            raise InvalidParameterError("axes", self.axes, "two orthogonal non-zero vectors")
+        object.__setattr__(self, "axes", axes / norms[:, None])
+
+    def __call__(self, t: float) -> tuple[Vector, Vector, Vector]:
+        """Position [m], velocity [m/s] and acceleration [m/s²] at time ``t`` [s], each (3,)."""
+        omega = 2.0 * math.pi / self.period  # [rad/s]
+        angle = self.start_angle + omega * t
+        u, w = self.axes
+        radial = math.cos(angle) * u + math.sin(angle) * w
+        tangent = -math.sin(angle) * u + math.cos(angle) * w
+        r = self.radius
+        return self.centre + r * radial, r * omega * tangent, -r * omega**2 * radial

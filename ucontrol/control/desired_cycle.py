@@ -1,0 +1,205 @@
+r"""The designed cycle: nominal path, contact phases, approach, desired force and takeoff.
+
+The *nominal path* is periodic and may cross the obstacles. During a declared contact phase
+of a contact its gap coordinate is held on the surface (:math:`X_{1d} = 0`) with a desired
+contact force :math:`\lambda_d(t)`, which is the projection of the nominal path on the surface;
+everywhere else the nominal path must stay on the free side. Around each contact phase the
+designer sets how the transition is made: the approach time before the nominal arrival
+(:math:`\tau_0`), the depth of the virtual target (scaled by the Lyapunov function
+:math:`V_1(\tau_0)`), how long the contact must stay closed to call the impacts accumulated,
+the fall of :math:`\lambda_d` to 0 at the takeoff time :math:`t_d` and the takeoff itself.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_float, as_in_interval, as_positive
+from ucontrol.control.task_coordinates import TaskCoordinates
+from ucontrol.control.trajectory_segment import smooth_step
+from ucontrol.exceptions import InvalidParameterError, NotFoundError, PathThroughSurfaceError
+
+Vector = NDArray[np.float64]
+
+#: A nominal path deeper than this inside an obstacle, in [m], needs a contact phase there.
+PATH_TOLERANCE = 1e-6
+#: Samples per period used to check the nominal path against the obstacles.
+PATH_SAMPLES = 4000
+
+
+class NominalPath(Protocol):
+    """A periodic path of the tracked frame in the world frame (e.g. :class:`CirclePath`)."""
+
+    @property
+    def period(self) -> float:
+        """Period P in [s]."""
+        ...
+
+    def __call__(self, t: float) -> tuple[Vector, Vector, Vector]:
+        """Position [m], velocity [m/s] and acceleration [m/s²] at ``t`` [s], each (3,)."""
+        ...
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactPhase:
+    r"""A declared contact of the cycle.
+
+    Attributes:
+        contact: Name of the point contact (a :class:`ucontrol.contact.PointContact` name).
+        start: Nominal arrival on the surface, in [s] from the start of the period.
+        end: Takeoff time :math:`t_d`, in [s] from the start of the period.
+        force: Plateau of the desired contact force :math:`\lambda_d` in [N], > 0.
+    """
+
+    contact: str
+    start: float
+    end: float
+    force: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "start", as_float("start", self.start))
+        object.__setattr__(self, "end", as_float("end", self.end))
+        object.__setattr__(self, "force", as_positive("force", self.force))
+        if not self.end > self.start:
+            raise InvalidParameterError("end", self.end, f"> start = {self.start}")
+
+    def covers(self, t: NDArray[np.float64], period: float) -> NDArray[np.bool_]:
+        """Whether times ``t`` [s] (any shape) fall in this phase, modulo ``period``."""
+        return np.mod(t - self.start, period) <= self.end - self.start
+
+
+@dataclass(frozen=True, kw_only=True)
+class DesiredCycle:
+    r"""Everything the phase machine needs to build the desired trajectory.
+
+    Attributes:
+        path: The nominal path; its period is the cycle's period P.
+        contact_phases: One declared contact phase per contact that is touched in a cycle.
+        approach_time: :math:`t_{start} - \tau_0` in [s]: the approach starts this long before
+            the nominal arrival and reaches the virtual target at rest after as long.
+        depth_gain: α of the virtual depth :math:`d = \alpha V_1(\tau_0)^p`, in [m J^-p].
+        depth_exponent: p of the virtual depth, in (0, 1] (1: the book's φ V1, 1/2: α √V1).
+        depth_min: Smallest virtual depth in [m], > 0, so that contact is reached in finite
+            time even after perfect tracking.
+        depth_max: Largest virtual depth in [m].
+        rest_time: The impacts have accumulated (:math:`t_f`) once the contact stayed closed
+            (a positive impulse every step) for this long, in [s].
+        force_fall_time: :math:`\lambda_d` falls smoothly from its plateau to 0 over the
+            last ``force_fall_time`` [s] before :math:`t_d`.
+        takeoff_acceleration: Second derivative [m/s²] > 0 of the normal desired coordinate at
+            :math:`t_d` (where it is 0 with zero velocity).
+        takeoff_time: Duration in [s] of the blend from the takeoff parabola into the nominal
+            path.
+        blend_time: Duration in [s] of the blend of coordinates frozen during a transition
+            back into the nominal path, from :math:`t_f`.
+    """
+
+    path: NominalPath
+    contact_phases: tuple[ContactPhase, ...]
+    approach_time: float = 0.8
+    depth_gain: float = 10.0
+    depth_exponent: float = 0.5
+    depth_min: float = 0.01
+    depth_max: float = 0.05
+    rest_time: float = 0.01
+    force_fall_time: float = 0.5
+    takeoff_acceleration: float = 1.0
+    takeoff_time: float = 0.4
+    blend_time: float = 0.8
+
+    def __post_init__(self) -> None:
+        for name in (
+            "approach_time",
+            "depth_gain",
+            "depth_min",
+            "depth_max",
+            "rest_time",
+            "force_fall_time",
+            "takeoff_acceleration",
+            "takeoff_time",
+            "blend_time",
+        ):
+            object.__setattr__(self, name, as_positive(name, getattr(self, name)))
+        object.__setattr__(
+            self, "depth_exponent", as_in_interval("depth_exponent", self.depth_exponent, 0, 1)
+        )
+        if self.depth_exponent == 0.0:
+            raise InvalidParameterError("depth_exponent", 0.0, "in (0, 1]")
+        if self.depth_max < self.depth_min:
+            raise InvalidParameterError("depth_max", self.depth_max, f">= {self.depth_min}")
+        phases = tuple(self.contact_phases)
+        object.__setattr__(self, "contact_phases", phases)
+        if not phases:
+            raise InvalidParameterError("contact_phases", phases, "at least one contact phase")
+        names = [phase.contact for phase in phases]
+        if len(set(names)) != len(names):
+            raise InvalidParameterError("contact_phases", names, "one phase per contact")
+        period = self.period
+        for phase in phases:
+            if phase.start < self.approach_time or phase.end > period:
+                raise InvalidParameterError(
+                    f"contact phase of {phase.contact!r}",
+                    (phase.start, phase.end),
+                    f"approach_time = {self.approach_time} <= start < end <= period = {period}",
+                )
+            gap = period + phase.start - self.approach_time - phase.end - self.takeoff_time
+            if gap < 0.0:
+                raise InvalidParameterError(
+                    f"contact phase of {phase.contact!r}",
+                    (phase.start, phase.end),
+                    "a takeoff that ends before the next approach starts "
+                    f"(end + takeoff_time <= period + start - approach_time; short by {-gap} s)",
+                )
+
+    @property
+    def period(self) -> float:
+        """Period P of the cycle in [s]."""
+        return float(self.path.period)
+
+    def depth(self, V1: float) -> float:
+        r"""Virtual depth :math:`d = \mathrm{clip}(\alpha V_1^p, d_{min}, d_{max})` in [m].
+
+        Args:
+            V1: :math:`V_1(\tau_0) = \tfrac12 s^T \bar M s` in [J].
+        """
+        raw = self.depth_gain * max(V1, 0.0) ** self.depth_exponent
+        return min(max(raw, self.depth_min), self.depth_max)
+
+    def desired_force(self, phase: ContactPhase, t: float, t_d: float) -> float:
+        r""":math:`\lambda_d(t)` in [N]: the plateau, then a smooth fall to 0 at ``t_d``.
+
+        Args:
+            phase: The contact phase.
+            t: Time in [s].
+            t_d: Takeoff time of the current cycle in [s].
+        """
+        beta = smooth_step((t - t_d) / self.force_fall_time + 1.0)[0]
+        return phase.force * (1.0 - beta)
+
+    def check(self, task: TaskCoordinates) -> None:
+        """Check the cycle against the task: known contacts, no path through an obstacle.
+
+        Raises:
+            NotFoundError: A contact phase names a contact that is not a task constraint.
+            PathThroughSurfaceError: The nominal path enters an obstacle deeper than
+                :data:`PATH_TOLERANCE` outside the contact phases of that obstacle.
+        """
+        gap_names = task.names[: task.n_gaps]
+        for phase in self.contact_phases:
+            if phase.contact not in gap_names:
+                raise NotFoundError("contact", phase.contact, gap_names)
+        t = np.linspace(0.0, self.period, PATH_SAMPLES, endpoint=False)
+        X = np.array([task.of_point(self.path(float(time))[0]) for time in t])
+        for i, name in enumerate(gap_names):
+            inside = X[:, i] < -PATH_TOLERANCE
+            for phase in self.contact_phases:
+                if phase.contact == name:
+                    inside &= ~phase.covers(t, self.period)
+            if inside.any():
+                worst = int(np.argmin(np.where(inside, X[:, i], math.inf)))
+                raise PathThroughSurfaceError(name, float(t[worst]), float(X[worst, i]))

@@ -1,0 +1,244 @@
+r"""The phase machine: detects the events of each contact and builds the desired trajectory.
+
+Per declared contact (a gap coordinate :math:`X_{1,i}`) and per cycle k:
+
+- FREE until :math:`\tau_0 = kP + t_{start} - T_a`: the coordinate follows the nominal path;
+- APPROACH from :math:`\tau_0`: a cubic from the current desired value and velocity to the
+  virtual target :math:`-d` below the surface, reached at rest after :math:`T_a`, with
+  :math:`d` scaled by :math:`V_1(\tau_0)`; the other free coordinates are frozen (they stop
+  with a constant deceleration over :math:`T_a`);
+- TRANSITION from the first impact :math:`t_0` (first positive impulse), same target;
+- CONSTRAINED from :math:`t_f`, when the contact has stayed closed for the rest time: the
+  coordinate is held at 0 with the desired force :math:`\lambda_d(t)`; frozen coordinates blend
+  back into the nominal path;
+- TAKEOFF from :math:`t_d = kP + t_{end}`: :math:`\tfrac12 a (t - t_d)^2` blended into the
+  nominal path, then FREE again for cycle k + 1.
+
+If the contact is not reached or not settled by :math:`t_d`, the takeoff starts anyway (the
+cycle is then reported without :math:`t_f`). The machine only keeps times and segment
+parameters, so every cycle is built from the same declared values: nothing of cycle k leaks
+into cycle k + 1 except the state of the robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol.control.desired_cycle import DesiredCycle
+from ucontrol.control.phase import TRANSITION_PHASES, Event, Phase, overall_phase
+from ucontrol.control.task_coordinates import TaskCoordinates
+from ucontrol.control.trajectory_segment import (
+    BlendToNominal,
+    Constant,
+    Nominal,
+    Parabola,
+    RestCubic,
+    TrajectorySegment,
+)
+
+Vector = NDArray[np.float64]
+
+#: Times closer than this are equal, in [s] (sample times are sums of steps).
+TIME_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class DesiredState:
+    r"""The desired trajectory at one time, in task coordinates.
+
+    Attributes:
+        target: Position, velocity, acceleration tracked by the law (with the virtual target
+            below the surface during transitions), each shape (m,).
+        reference: Position and velocity on which V is built: the target with the gaps of
+            transiting contacts clipped at the surface (0, at rest), each shape (m,).
+        force: Desired contact force :math:`\lambda_d` of each declared contact in [N],
+            shape (n,) (0 outside the constrained phase).
+        constrained: Whether each declared contact is in its constrained phase, shape (n,).
+    """
+
+    target: tuple[Vector, Vector, Vector]
+    reference: tuple[Vector, Vector]
+    force: Vector
+    constrained: NDArray[np.bool_]
+
+
+class PhaseMachine:
+    """Phases, events and desired trajectory of the declared contacts of a cycle.
+
+    Args:
+        task: The task coordinates (the declared contacts are among its gaps).
+        cycle: The designed cycle; checked against ``task``.
+
+    Raises:
+        NotFoundError: A contact phase names a contact that is not a task constraint.
+        PathThroughSurfaceError: The nominal path crosses an obstacle outside its contact
+            phases.
+    """
+
+    def __init__(self, task: TaskCoordinates, cycle: DesiredCycle) -> None:
+        cycle.check(task)
+        self.task = task
+        self.cycle = cycle
+        self.contacts = [phase.contact for phase in cycle.contact_phases]
+        self.coordinates = np.array([task.names.index(name) for name in self.contacts])
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the state at t = 0: every contact free, first approach in cycle 0."""
+        n = len(self.contacts)
+        self.phases = [Phase.FREE] * n
+        self.depth = np.zeros(n)
+        self.events = np.zeros(n, dtype=np.int64)
+        self._cycle_index = [0] * n
+        self._closed_since: list[float | None] = [None] * n
+        self._takeoff_started = np.zeros(n)
+        self._segments: list[TrajectorySegment] = [Nominal()] * self.task.m
+        self._frozen = [False] * self.task.m
+
+    @property
+    def phase(self) -> Phase:
+        """Phase of the cycle as a whole (see :func:`ucontrol.control.phase.overall_phase`)."""
+        return overall_phase(self.phases)
+
+    def approach_time(self, i: int) -> float:
+        r""":math:`\tau_0` of the current cycle of contact ``i`` in [s]."""
+        phase = self.cycle.contact_phases[i]
+        return self._cycle_index[i] * self.cycle.period + phase.start - self.cycle.approach_time
+
+    def takeoff_time(self, i: int) -> float:
+        """:math:`t_d` of the current cycle of contact ``i`` in [s]."""
+        phase = self.cycle.contact_phases[i]
+        return self._cycle_index[i] * self.cycle.period + phase.end
+
+    def desired(self, t: float) -> DesiredState:
+        """The desired trajectory at time ``t`` [s] in the current phases."""
+        p, dp, ddp = self.cycle.path(t)
+        task = self.task
+        nominal = (task.of_point(p), task.of_vector(dp), task.of_vector(ddp))
+        m = task.m
+        target = (np.empty(m), np.empty(m), np.empty(m))
+        for j, segment in enumerate(self._segments):
+            sample = segment(t, (nominal[0][j], nominal[1][j], nominal[2][j]))
+            target[0][j], target[1][j], target[2][j] = sample
+        reference = (target[0].copy(), target[1].copy())
+        force = np.zeros(len(self.contacts))
+        constrained = np.zeros(len(self.contacts), dtype=bool)
+        for i, phase in enumerate(self.phases):
+            j = self.coordinates[i]
+            if phase in TRANSITION_PHASES and target[0][j] < 0.0:
+                reference[0][j] = reference[1][j] = 0.0
+            elif phase is Phase.CONSTRAINED:
+                constrained[i] = True
+                force[i] = self.cycle.desired_force(
+                    self.cycle.contact_phases[i], t, self.takeoff_time(i)
+                )
+        return DesiredState(target, reference, force, constrained)
+
+    def update(self, t: float, closed: NDArray[np.bool_], V1: float, now: DesiredState) -> bool:
+        r"""Advance the phases to time ``t`` and return whether any event happened.
+
+        Args:
+            t: Time in [s] (non-decreasing from call to call).
+            closed: Whether each declared contact had a positive impulse over the last step,
+                shape (n,).
+            V1: :math:`V_1 = \tfrac12 s^T \bar M s` at ``t`` in [J] (sets the virtual depth at
+                :math:`\tau_0`).
+            now: :meth:`desired` at ``t`` before the update (segments start from it).
+        """
+        cycle = self.cycle
+        happened = False
+        for i, phase in enumerate(self.phases):
+            j = self.coordinates[i]
+            event = Event.NONE
+            if phase is Phase.FREE and _reached(t, self.approach_time(i)):
+                self.depth[i] = cycle.depth(V1)
+                self._segments[j] = RestCubic(
+                    t, now.target[0][j], now.target[1][j], -self.depth[i], cycle.approach_time
+                )
+                self._frozen[j] = False  # its own transition now drives it
+                self.phases[i] = Phase.APPROACH
+                self._freeze(t, now)
+                event = Event.TAU0
+            elif phase in TRANSITION_PHASES and _reached(t, self.takeoff_time(i)):
+                self._take_off(i, t)  # the contact was not reached or not settled in time
+                event = Event.TAKEOFF
+            elif phase is Phase.APPROACH and closed[i]:
+                self.phases[i] = Phase.TRANSITION
+                self._closed_since[i] = t
+                event = Event.FIRST_IMPACT
+            elif phase is Phase.TRANSITION:
+                since = self._closed_since[i]
+                if not closed[i]:
+                    self._closed_since[i] = None
+                elif since is None:
+                    self._closed_since[i] = t
+                elif _reached(t, since + cycle.rest_time):
+                    self.phases[i] = Phase.CONSTRAINED
+                    self._segments[j] = Constant(0.0)
+                    self.depth[i] = 0.0
+                    self._release(t)
+                    event = Event.ACCUMULATION_END
+            elif phase is Phase.CONSTRAINED and _reached(t, self.takeoff_time(i)):
+                self._take_off(i, t)
+                event = Event.TAKEOFF
+            elif phase is Phase.TAKEOFF and _reached(
+                t, self._takeoff_started[i] + cycle.takeoff_time
+            ):
+                self.phases[i] = Phase.FREE
+                self._segments[j] = Nominal()
+                self._cycle_index[i] += 1
+                self._freeze(t, now)
+            if event:
+                self.events[i] |= event
+                happened = True
+        return happened
+
+    def take_events(self) -> NDArray[np.int64]:
+        """Events flagged since the last call, one :class:`Event` bit set per contact, (n,)."""
+        events = self.events.copy()
+        self.events[:] = 0
+        return events
+
+    def _take_off(self, i: int, t: float) -> None:
+        was_transiting = self.phases[i] in TRANSITION_PHASES
+        self.phases[i] = Phase.TAKEOFF
+        self.depth[i] = 0.0
+        self._takeoff_started[i] = t
+        self._segments[self.coordinates[i]] = BlendToNominal(
+            Parabola(t, self.cycle.takeoff_acceleration), t, self.cycle.takeoff_time
+        )
+        if was_transiting:
+            self._release(t)
+
+    def _transiting(self) -> bool:
+        return any(phase in TRANSITION_PHASES for phase in self.phases)
+
+    def _freeze(self, t: float, now: DesiredState) -> None:
+        """While a contact transits, stop every coordinate that follows the nominal path."""
+        if not self._transiting():
+            return
+        busy = {self.coordinates[i] for i, ph in enumerate(self.phases) if ph is not Phase.FREE}
+        for j in range(self.task.m):
+            if j in busy or self._frozen[j]:
+                continue
+            p, dp = now.target[0][j], now.target[1][j]
+            T = self.cycle.approach_time
+            self._segments[j] = RestCubic(t, p, dp, p + 0.5 * dp * T, T)
+            self._frozen[j] = True
+
+    def _release(self, t: float) -> None:
+        """Once no contact transits, blend the frozen coordinates back into the nominal path."""
+        if self._transiting():
+            return
+        for j, frozen in enumerate(self._frozen):
+            if frozen:
+                self._segments[j] = BlendToNominal(self._segments[j], t, self.cycle.blend_time)
+                self._frozen[j] = False
+
+
+def _reached(t: float, time: float) -> bool:
+    """Whether ``t`` [s] has reached ``time`` [s], up to :data:`TIME_TOLERANCE`."""
+    return t >= time - TIME_TOLERANCE

@@ -1,0 +1,453 @@
+r"""Event-driven integration (the accuracy reference), frictionless.
+
+Between events the set :math:`I_2` of closed constraints (:math:`g_a = 0`, :math:`u_a = 0`) is
+fixed and the motion is smooth: :math:`M \dot v = \tau - h + J_{I_2}^T \lambda` with
+:math:`J_{I_2} \dot v + \dot J_{I_2} v = 0`, integrated by :func:`scipy.integrate.solve_ivp`
+(explicit Runge–Kutta: DOP853 or RK45) with terminal events :math:`g_a = 0` (direction -1) for
+the open constraints and :math:`\lambda_a = 0` (direction -1) for the closed ones. At an event:
+
+1. impact: the constraints at contact (:math:`g_a \le \varepsilon_g`) solve the velocity-level
+   LCP of Moreau–Jean with :math:`v_\text{free} = v^-`,
+   :math:`0 \le P \perp D P + (1 + e) \odot J v^- \ge 0`, Newton's restitution applying to
+   the closing constraints only;
+2. active set: the constraints left at contact with :math:`|u_a| \le \varepsilon_u` solve the
+   acceleration-level LCP
+   :math:`0 \le \lambda \perp D \lambda + (J a_\text{free} + \dot J v) \ge 0`,
+   :math:`D = J M^{-1} J^T` (Gauss' principle); those that do not separate form :math:`I_2`;
+3. projection: :math:`(q, v)` is projected onto :math:`g_{I_2} = 0`, :math:`J_{I_2} v = 0` in the
+   metric of :math:`M`, which removes the drift of the integration of the closed constraints.
+
+Accumulations of impacts (Zeno: a ball with e < 1 bounces infinitely often before
+:math:`t_\infty`) are cut by a velocity threshold: an impact whose rebound speed
+:math:`e_a |u_a^-|` is below ``zeno_velocity`` is plastic, so the constraint closes instead of
+bouncing on. For a ball under gravity g this skips the remaining flights, whose heights are below
+``zeno_velocity² / (2 g)`` (5.1e-12 m for the default 1e-5 m/s and g = 9.81 m/s²): that is the
+largest height error it costs, before and after :math:`t_\infty`. When impacts pass from one
+constraint to another (a table rocking on two feet), the constraints at contact that leave an
+impact slower than ``zeno_velocity`` are captured: the velocity is projected onto their
+:math:`u = 0` in the metric of M, which lowers the kinetic energy; the impulses of this capture
+are of order :math:`m_\text{eff}` ``zeno_velocity`` and may be slightly adhesive.
+
+Each :meth:`EventDriven.step` integrates exactly over :math:`[t_k, t_k + h]` with the torque
+held, so :func:`ucontrol.simulate` runs it like Moreau–Jean; the step ``h`` is only the sampling
+and control period. Its impulse is that of the step: impacts plus :math:`\int \lambda\,dt`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.integrate import solve_ivp
+
+from ucontrol._validation import as_positive
+from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.exceptions import IntegrationError, InvalidParameterError, SolverError
+from ucontrol.integrators.moreau_jean import PlantEvaluation, StepOutcome
+from ucontrol.integrators.smooth_dynamics import ConstraintTerms, SmoothDynamics
+from ucontrol.model.robot_model import RobotModel
+from ucontrol.solvers.contact_solution import ContactSolution
+from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
+
+Vector = NDArray[np.float64]
+Mask = NDArray[np.bool_]
+
+#: The explicit Runge–Kutta methods of solve_ivp the integrator accepts.
+METHODS = ("DOP853", "RK45")
+
+#: Consecutive events closer than this to their predecessor, in [s], count as a stall.
+_STALL_TIME = 1e-14
+#: Stalled events tolerated in a row before giving up.
+_MAX_STALLS = 50
+#: Position projection: Gauss–Newton iterations and the gap they aim at, in [m] or [rad].
+_PROJECTION_ITERATIONS = 3
+_PROJECTION_GAP = 1e-15
+
+
+@dataclass(frozen=True)
+class _Settled:
+    """State after the impact, active-set and projection stages at an event."""
+
+    q: Vector
+    v: Vector
+    closed: Mask
+    impulse: Vector
+    max_step: float
+    solutions: list[ContactSolution]
+
+
+@dataclass(frozen=True)
+class _Segment:
+    """End of one smooth integration segment."""
+
+    q: Vector
+    v: Vector
+    impulse: Vector  # ∫ λ dt of the closed constraints, shape (m,)
+    duration: float
+    closing: Mask  # open constraints whose gap event fired
+    releasing: Mask  # closed constraints whose multiplier event fired
+
+
+class EventDriven:
+    """Event-driven integrator of a robot under unilateral constraints.
+
+    Same protocol as :class:`ucontrol.integrators.MoreauJean`: :meth:`evaluate` at (q_k, v_k),
+    then :meth:`step` with the generalized forces held over the step.
+
+    Args:
+        robot: The robot.
+        constraints: Its unilateral constraints.
+        dt: Step h in [s]: the sampling and zero-order-hold period, not an accuracy parameter.
+        rtol: Relative tolerance of solve_ivp.
+        atol: Absolute tolerance of solve_ivp, in the units of the state ([m], [rad], [m/s]...).
+        method: ``"DOP853"`` or ``"RK45"``.
+        zeno_velocity: Rebound speed in [m/s] (or [rad/s]) below which an impact is plastic.
+        impact_solver: Velocity-level LCP solver; default a :class:`ProxsuiteLCPSolver`.
+        acceleration_solver: Acceleration-level LCP solver; default a second one.
+        max_events: Events allowed in one step before :class:`IntegrationError`.
+    """
+
+    name = "event_driven"
+    #: No θ: the value only weighs the actuator work over a step in run summaries.
+    theta = 0.5
+    #: A constraint within this gap, in [m] or [rad], is at contact.
+    closure_gap = 1e-10
+    #: A constraint at contact with a normal speed below this, in [m/s] or [rad/s], may close.
+    closure_velocity = 1e-9
+    #: A constraint at contact whose acceleration is below this, in [m/s²] or [rad/s²], closes.
+    closure_acceleration = 1e-8
+    #: Closed constraints whose multiplier starts below this, in [N] or [N m], get no release
+    #: event (a release from zero force is caught by the next active-set solve).
+    release_force = 1e-12
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        constraints: ConstraintSet,
+        *,
+        dt: float,
+        rtol: float = 1e-10,
+        atol: float = 1e-12,
+        method: str = "DOP853",
+        zeno_velocity: float = 1e-5,
+        impact_solver: ProxsuiteLCPSolver | None = None,
+        acceleration_solver: ProxsuiteLCPSolver | None = None,
+        max_events: int = 10_000,
+    ) -> None:
+        if method not in METHODS:
+            raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
+        self.robot = robot
+        self.constraints = constraints
+        self.dt = as_positive("dt", dt)
+        self.rtol = as_positive("rtol", rtol)
+        self.atol = as_positive("atol", atol)
+        self.method = method
+        self.zeno_velocity = as_positive("zeno_velocity", zeno_velocity)
+        self.max_events = int(as_positive("max_events", max_events))
+        self.impact_solver = impact_solver if impact_solver is not None else ProxsuiteLCPSolver()
+        self.acceleration_solver = (
+            acceleration_solver if acceleration_solver is not None else ProxsuiteLCPSolver()
+        )
+        self._dynamics = SmoothDynamics(robot, constraints)
+        self._n = constraints.size
+        self._carry: tuple[Vector, Vector, Mask] | None = None
+
+    def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
+        """Gaps, normal velocities and energies at (q, v)."""
+        return self._dynamics.evaluate(q, v)
+
+    def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
+        """Integrate over one step from ``state`` with ``tau`` held.
+
+        Args:
+            state: The evaluation at the start of the step.
+            tau: Generalized forces (actuation plus external), shape (nv,), in [N m] or [N].
+
+        Raises:
+            IntegrationError: solve_ivp failed, the events stalled, or more than
+                ``max_events`` events fell in the step.
+            SolverError: An impact or acceleration LCP was not solved.
+        """
+        q, v, h = state.q, state.v, self.dt
+        impulse = np.zeros(self._n)
+        active = np.zeros(self._n, dtype=bool)
+        closed = self._carried_closed_set(q, v)
+        closing = releasing = np.zeros(self._n, dtype=bool)
+        solutions: list[ContactSolution] = []
+        t, events, stalls = 0.0, 0, 0
+        while True:
+            settled = self._settle(q, v, tau, closed, closing, releasing)
+            q, v, closed = settled.q, settled.v, settled.closed
+            impulse += settled.impulse
+            active |= closed | (settled.impulse > 0.0)
+            solutions += settled.solutions
+            if h - t <= _STALL_TIME:
+                break
+            segment = self._integrate(q, v, tau, closed, h - t, settled.max_step, t)
+            q, v = segment.q, segment.v
+            impulse[closed] += segment.impulse
+            t += segment.duration
+            closing, releasing = segment.closing, segment.releasing
+            if not (closing.any() or releasing.any()):
+                break
+            events += 1
+            stalls = stalls + 1 if segment.duration <= _STALL_TIME else 0
+            if stalls > _MAX_STALLS:
+                raise IntegrationError(
+                    self.name,
+                    t,
+                    f"{stalls} events without the time advancing (constraints "
+                    f"{self._names(closing | releasing)}): impacts accumulate faster than the "
+                    f"time resolution (raise zeno_velocity = {self.zeno_velocity:g} m/s) or the "
+                    "active set chatters in a degenerate configuration (use moreau_jean)",
+                )
+            if events > self.max_events:
+                raise IntegrationError(
+                    self.name,
+                    t,
+                    f"more than {self.max_events} events in one step of {h:g} s: an "
+                    f"accumulation of impacts faster than zeno_velocity = "
+                    f"{self.zeno_velocity:g} m/s catches; raise zeno_velocity or max_events",
+                )
+        self._carry = (q.copy(), v.copy(), closed.copy())
+        worst = max(solutions, key=lambda solution: solution.residual, default=None)
+        return StepOutcome(q, v, impulse, active, worst, events)
+
+    def _carried_closed_set(self, q: Vector, v: Vector) -> Mask | None:
+        """The closed set the last step ended with, if this step continues it exactly."""
+        if self._carry is None:
+            return None
+        q_end, v_end, closed = self._carry
+        if np.array_equal(q, q_end) and np.array_equal(v, v_end):
+            return closed
+        return None
+
+    def _settle(
+        self,
+        q: Vector,
+        v: Vector,
+        tau: Vector,
+        closed: Mask | None,
+        closing: Mask,
+        releasing: Mask,
+    ) -> _Settled:
+        """Impact, active set and projection at an event (or at the start of a step)."""
+        dynamics = self._dynamics
+        gap, u = dynamics.kinematics(q, v)
+        if closed is None:
+            closed = (gap <= self.closure_gap) & (np.abs(u) <= self.closure_velocity)
+        impulse = np.zeros(self._n)
+        near = closed | closing | (gap <= self.closure_gap)
+        if not near.any():
+            return _Settled(q, v, near, impulse, math.inf, [])
+        indices = np.flatnonzero(near)
+        terms = dynamics.constraint_terms(q, v, tau, indices)
+        u_near = u[indices]
+        solutions = []
+        if np.any(u_near < -self.closure_velocity):
+            solution = self._checked(self.impact_solver, self._impact(terms, u_near, indices))
+            solutions.append(solution)
+            impulse[indices] = solution.impulses
+            v = v + terms.Minv_Jt @ solution.impulses
+            v, capture = self._capture(terms, v)
+            impulse[indices] += capture
+            terms = dynamics.constraint_terms(q, v, tau, indices)
+            u_near = terms.J @ v
+        candidates = (np.abs(u_near) <= self.closure_velocity) & ~releasing[indices]
+        closed = np.zeros(self._n, dtype=bool)
+        if candidates.any():
+            rows = np.flatnonzero(candidates)
+            D = terms.delassus()[np.ix_(rows, rows)]
+            solution = self._checked(
+                self.acceleration_solver,
+                self.acceleration_solver.solve(D, terms.acceleration_bias()[rows]),
+            )
+            solutions.append(solution)
+            closed[indices[rows[solution.velocity <= self.closure_acceleration]]] = True
+        if closed.any():
+            q, v = self._project(q, v, tau, closed)
+        return _Settled(
+            q, v, closed, impulse, self._max_step(terms, u_near, closed[indices]), solutions
+        )
+
+    def _impact(
+        self, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
+    ) -> ContactSolution:
+        """Impulses of Newton's impact law on the constraints at contact."""
+        restitution = self.constraints.restitution[indices]
+        bounces = (u_minus < 0.0) & (-restitution * u_minus >= self.zeno_velocity)
+        e = np.where(bounces, restitution, 0.0)
+        return self.impact_solver.solve(terms.delassus(), (1.0 + e) * u_minus)
+
+    def _capture(self, terms: ConstraintTerms, v: Vector) -> tuple[Vector, Vector]:
+        """Stop the constraints at contact that leave an impact slower than ``zeno_velocity``.
+
+        The velocity is projected, in the metric of M, onto ``u = 0`` for them and for those
+        at rest, adding any constraint the projection sets approaching; the projection lowers
+        the kinetic energy, and its impulses (shape (m,)) are of order m_eff zeno_velocity,
+        possibly slightly adhesive. This ends accumulations where impacts pass from one
+        constraint to another (a rocking table) as the plastic threshold ends a ball's.
+        """
+        u = terms.J @ v
+        slow = (u > self.closure_velocity) & (u < self.zeno_velocity)
+        impulse = np.zeros(u.size)
+        if not slow.any():
+            return v, impulse
+        captured = slow | (np.abs(u) <= self.closure_velocity)
+        while True:
+            rows = np.flatnonzero(captured)
+            D = terms.delassus()[np.ix_(rows, rows)]
+            step = -_solve(D, u[rows])  # [N s]
+            impulse[rows] += step
+            v = v + terms.Minv_Jt[:, rows] @ step
+            u = terms.J @ v
+            approaching = ~captured & (u < -self.closure_velocity)
+            if not approaching.any():
+                return v, impulse
+            captured |= approaching
+
+    @staticmethod
+    def _checked(solver: ProxsuiteLCPSolver, solution: ContactSolution) -> ContactSolution:
+        """``solution``, or :class:`SolverError` when the solver did not solve its LCP."""
+        if solution.status != "solved":
+            raise SolverError(solver.name, solution.status, solution.residual)
+        return solution
+
+    def _project(self, q: Vector, v: Vector, tau: Vector, closed: Mask) -> tuple[Vector, Vector]:
+        """Project (q, v) onto g = 0, J v = 0 of the closed constraints in the metric of M."""
+        dynamics = self._dynamics
+        indices = np.flatnonzero(closed)
+        for _ in range(_PROJECTION_ITERATIONS):
+            terms = dynamics.constraint_terms(q, v, tau, indices)
+            gap = terms.gap[indices]
+            if np.max(np.abs(gap)) <= _PROJECTION_GAP:
+                break
+            q = dynamics.configuration(q, -terms.Minv_Jt @ _solve(terms.delassus(), gap))
+        else:
+            terms = dynamics.constraint_terms(q, v, tau, indices)
+        v = v - terms.Minv_Jt @ _solve(terms.delassus(), terms.J @ v)
+        return q, v
+
+    def _max_step(self, terms: ConstraintTerms, u_near: Vector, closed_near: Mask) -> float:
+        """A quarter of the shortest flight of a constraint leaving contact, in [s].
+
+        Keeps solve_ivp from stepping over a whole flight, whose landing event it would miss.
+        """
+        acceleration = terms.acceleration_bias()
+        flying = ~closed_near & (u_near > self.closure_velocity) & (acceleration < 0.0)
+        if not flying.any():
+            return math.inf
+        return float(np.min(0.5 * u_near[flying] / -acceleration[flying]))
+
+    def _integrate(
+        self,
+        q0: Vector,
+        v0: Vector,
+        tau: Vector,
+        closed: Mask,
+        duration: float,
+        max_step: float,
+        t_start: float,
+    ) -> _Segment:
+        """Integrate with the closed set fixed until ``duration`` [s] or the first event.
+
+        The gap event of an open constraint resting on its surface (g and u within the
+        closure tolerances: it just released, or its acceleration barely opened it) fires at
+        g = -closure_gap rather than at g = 0, which it starts on: it marks the constraint
+        coming back, not its start. The next active-set solve and projection then close it.
+        """
+        dynamics, nv = self._dynamics, self._dynamics.nv
+        closed_indices = np.flatnonzero(closed)
+        open_indices = np.flatnonzero(~closed)
+        m = closed_indices.size
+        gap0, u0 = dynamics.kinematics(q0, v0)
+        resting = (gap0 <= self.closure_gap) & (np.abs(u0) <= self.closure_velocity)
+        offsets = np.where(resting, self.closure_gap, 0.0)[open_indices]  # [m] or [rad]
+        cache: dict[str, Any] = {"key": None}
+
+        def evaluate(t: float, y: Vector) -> tuple[Vector, Vector]:
+            key = (t, y.tobytes())
+            if cache["key"] != key:
+                dq, v = y[:nv], y[nv : 2 * nv]
+                q = dynamics.configuration(q0, dq)
+                if m:
+                    terms = dynamics.constraint_terms(q, v, tau, closed_indices)
+                    multipliers = _solve(terms.delassus(), -terms.acceleration_bias())
+                    acceleration = terms.a_free + terms.Minv_Jt @ multipliers
+                    gap = terms.gap
+                else:
+                    multipliers = np.zeros(0)
+                    gap, _ = dynamics.kinematics(q, v)
+                    acceleration = dynamics.free_acceleration(q, v, tau)
+                rate = np.concatenate((dynamics.chart_rate(q0, dq, v), acceleration, multipliers))
+                cache["key"] = key
+                cache["value"] = (
+                    rate,
+                    np.concatenate((gap[open_indices] + offsets, multipliers)),
+                )
+            value: tuple[Vector, Vector] = cache["value"]
+            return value
+
+        y0 = np.concatenate((np.zeros(nv), v0, np.zeros(m)))
+        watched = np.concatenate(
+            (
+                np.ones(open_indices.size, dtype=bool),
+                evaluate(0.0, y0)[1][open_indices.size :] > self.release_force,
+            )
+        )
+        events = [_event(evaluate, int(k)) for k in np.flatnonzero(watched)]
+        solution = solve_ivp(
+            lambda t, y: evaluate(t, y)[0],
+            (0.0, duration),
+            y0,
+            method=self.method,
+            rtol=self.rtol,
+            atol=self.atol,
+            events=events or None,
+            max_step=max_step,
+            first_step=min(duration, max_step),
+        )
+        if solution.status < 0:
+            raise IntegrationError(self.name, t_start + float(solution.t[-1]), solution.message)
+        y = solution.y[:, -1]
+        fired = np.zeros(open_indices.size + m, dtype=bool)
+        if solution.status == 1:
+            watched_indices = np.flatnonzero(watched)
+            for k, times in enumerate(solution.t_events):
+                fired[watched_indices[k]] = times.size > 0
+        closing = np.zeros(self._n, dtype=bool)
+        releasing = np.zeros(self._n, dtype=bool)
+        closing[open_indices[fired[: open_indices.size]]] = True
+        releasing[closed_indices[fired[open_indices.size :]]] = True
+        return _Segment(
+            q=dynamics.configuration(q0, y[:nv]),
+            v=y[nv : 2 * nv].copy(),
+            impulse=y[2 * nv :].copy(),
+            duration=float(solution.t[-1]),
+            closing=closing,
+            releasing=releasing,
+        )
+
+    def _names(self, mask: Mask) -> list[str]:
+        return [self.constraints.names[i] for i in np.flatnonzero(mask)]
+
+
+def _event(evaluate: Any, k: int) -> Any:
+    """Terminal event function on entry ``k`` of the event values, crossing downwards."""
+
+    def event(t: float, y: Vector) -> float:
+        return float(evaluate(t, y)[1][k])
+
+    event.terminal = True  # type: ignore[attr-defined]
+    event.direction = -1.0  # type: ignore[attr-defined]
+    return event
+
+
+def _solve(D: Vector, rhs: Vector) -> Vector:
+    """``D x = rhs`` for a Delassus matrix D (m, m); least squares when D is singular."""
+    if rhs.size == 1:
+        return rhs / D[0, 0]
+    return np.asarray(np.linalg.lstsq(D, rhs, rcond=1e-12)[0], dtype=np.float64)

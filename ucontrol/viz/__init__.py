@@ -1,0 +1,1 @@
+"""Visualisation: matplotlib figures of runs (matplotlib is imported only by these modules)."""

@@ -1,0 +1,180 @@
+"""Figures of a run of the phase-machine controller: path, gaps, V, force, tracking error.
+
+Uses matplotlib's object API with the Agg canvas (no pyplot state, no window).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
+
+from ucontrol.control.brogliato_controller import BrogliatoController
+from ucontrol.control.phase import Phase
+from ucontrol.log import Log
+
+#: Background colour of each phase in the time plots.
+PHASE_COLOURS = {
+    Phase.FREE: "#ffffff",
+    Phase.APPROACH: "#fde0c5",
+    Phase.TRANSITION: "#d9f0d3",
+    Phase.CONSTRAINED: "#f9d3d3",
+    Phase.TAKEOFF: "#e5d8f0",
+}
+#: Window of the moving mean of the measured contact force, in [s].
+FORCE_WINDOW = 0.02
+_AXIS_NAMES = "xyz"
+
+
+def cycle_figures(
+    log: Log,
+    controller: BrogliatoController,
+    out_dir: str | Path,
+    name: str,
+    *,
+    plane: tuple[int, int] = (0, 1),
+) -> list[Path]:
+    """Write ``<name>_path.png`` and ``<name>_time.png`` into ``out_dir``.
+
+    Args:
+        log: A run of ``controller`` (its fields V, phase, task_position, ...).
+        controller: The controller that ran (its task, cycle and model are read).
+        out_dir: Output folder, created if needed.
+        name: Prefix of the file names.
+        plane: World axes (0 = x, 1 = y, 2 = z) of the plane of the path figure.
+
+    Returns:
+        The paths of the two PNG files.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / f"{name}_path.png", out_dir / f"{name}_time.png"]
+    _path_figure(log, controller, plane).savefig(paths[0], dpi=110)
+    _time_figure(log, controller).savefig(paths[1], dpi=110)
+    return paths
+
+
+def frame_positions(log: Log, controller: BrogliatoController) -> np.ndarray:
+    """World positions of the controller's task frame at every sample in [m], shape (N, 3)."""
+    model = controller.robot.model
+    data = model.createData()
+    frame = controller.task.frame_id
+    positions = np.empty((len(log), 3))
+    for k, q in enumerate(log.q):
+        pin.framesForwardKinematics(model, data, q)
+        positions[k] = data.oMf[frame].translation
+    return positions
+
+
+def _path_figure(log: Log, controller: BrogliatoController, plane: tuple[int, int]) -> Figure:
+    a, b = plane
+    figure = Figure(figsize=(6.0, 5.5), layout="constrained")
+    ax = figure.add_subplot()
+    cycle = controller.cycle
+    nominal = np.array(
+        [cycle.path(t)[0] for t in np.linspace(0.0, cycle.period, 400, endpoint=False)]
+    )
+    ax.plot(nominal[:, a], nominal[:, b], "k--", lw=1, label="nominal path")
+    p = frame_positions(log, controller)
+    ax.plot(p[:, a], p[:, b], lw=1.2, label=f"{controller.task.frame} (actual)")
+    ax.plot(p[0, a], p[0, b], "o", label="start")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    for contact in controller.task.contacts:
+        _draw_plane(ax, contact.surface.point, contact.surface.normal, plane, contact.name)
+    ax.set_xlabel(f"{_AXIS_NAMES[a]} [m]")
+    ax.set_ylabel(f"{_AXIS_NAMES[b]} [m]")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title("end-effector path")
+    return figure
+
+
+def _draw_plane(
+    ax: Axes, point: np.ndarray, normal: np.ndarray, plane: tuple[int, int], label: str
+) -> None:
+    """The trace of a plane in the figure's plane, with its obstacle side hatched."""
+    a, b = plane
+    n2 = np.array([normal[a], normal[b]])
+    if np.linalg.norm(n2) < 1e-9:
+        return
+    n2 /= np.linalg.norm(n2)
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    span = 2.0 * max(x1 - x0, y1 - y0)
+    view = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
+    centre = view - n2 * (n2 @ (view - np.array([point[a], point[b]])))  # on the trace
+    direction = np.array([-n2[1], n2[0]])
+    ends = np.array([centre - span * direction, centre + span * direction])
+    ax.plot(ends[:, 0], ends[:, 1], color="0.3", lw=1.5, zorder=1)
+    inside = np.array([*ends, ends[1] - span * n2, ends[0] - span * n2])
+    ax.fill(
+        inside[:, 0],
+        inside[:, 1],
+        facecolor="0.85",
+        edgecolor="0.6",
+        hatch="//",
+        lw=0,
+        zorder=0,
+        label=label,
+    )
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+
+
+def _time_figure(log: Log, controller: BrogliatoController) -> Figure:
+    figure = Figure(figsize=(9.0, 10.0), layout="constrained")
+    axes = figure.subplots(4, 1, sharex=True)
+    t = log.t
+    task = controller.task
+    for j in range(task.n_gaps):
+        line = axes[0].plot(t, log.task_position[:, j], lw=1.2, label=f"{task.names[j]} gap")
+        colour = line[0].get_color()
+        axes[0].plot(t, log.task_desired[:, j], "--", color=colour, lw=1, label="desired")
+        axes[0].plot(t, log.task_target[:, j], ":", color=colour, lw=1, label="target (virtual)")
+    axes[0].set_ylabel("gap [m]")
+    axes[0].legend(loc="upper right", fontsize=7, ncol=2)
+
+    axes[1].semilogy(t, np.maximum(log.V, 1e-16), lw=1, label="V")
+    axes[1].semilogy(t, np.maximum(log.V1, 1e-16), lw=0.8, alpha=0.7, label="V1")
+    axes[1].set_ylabel("Lyapunov [J]")
+    axes[1].legend(loc="upper right", fontsize=7)
+
+    window = max(1, round(FORCE_WINDOW / float(log.metadata["dt"])))
+    peak = float(log.lambda_d.max(initial=1.0))
+    for i, contact in enumerate(controller.machine.contacts):
+        force = log.contact_force[:, i]
+        line = axes[2].plot(t, force, lw=0.4, alpha=0.5, label=f"{contact} (impulse/dt)")
+        colour = line[0].get_color()
+        mean = np.convolve(force, np.ones(window) / window, mode="same")
+        axes[2].plot(t, mean, color=colour, lw=1.4, label=f"{FORCE_WINDOW * 1e3:.0f} ms mean")
+        axes[2].plot(t, log.lambda_d[:, i], "k--", lw=1, label="λ_d" if i == 0 else None)
+    axes[2].set_ylim(-0.1 * peak, 2.0 * peak)
+    axes[2].set_ylabel("contact force [N]")
+    axes[2].legend(loc="upper right", fontsize=7, ncol=2)
+
+    error = np.linalg.norm(log.task_position - log.task_desired, axis=1)
+    axes[3].semilogy(t, np.maximum(error, 1e-12), lw=1)
+    axes[3].set_ylabel("‖X − X_d‖ [m]")
+    axes[3].set_xlabel("t [s]")
+    for ax in axes:
+        _phase_bands(ax, t, log.phase)
+    handles = [_band_handle(phase) for phase in Phase]
+    figure.legend(handles=handles, loc="outside upper center", ncol=5, fontsize=8)
+    return figure
+
+
+def _phase_bands(ax: Axes, t: np.ndarray, phase: np.ndarray) -> None:
+    edges = np.flatnonzero(np.diff(phase)) + 1
+    starts = np.concatenate([[0], edges])
+    stops = np.concatenate([edges, [len(t) - 1]])
+    for begin, end in zip(starts, stops, strict=True):
+        colour = PHASE_COLOURS[Phase(int(phase[begin]))]
+        ax.axvspan(t[begin], t[end], color=colour, lw=0, zorder=0)
+
+
+def _band_handle(phase: Phase) -> Patch:
+    return Patch(facecolor=PHASE_COLOURS[phase], edgecolor="0.6", label=phase.name.lower())
