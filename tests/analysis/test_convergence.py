@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -120,3 +121,18 @@ def test_closed_loop_runs_share_the_control_period() -> None:
         run_convergence(
             scene, duration=0.1, integrators=["moreau_jean"], dts=(3e-3,), control_period=1e-3
         )
+
+
+def test_a_scene_method_of_another_integrator_is_left_to_it() -> None:
+    scene = ball_scene(0.9)
+    settings = dataclasses.replace(scene.integrator, name="compliant", method="LSODA")
+    study = run_convergence(
+        dataclasses.replace(scene, integrator=settings),
+        duration=0.5,
+        dts=(1e-2,),
+        tolerances=(1e-6,),
+        stiffnesses=(1e5,),
+        sample_dt=1e-2,
+    )
+    assert [run.integrator for run in study.runs] == ["moreau_jean", "event_driven", "compliant"]
+    assert study.of("event_driven")[0].error <= 1e-12

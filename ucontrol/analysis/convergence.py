@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 from ucontrol._validation import as_positive
 from ucontrol.analysis.bouncing_ball import BouncingBall
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.integrators import compliant, event_driven
 from ucontrol.log import Log
 from ucontrol.scene import INTEGRATORS, Scene
 from ucontrol.simulate import simulate
@@ -64,6 +65,7 @@ ATOL_RATIO = 1e-2
 #: Relative tolerance of the compliant runs.
 COMPLIANT_RTOL = 1e-8
 
+_METHODS = {"event_driven": event_driven.METHODS, "compliant": compliant.METHODS}
 _CSV_FIELDS = (
     "integrator",
     "parameter",
@@ -431,6 +433,9 @@ def _simulate(
     duration: float,
     control_period: float | None,
 ) -> tuple[Log, dict[str, Any]]:
+    methods = _METHODS.get(name, ())
+    if "method" not in options and scene.integrator.method not in methods:
+        options = {**options, "method": None}  # the scene's method is another integrator's
     settings = dataclasses.replace(scene.integrator, name=name, dt=dt, **options)
     result = simulate(
         dataclasses.replace(scene, integrator=settings),

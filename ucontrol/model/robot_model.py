@@ -33,10 +33,15 @@ class RobotModel:
         nv: Velocity (tangent space) size.
         nu: Number of actuated velocity coordinates (``nv`` minus the free-flyer's 6).
         actuated: Indices in ``v`` of the actuated coordinates, shape (nu,).
+        urdf_path: The URDF file the model was loaded from (its visual geometry is drawn by
+            :mod:`ucontrol.viz`), or None for a model built otherwise.
     """
 
-    def __init__(self, model: pin.Model, *, floating_base: bool = False) -> None:
+    def __init__(
+        self, model: pin.Model, *, floating_base: bool = False, urdf_path: Path | None = None
+    ) -> None:
         self.model = model
+        self.urdf_path = urdf_path
         self.data = model.createData()
         self.name = model.name
         self.floating_base = floating_base
@@ -77,7 +82,7 @@ class RobotModel:
             raise URDFError(str(path), str(error).splitlines()[0]) from error
         if gravity is not None:
             model.gravity.linear = as_vector("gravity", gravity, 3)
-        return cls(model, floating_base=floating_base)
+        return cls(model, floating_base=floating_base, urdf_path=path.resolve())
 
     def with_scaled_inertia(self, factor: float) -> RobotModel:
         """A copy whose link masses and rotational inertias are multiplied by ``factor``.
@@ -94,7 +99,7 @@ class RobotModel:
             model.inertias[i] = pin.Inertia(
                 inertia.mass * factor, inertia.lever, inertia.inertia * factor
             )
-        return RobotModel(model, floating_base=self.floating_base)
+        return RobotModel(model, floating_base=self.floating_base, urdf_path=self.urdf_path)
 
     @property
     def gravity(self) -> Vector:
