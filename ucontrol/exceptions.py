@@ -240,3 +240,35 @@ class IntegrationError(UControlError):
         self.time = time
         self.reason = reason
         super().__init__(f"{integrator} cannot advance ({time:.6g} s into the step): {reason}")
+
+
+class RunNotFoundError(UControlError):
+    """A directory is not the output of a run: it holds no ``log.npz``.
+
+    Attributes:
+        directory: The directory given.
+    """
+
+    def __init__(self, directory: str) -> None:
+        self.directory = directory
+        super().__init__(
+            f"no log.npz in {directory!r}: not the output directory of a run "
+            "(`ucontrol run SCENE --out DIR` writes one)"
+        )
+
+
+class OptionalDependencyError(UControlError):
+    """A feature needs a package of an optional extra that is not installed.
+
+    Attributes:
+        package: The missing package.
+        extra: The ucontrol extra that installs it.
+    """
+
+    def __init__(self, package: str, extra: str) -> None:
+        self.package = package
+        self.extra = extra
+        super().__init__(
+            f"{package} is not installed; install the extra: pip install 'ucontrol[{extra}]' "
+            f"(from a clone: pip install -e '.[{extra}]')"
+        )

@@ -72,6 +72,7 @@ _INTEGRATOR_KEYS = {
     "zeno_velocity",
     "stiffness",
     "contact_model",
+    "restitution_threshold",
 }
 _METHODS = {"event_driven": event_driven.METHODS, "compliant": compliant.METHODS}
 _REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
@@ -131,6 +132,8 @@ class IntegratorSettings:
         stiffness: Contact stiffness of compliant, in [N/m] (linear) or [N/m^1.5]
             (Hunt–Crossley).
         contact_model: Force law of compliant, ``"linear"`` or ``"hunt_crossley"``.
+        restitution_threshold: Closing speed in [m/s] below which Moreau–Jean treats a contact
+            as persistent (e = 0); 0 applies Newton's law to every closing contact.
 
     Keys that do not concern the chosen integrator are checked and ignored, so one scene can
     be run with every integrator.
@@ -147,6 +150,7 @@ class IntegratorSettings:
     zeno_velocity: float = 1e-5
     stiffness: float = 1e6
     contact_model: str = "linear"
+    restitution_threshold: float = 0.0
 
     def __post_init__(self) -> None:
         if self.name not in INTEGRATORS:
@@ -196,6 +200,8 @@ class Scene:
         reference: Analytic reference table (``type`` plus parameters), checked when the scene
             is loaded, or None; used by
             :func:`ucontrol.analysis.convergence.run_convergence`.
+        source: The TOML file the scene was loaded from, or None for a scene built in code;
+            :func:`ucontrol.simulate` records it in the log (``scene_path``) for replays.
     """
 
     name: str
@@ -208,6 +214,7 @@ class Scene:
     integrator: IntegratorSettings = field(default_factory=IntegratorSettings)
     controller: Mapping[str, Any] = field(default_factory=lambda: {"type": "zero"})
     reference: Mapping[str, Any] | None = None
+    source: Path | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q0", self.robot.check_configuration("q0", self.q0))
@@ -257,6 +264,7 @@ class Scene:
             dt=h,
             theta=settings.theta,
             solver=solver,
+            restitution_threshold=settings.restitution_threshold,
         )
 
     def build_controller(self) -> Controller:
@@ -293,7 +301,8 @@ class Scene:
             table = tomllib.loads(path.read_text())
         except tomllib.TOMLDecodeError as error:
             raise SceneError(f"scene file {str(path)!r} is not valid TOML: {error}") from error
-        return cls.from_dict(table, base_dir=path.parent, default_name=path.stem)
+        scene = cls.from_dict(table, base_dir=path.parent, default_name=path.stem)
+        return replace(scene, source=path.resolve())
 
     @classmethod
     def from_dict(

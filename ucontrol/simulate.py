@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,6 +57,7 @@ def simulate(
     control_period: float | None = None,
     out: str | Path | None = None,
     progress: bool | None = None,
+    observer: Callable[[Log], None] | None = None,
 ) -> SimulationResult:
     """Run ``scene`` in closed loop with ``controller`` for ``duration`` seconds.
 
@@ -70,6 +72,9 @@ def simulate(
         out: Directory for ``log.npz`` and ``summary.json``; the log is also checkpointed there
             during long runs and saved when a run fails.
         progress: Show a progress bar; default for runs of at least 20 000 steps.
+        observer: Called with the log each time a row is complete (after every step and
+            at the end), e.g. a live viewer (:class:`ucontrol.viz.live_viewer.LiveViewer`);
+            its last row is the newest.
 
     Raises:
         InitialPenetrationError: The initial configuration violates a constraint.
@@ -109,6 +114,8 @@ def simulate(
             "actuated": robot.actuated.tolist(),
         },
     )
+    if scene.source is not None:
+        log.metadata["scene_path"] = str(scene.source)
     recorder = controller if isinstance(controller, LoggingController) else None
     if recorder is not None:
         recorder.prepare_log(log)
@@ -117,11 +124,12 @@ def simulate(
     contacts_zero = np.zeros(constraints.size)
     inactive = np.zeros(constraints.size, dtype=bool)
     impulse, active = contacts_zero, inactive
+    period_impulse, period_active, period_steps = np.zeros(constraints.size), inactive.copy(), 0
     tau = np.zeros(robot.nv)
     actuated = robot.actuated
     u = np.zeros(robot.nu)
     start = last_checkpoint = time.perf_counter()
-    k, row_open, n_events = 0, False, 0
+    k, row_open, n_events, n_plastic = 0, False, 0, 0
     try:
         for k in range(n_steps + 1):
             t = k * h
@@ -138,8 +146,14 @@ def simulate(
             if k == n_steps:
                 break
             if k % hold == 0:
+                if hold > 1:  # what happened over the control period that ends now
+                    impulse, active = period_impulse.copy(), period_active.copy()
+                    span = max(period_steps, 1) * h
+                    period_impulse[:], period_active[:], period_steps = 0.0, False, 0
+                else:
+                    span = h
                 contacts = ContactState(
-                    constraints.names, state.gap, state.normal_velocity, impulse, active, h
+                    constraints.names, state.gap, state.normal_velocity, impulse, active, span
                 )
                 output = _as_array(controller(t, q, v, contacts))
                 if output.shape != (robot.nu,):
@@ -158,8 +172,15 @@ def simulate(
                 0.0 if solution is None else solution.residual,
             )
             row_open = False
+            if observer is not None:
+                observer(log)
             q, v, impulse, active = outcome.q, outcome.v, outcome.impulse, outcome.active
+            if hold > 1:
+                period_impulse += impulse
+                period_active |= active
+                period_steps += 1
             n_events += outcome.events
+            n_plastic += outcome.plastic
             if not math.isfinite(float(q.sum() + v.sum() + u.sum())):
                 as_vector("controller output u", u)  # names the culprit if it is the controller
                 raise _NonFiniteState(f"the state became non-finite at t = {t + h:.6g} s")
@@ -175,6 +196,8 @@ def simulate(
         if recorder is not None:
             recorder.record(log)
         log.record_step(u, contacts_zero, inactive, 0, 0.0)
+        if observer is not None:
+            observer(log)
     except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
         if row_open:  # the state at t_k is stored, its step is not: close the row
             log.record_step(u, contacts_zero, inactive, 0, 0.0)
@@ -188,6 +211,7 @@ def simulate(
     wall_time = time.perf_counter() - start
     summary = summarize(log, wall_time_s=wall_time, theta=integrator.theta)
     summary["n_events"] = n_events  # located by event-driven integrators; 0 otherwise
+    summary["n_plastic_steps"] = n_plastic  # Moreau–Jean steps whose restitution added energy
     if out_dir is not None:
         log.save(out_dir / "log.npz")
         (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

@@ -22,9 +22,10 @@ class ContactState:
         names: One label per constraint (contacts first, then stops).
         gap: Gaps at t in [m] (or [rad] for rotational stops), shape (n,).
         normal_velocity: ``J v`` at t in [m/s] (or [rad/s]), shape (n,).
-        impulse: Normal impulses of the step that ended at t in [N s], shape (n,).
-        active: Whether each constraint was in that step's active set, shape (n,).
-        dt: Length of that step in [s].
+        impulse: Normal impulses accumulated over the control period that ended at t (the last
+            step when the controller runs every step) in [N s], shape (n,).
+        active: Whether each constraint was in an active set during that period, shape (n,).
+        dt: Length of that period in [s].
     """
 
     names: list[str]
@@ -36,7 +37,7 @@ class ContactState:
 
     @property
     def force(self) -> Vector:
-        """Mean normal contact force over the last step, ``impulse / dt`` in [N], shape (n,)."""
+        """Mean normal contact force over the last period, ``impulse / dt`` in [N], shape (n,)."""
         return self.impulse / self.dt
 
 

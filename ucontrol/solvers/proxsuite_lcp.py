@@ -20,17 +20,22 @@ import scipy.optimize
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
+from ucontrol.exceptions import SolverError
 from ucontrol.solvers.contact_solution import (
     ContactSolution,
     natural_map_residual,
     velocity_scale,
 )
+from ucontrol.solvers.lemke import solve_lcp_lemke
 
 _WARM_START = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
 
 #: QP solutions with a complementarity residual above this, in [m/s], are polished: Newton's
 #: law then holds to this accuracy at every impact whatever proxsuite's tolerance.
 POLISH_THRESHOLD = 1e-13
+#: Problems up to this size that proxsuite and the polish leave above the residual tolerance
+#: are solved again by Lemke's pivoting method.
+LEMKE_FALLBACK_SIZE = 50
 
 
 class ProxsuiteLCPSolver:
@@ -40,7 +45,8 @@ class ProxsuiteLCPSolver:
     previous solution of that size. A QP solution whose complementarity residual exceeds
     :data:`POLISH_THRESHOLD` is then polished: the linear system of its active set is solved
     directly and kept when it satisfies complementarity better, which brings restitution to
-    machine precision.
+    machine precision. Small problems still above ``residual_tolerance`` (nearly dependent
+    constraints, where the proximal iterations stall) are solved again by Lemke's method.
 
     The status is ``"solved"`` when the complementarity residual, measured by us, is at most
     ``residual_tolerance``; otherwise it is proxsuite's status and the caller decides.
@@ -119,6 +125,16 @@ class ProxsuiteLCPSolver:
                 if candidate_residual <= residual:
                     impulses, velocity, residual = candidate, candidate_velocity, candidate_residual
                     polished = True
+        if residual > self.residual_tolerance and b.size <= LEMKE_FALLBACK_SIZE:
+            # Ill-conditioned D (constraints nearly dependent): pivoting is exact where the
+            # proximal iterations stall.
+            try:
+                pivoted = solve_lcp_lemke(D, b)
+            except SolverError:
+                pivoted = None
+            if pivoted is not None and pivoted.residual < residual:
+                impulses, velocity, residual = pivoted.impulses, pivoted.velocity, pivoted.residual
+                polished = True
         return ContactSolution(
             impulses,
             velocity,

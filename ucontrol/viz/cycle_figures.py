@@ -11,20 +11,11 @@ import numpy as np
 import pinocchio as pin
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
-from matplotlib.patches import Patch
 
 from ucontrol.control.brogliato_controller import BrogliatoController
-from ucontrol.control.phase import Phase
 from ucontrol.log import Log
+from ucontrol.viz.phase_bands import phase_bands, phase_legend
 
-#: Background colour of each phase in the time plots.
-PHASE_COLOURS = {
-    Phase.FREE: "#ffffff",
-    Phase.APPROACH: "#fde0c5",
-    Phase.TRANSITION: "#d9f0d3",
-    Phase.CONSTRAINED: "#f9d3d3",
-    Phase.TAKEOFF: "#e5d8f0",
-}
 #: Window of the moving mean of the measured contact force, in [s].
 FORCE_WINDOW = 0.02
 _AXIS_NAMES = "xyz"
@@ -161,20 +152,6 @@ def _time_figure(log: Log, controller: BrogliatoController) -> Figure:
     axes[3].set_ylabel("‖X − X_d‖ [m]")
     axes[3].set_xlabel("t [s]")
     for ax in axes:
-        _phase_bands(ax, t, log.phase)
-    handles = [_band_handle(phase) for phase in Phase]
-    figure.legend(handles=handles, loc="outside upper center", ncol=5, fontsize=8)
+        phase_bands(ax, t, log.phase)
+    phase_legend(figure)
     return figure
-
-
-def _phase_bands(ax: Axes, t: np.ndarray, phase: np.ndarray) -> None:
-    edges = np.flatnonzero(np.diff(phase)) + 1
-    starts = np.concatenate([[0], edges])
-    stops = np.concatenate([edges, [len(t) - 1]])
-    for begin, end in zip(starts, stops, strict=True):
-        colour = PHASE_COLOURS[Phase(int(phase[begin]))]
-        ax.axvspan(t[begin], t[end], color=colour, lw=0, zorder=0)
-
-
-def _band_handle(phase: Phase) -> Patch:
-    return Patch(facecolor=PHASE_COLOURS[phase], edgecolor="0.6", label=phase.name.lower())

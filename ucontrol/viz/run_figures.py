@@ -1,0 +1,201 @@
+"""Figures of any saved run: configuration, gaps, contact forces, energy, and tracking.
+
+``q.png``, ``gaps.png``, ``forces.png`` and ``energy.png`` for every run; ``tracking.png``
+(task coordinates against the desired and virtual ones, tracking error, Lyapunov function V)
+when the controller logged them; with the scene of a phase-machine run, the end-effector path
+and the cycle summary of :func:`ucontrol.viz.cycle_figures.cycle_figures`. Phase bands shade
+the time axes of runs with a ``phase`` field. Uses matplotlib's object API with the Agg canvas.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from ucontrol.analysis.impacts import impact_mask
+from ucontrol.control.brogliato_controller import BrogliatoController
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.log import Log
+from ucontrol.scene import Scene
+from ucontrol.viz.cycle_figures import FORCE_WINDOW, cycle_figures, frame_positions
+from ucontrol.viz.phase_bands import phase_bands, phase_legend
+
+#: Resolution of the PNG files in [dots per inch].
+DPI = 110
+#: Height of one panel of the per-constraint figures in [in].
+PANEL_HEIGHT = 1.8
+
+
+def run_figures(log: Log, out_dir: str | Path, *, scene: Scene | None = None) -> list[Path]:
+    """Write the figures of a run as PNG files into ``out_dir``.
+
+    Args:
+        log: The run (e.g. ``Log.load(DIR / "log.npz")``).
+        out_dir: Output folder, created if needed.
+        scene: The scene of the run; with a phase-machine controller (``type = "brogliato"``)
+            it names the task coordinates and adds ``cycle_path.png`` and ``cycle_time.png``.
+
+    Returns:
+        The paths of the files written.
+
+    Raises:
+        InvalidParameterError: The scene's controller does not match the logged task
+            coordinates.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    figures = {
+        "q": _configuration_figure(log),
+        "gaps": _gap_figure(log),
+        "forces": _force_figure(log),
+        "energy": _energy_figure(log),
+    }
+    controller = _phase_controller(log, scene)
+    if "task_position" in log.fields:
+        names = None if controller is None else controller.task.names
+        figures["tracking"] = _tracking_figure(log, names)
+    paths = []
+    for name, figure in figures.items():
+        paths.append(out_dir / f"{name}.png")
+        figure.savefig(paths[-1], dpi=DPI)
+    if controller is not None:
+        positions = frame_positions(log, controller)
+        plane = tuple(int(axis) for axis in np.sort(np.argsort(positions.std(axis=0))[-2:]))
+        paths += cycle_figures(log, controller, out_dir, "cycle", plane=(plane[0], plane[1]))
+    return paths
+
+
+def _phase_controller(log: Log, scene: Scene | None) -> BrogliatoController | None:
+    """The scene's phase-machine controller when the log is a run of it, else None."""
+    if scene is None or "phase" not in log.fields:
+        return None
+    controller = scene.build_controller()
+    if not isinstance(controller, BrogliatoController):
+        return None
+    m = log.task_position.shape[1]
+    if controller.task.m != m:
+        raise InvalidParameterError(
+            "scene", scene.name, f"a controller with the run's {m} task coordinates"
+        )
+    return controller
+
+
+def _time_axes(log: Log, rows: int, height: float) -> tuple[Figure, list[Axes]]:
+    """A figure of ``rows`` panels sharing the time axis, shaded by phase when logged."""
+    figure = Figure(figsize=(9.0, max(3.0, height * rows + 1.0)), layout="constrained")
+    axes = list(np.atleast_1d(figure.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]))
+    if "phase" in log.fields:
+        for ax in axes:
+            phase_bands(ax, log.t, log.phase)
+        phase_legend(figure)
+    axes[-1].set_xlabel("t [s]")
+    return figure, axes
+
+
+def _configuration_figure(log: Log) -> Figure:
+    figure, (top, bottom) = _time_axes(log, 2, 2.6)
+    for i in range(log.q.shape[1]):
+        top.plot(log.t, log.q[:, i], lw=1, label=f"q[{i}]")
+    for i in range(log.v.shape[1]):
+        bottom.plot(log.t, log.v[:, i], lw=1, label=f"v[{i}]")
+    top.set_ylabel("q [rad, m]")
+    bottom.set_ylabel("v [rad/s, m/s]")
+    for ax in (top, bottom):
+        ax.legend(loc="upper right", fontsize=7, ncol=min(6, log.q.shape[1]))
+    top.set_title("configuration and velocity")
+    return figure
+
+
+def _gap_figure(log: Log) -> Figure:
+    names = log.constraint_names
+    figure, axes = _time_axes(log, max(1, len(names)), PANEL_HEIGHT)
+    impacts = impact_mask(log)
+    for i, (ax, name) in enumerate(zip(axes, names, strict=False)):
+        ax.plot(log.t, log.gap[:, i], lw=1.2, label="gap")
+        ax.axhline(0.0, color="0.3", lw=0.8)
+        rows = np.flatnonzero(impacts[:, i])
+        ax.plot(log.t[rows], log.gap[rows, i], "v", ms=4, color="C3", label="impact")
+        ax.set_ylabel(name, fontsize=8)
+        ax.legend(loc="upper right", fontsize=7)
+    axes[0].set_title("gaps [m] (joint stops: [rad] or [m]); negative = penetration")
+    return figure
+
+
+def _force_figure(log: Log) -> Figure:
+    """Mean force impulse / dt of each constraint, its moving mean and the desired force."""
+    names = log.constraint_names
+    figure, axes = _time_axes(log, max(1, len(names)), PANEL_HEIGHT)
+    dt = float(log.metadata["dt"])  # [s]
+    window = max(1, round(FORCE_WINDOW / dt))
+    desired = _desired_forces(log)
+    for i, (ax, name) in enumerate(zip(axes, names, strict=False)):
+        force = log.impulse[:, i] / dt  # [N]
+        ax.plot(log.t, force, lw=0.5, alpha=0.5, label="impulse / dt")
+        mean = np.convolve(force, np.ones(window) / window, mode="same")
+        ax.plot(log.t, mean, lw=1.3, label=f"{FORCE_WINDOW * 1e3:.0f} ms mean")
+        top = float(np.percentile(force[force > 0.0], 99)) if (force > 0.0).any() else 1.0
+        if name in desired:
+            ax.plot(log.t, desired[name], "k--", lw=1, label="λ_d (desired)")
+            top = max(top, 1.5 * float(desired[name].max()))
+        ax.set_ylim(-0.05 * top, 1.3 * top)  # impacts above are clipped
+        ax.set_ylabel(name, fontsize=8)
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+    axes[0].set_title("contact forces [N] (joint stops: [N m] or [N]); impact peaks clipped")
+    return figure
+
+
+def _desired_forces(log: Log) -> dict[str, np.ndarray]:
+    """The desired force λ_d of each constraint the controller logged one for, in [N]."""
+    if "lambda_d" not in log.fields:
+        return {}
+    contacts = log.metadata.get("controller_contacts", [])
+    return {name: log.lambda_d[:, j] for j, name in enumerate(contacts)}
+
+
+def _energy_figure(log: Log) -> Figure:
+    figure, (ax,) = _time_axes(log, 1, 3.5)
+    actuated = np.asarray(log.metadata.get("actuated", []), dtype=int)
+    dt = float(log.metadata["dt"])  # [s]
+    v_mid = 0.5 * (log.v[:-1] + log.v[1:])[:, actuated]  # [rad/s] over each step
+    power = np.einsum("ij,ij->i", log.u[:-1], v_mid)  # [W]
+    work = np.concatenate([[0.0], np.cumsum(power * dt)])  # [J]
+    ax.plot(log.t, log.energy, lw=1.2, label="E = kinetic + potential")
+    if np.any(work != 0.0):
+        ax.plot(log.t, log.energy - work, lw=1.2, label="E − actuator work")
+    for row in np.flatnonzero(impact_mask(log).any(axis=1)):
+        ax.axvline(log.t[row], color="C3", lw=0.4, alpha=0.4)
+    ax.set_ylabel("energy [J]")
+    ax.set_title("energy (red lines: impacts)")
+    ax.legend(loc="upper right", fontsize=8)
+    return figure
+
+
+def _tracking_figure(log: Log, names: list[str] | None) -> Figure:
+    """Task coordinates against desired and virtual ones, tracking error, V and V1."""
+    m = log.task_position.shape[1]
+    labels = names if names is not None else [f"X[{j}]" for j in range(m)]
+    figure, axes = _time_axes(log, m + 2, 2.0)
+    for j in range(m):
+        ax = axes[j]
+        ax.plot(log.t, log.task_position[:, j], lw=1.2, label="X")
+        ax.plot(log.t, log.task_desired[:, j], "k--", lw=1, label="X_d (desired)")
+        ax.plot(log.t, log.task_target[:, j], ":", color="C3", lw=1, label="X_d* (virtual)")
+        ax.set_ylabel(f"{labels[j]} [m]", fontsize=8)
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+    error = np.abs(log.task_position - log.task_desired)  # [m]
+    ax = axes[m]
+    for j in range(m):
+        ax.semilogy(log.t, np.maximum(error[:, j], 1e-12), lw=0.8, label=f"|X̃| {labels[j]}")
+    ax.semilogy(log.t, np.maximum(np.linalg.norm(error, axis=1), 1e-12), "k", lw=1, label="‖X̃‖")
+    ax.set_ylabel("tracking error [m]")
+    ax.legend(loc="upper right", fontsize=7, ncol=2)
+    ax = axes[m + 1]
+    ax.semilogy(log.t, np.maximum(log.V, 1e-16), lw=1.2, label="V")
+    ax.semilogy(log.t, np.maximum(log.V1, 1e-16), lw=0.8, alpha=0.7, label="V1 = ½ sᵀ M̄ s")
+    ax.set_ylabel("Lyapunov [J]")
+    ax.legend(loc="upper right", fontsize=7)
+    axes[0].set_title("task coordinates X = (gaps, tangential) against the desired ones")
+    return figure
