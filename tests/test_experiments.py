@@ -66,3 +66,22 @@ def test_work_precision_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     for name in ("compliant_stiffness.png", "compliant_stiffness.md", "zeno_threshold.md"):
         assert (tmp_path / name).is_file()
     assert "observed order" in capsys.readouterr().out
+
+
+def test_see_it_runs(tmp_path: Path) -> None:
+    see_it = _load("see_it")
+    run, figures = tmp_path / "run", tmp_path / "figures"
+    flags = [
+        "--duration",
+        "0.5",
+        "--shot-time",
+        "0.2",
+        "--out",
+        str(run),
+        "--figures",
+        str(figures),
+    ]
+    paths = see_it.main(flags)
+    assert (tmp_path / "figures" / "see_it_tracking.png").is_file()
+    assert paths["replay"].stat().st_size > 500_000  # the viewer is embedded
+    assert {"q", "gaps", "forces", "energy", "tracking", "cycle_path", "cycle_time"} <= set(paths)

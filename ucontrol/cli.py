@@ -1,7 +1,11 @@
-"""Command line: ``ucontrol run`` (one simulation) and ``ucontrol convergence`` (accuracy study).
+"""Command line: ``ucontrol run``, ``convergence``, ``view`` and ``plot``.
 
-``ucontrol run [SCENE] --out DIR [--dt H] [--duration T] [--integrator NAME]``;
-``ucontrol convergence [SCENE] --out DIR [--duration T] [--dts H ...] [--tolerances ...]``.
+``run`` simulates a scene, ``convergence`` measures error against run time, ``view`` replays a
+saved run in meshcat (or exports it as HTML) and ``plot`` draws its figures:
+
+``ucontrol run [SCENE] --out DIR [--dt H] [--duration T] [--integrator NAME] [--view]``;
+``ucontrol convergence [SCENE] --out DIR [--duration T] [--dts H ...] [--tolerances ...]``;
+``ucontrol view DIR [--scene FILE] [--html FILE]``; ``ucontrol plot DIR [--out FIGURES]``.
 """
 
 from __future__ import annotations
@@ -9,13 +13,20 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ucontrol.analysis import convergence
-from ucontrol.exceptions import UControlError
-from ucontrol.scene import INTEGRATORS, load_scene
+from ucontrol.exceptions import OptionalDependencyError, UControlError
+from ucontrol.saved_run import SavedRun
+from ucontrol.scene import INTEGRATORS, Scene, load_scene
 from ucontrol.simulate import simulate
+
+if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
+    from ucontrol.viz.live_viewer import LiveViewer
+    from ucontrol.viz.meshcat_server import MeshcatServer
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -47,6 +58,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     bar.add_argument(
         "--no-progress", dest="progress", action="store_false", help="never show the progress bar"
+    )
+    run.add_argument(
+        "--view",
+        action="store_true",
+        help="draw the run live in meshcat (in real time, once a browser has the viewer open)",
     )
     study = commands.add_parser(
         "convergence",
@@ -96,6 +112,25 @@ def _parser() -> argparse.ArgumentParser:
         default=None,
         help="controller period of every run in [s] (closed loops); default every step",
     )
+    view = commands.add_parser(
+        "view", help="replay a saved run in meshcat, or export it as a standalone HTML page"
+    )
+    view.add_argument("directory", type=Path, help="run directory (holds log.npz)")
+    view.add_argument(
+        "--scene", type=Path, default=None, help="scene file (default: the one the run recorded)"
+    )
+    view.add_argument(
+        "--html", type=Path, default=None, help="write the animation to this HTML file and exit"
+    )
+    view.add_argument("--fps", type=float, default=30.0, help="frames per second of simulated time")
+    plot = commands.add_parser("plot", help="figures (PNG) of a saved run")
+    plot.add_argument("directory", type=Path, help="run directory (holds log.npz)")
+    plot.add_argument(
+        "--scene", type=Path, default=None, help="scene file (default: the one the run recorded)"
+    )
+    plot.add_argument(
+        "--out", type=Path, default=None, help="folder of the figures (default: DIR/figures)"
+    )
     return parser
 
 
@@ -105,6 +140,7 @@ def _run(args: argparse.Namespace) -> int:
         settings = dataclasses.replace(scene.integrator, name=args.integrator)
         scene = dataclasses.replace(scene, integrator=settings)
     out = args.out if args.out is not None else Path("runs") / scene.name
+    server, live = _live_viewer(scene) if args.view else (None, None)
     result = simulate(
         scene,
         duration=args.duration,
@@ -112,6 +148,7 @@ def _run(args: argparse.Namespace) -> int:
         control_period=args.control_period,
         out=out,
         progress=args.progress,
+        observer=live,
     )
     summary = result.summary
     print(
@@ -119,7 +156,71 @@ def _run(args: argparse.Namespace) -> int:
         f"{summary['n_impacts']} impacts, max penetration {summary['max_penetration']:.3g}; "
         f"wrote {out / 'log.npz'} and {out / 'summary.json'}"
     )
+    if server is not None and live is not None:
+        live.show(result.log)
+        print(f"{server.url} shows the end of the run; Ctrl-C to quit", flush=True)
+        _wait_for_interrupt()
+        server.close()
     return 0
+
+
+def _live_viewer(scene: Scene) -> tuple[MeshcatServer, LiveViewer]:
+    """A meshcat server with the scene drawn, once a browser has its page open."""
+    from ucontrol.viz.live_viewer import LiveViewer
+    from ucontrol.viz.meshcat_server import MeshcatServer
+
+    server = MeshcatServer()
+    phases = dict(scene.controller).get("type") == "brogliato"
+    live = LiveViewer(scene, server.viewer, phases=phases)
+    print(f"meshcat viewer: open {server.url} in a browser; the run starts then", flush=True)
+    server.wait_for_browser()
+    return server, live
+
+
+def _view(args: argparse.Namespace) -> int:
+    run = SavedRun.load(args.directory, args.scene)
+    scene = run.require_scene()
+    from ucontrol.viz.meshcat_server import MeshcatServer
+    from ucontrol.viz.replay import replay, write_html
+
+    if args.html is not None:
+        path = write_html(args.html, scene, run.log, fps=args.fps)
+        print(f"wrote {path}: open it in a browser (it plays offline)")
+        return 0
+    with MeshcatServer() as server:
+        replay(server.viewer, scene, run.log, fps=args.fps)
+        print(f"replay of {args.directory}: open {server.url}; Ctrl-C to quit", flush=True)
+        _wait_for_interrupt()
+    return 0
+
+
+def _plot(args: argparse.Namespace) -> int:
+    run = SavedRun.load(args.directory, args.scene)
+    try:
+        from ucontrol.viz.run_figures import run_figures
+    except ModuleNotFoundError as error:
+        if (error.name or "").partition(".")[0] != "matplotlib":
+            raise
+        raise OptionalDependencyError("matplotlib", "viz") from error
+    out = args.out if args.out is not None else args.directory / "figures"
+    if run.scene is None:
+        print(
+            "ucontrol: note: the scene of the run is unknown (pass --scene FILE for the "
+            "path figures of a phase-machine run)",
+            file=sys.stderr,
+        )
+    for path in run_figures(run.log, out, scene=run.scene):
+        print(f"wrote {path}")
+    return 0
+
+
+def _wait_for_interrupt() -> None:
+    """Block until Ctrl-C (SIGINT), keeping a viewer server alive."""
+    try:
+        while True:
+            time.sleep(3600.0)
+    except KeyboardInterrupt:
+        pass
 
 
 def _convergence(args: argparse.Namespace) -> int:
@@ -145,7 +246,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``ucontrol`` command; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        return _convergence(args) if args.command == "convergence" else _run(args)
+        commands = {"run": _run, "convergence": _convergence, "view": _view, "plot": _plot}
+        return commands[args.command](args)
     except UControlError as error:
         print(f"ucontrol: error: {error}", file=sys.stderr)
         return 2

@@ -272,3 +272,15 @@ class OptionalDependencyError(UControlError):
             f"{package} is not installed; install the extra: pip install 'ucontrol[{extra}]' "
             f"(from a clone: pip install -e '.[{extra}]')"
         )
+
+
+class ViewerError(UControlError):
+    """The meshcat viewer could not be started or reached.
+
+    Attributes:
+        reason: What went wrong (the server's last messages when it stopped).
+    """
+
+    def __init__(self, reason: str) -> None:
+        self.reason = reason
+        super().__init__(f"meshcat viewer: {reason}")

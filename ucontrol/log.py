@@ -90,7 +90,7 @@ class Log:
         return [*self._arrays, *self._extras]
 
     def add_field(self, name: str, shape: tuple[int, ...], dtype: Any = float) -> None:
-        """Add a per-sample array, e.g. a controller's phase, of shape (capacity, *shape)."""
+        """Add a per-sample array, e.g. a controller's phase, of shape ``(capacity, *shape)``."""
         capacity = self._arrays["t"].shape[0]
         self._extras[name] = np.zeros((capacity, *shape), dtype=dtype)
 

@@ -29,24 +29,20 @@ class SavedRun:
     scene: Scene | None
 
     @classmethod
-    def load(
-        cls, directory: str | Path, scene: str | Path | None = None, *, require_scene: bool = False
-    ) -> SavedRun:
+    def load(cls, directory: str | Path, scene: str | Path | None = None) -> SavedRun:
         """Load ``directory/log.npz`` and the scene of the run.
 
         The scene is ``scene`` when given, else the file named by the log's ``scene_path``
-        metadata (written by :func:`ucontrol.simulate` for scenes loaded from a file).
+        metadata (written by :func:`ucontrol.simulate` for scenes loaded from a file) if it
+        still exists, else None.
 
         Args:
             directory: The run directory.
             scene: Scene file to use instead of the one recorded in the log.
-            require_scene: Raise instead of returning ``scene = None`` when the scene is
-                unknown.
 
         Raises:
             RunNotFoundError: ``directory`` holds no ``log.npz``.
-            SceneError: ``require_scene`` and the log names no scene file, or names one that
-                no longer exists.
+            SceneError: ``scene`` is not a valid scene file.
             InvalidParameterError: The scene does not match the log (configuration size or
                 constraint names differ).
         """
@@ -54,7 +50,13 @@ class SavedRun:
         if not (directory / LOG_FILE).is_file():
             raise RunNotFoundError(str(directory))
         log = Log.load(directory / LOG_FILE)
-        path = Path(scene) if scene is not None else _recorded_scene(log, require_scene)
+        recorded = log.metadata.get("scene_path")
+        if scene is not None:
+            path: Path | None = Path(scene)
+        elif recorded is not None and Path(recorded).is_file():
+            path = Path(recorded)
+        else:
+            path = None
         if path is None:
             return cls(directory, log, None)
         loaded = load_scene(path)
@@ -68,17 +70,21 @@ class SavedRun:
             )
         return cls(directory, log, loaded)
 
+    def require_scene(self) -> Scene:
+        """The scene of the run.
 
-def _recorded_scene(log: Log, require: bool) -> Path | None:
-    """The scene file named in the log's metadata, if it exists (else None or SceneError)."""
-    recorded = log.metadata.get("scene_path")
-    if recorded is not None and Path(recorded).is_file():
-        return Path(recorded)
-    if not require:
-        return None
-    reason = (
-        "does not name its scene file (a scene built in code)"
-        if recorded is None
-        else f"names the scene file {recorded!r}, which no longer exists"
-    )
-    raise SceneError(f"the log {reason}; pass the scene file with --scene FILE")
+        Raises:
+            SceneError: The scene is unknown: the log names no scene file (a scene built in
+                code), or names one that no longer exists.
+        """
+        if self.scene is not None:
+            return self.scene
+        recorded = self.log.metadata.get("scene_path")
+        reason = (
+            "does not name its scene file (a scene built in code)"
+            if recorded is None
+            else f"names the scene file {recorded!r}, which no longer exists"
+        )
+        raise SceneError(
+            f"the log in {str(self.directory)!r} {reason}; pass the scene file with --scene FILE"
+        )

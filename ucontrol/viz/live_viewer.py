@@ -46,7 +46,7 @@ class LiveViewer:
     ) -> None:
         self.drawing = SceneDrawing(scene, viewer, phases=phases, force_scale=force_scale)
         self._viewer = viewer
-        self._period = 1.0 / as_positive("fps", fps)  # [s] of simulated time
+        self._fps = as_positive("fps", fps)  # [1/s] of simulated time
         self._speed = None if speed is None else as_positive("speed", speed)
         self._next = 0.0
         self._last_row = 0
@@ -61,7 +61,7 @@ class LiveViewer:
             self._start = time.perf_counter() - (0.0 if self._speed is None else t / self._speed)
         if t + 1e-9 < self._next:
             return
-        self._next = t + self._period
+        self._next = (np.floor(t * self._fps + 1e-9) + 1.0) / self._fps  # [s], next frame
         if self._speed is not None:
             time.sleep(max(0.0, t / self._speed - (time.perf_counter() - self._start)))
         self.show(log, row)

@@ -2,28 +2,73 @@
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import io
+import subprocess
+import sys
+import tempfile
+import threading
 from types import TracebackType
 
 import meshcat
 
+from ucontrol.exceptions import ViewerError
+
+#: Longest wait for the server to print its addresses, in [s].
+START_TIMEOUT = 30.0
+
 
 class MeshcatServer:
-    """Start meshcat's server (zmq + web server on 127.0.0.1) and connect a viewer to it.
+    """Start a meshcat server (zmq + web server on 127.0.0.1) and connect a viewer to it.
 
-    The server runs until :meth:`close` (or the end of a ``with`` block, or of the process).
-    Browsers open :attr:`url`; the server sends them the current scene when they connect.
+    The server is :mod:`ucontrol.viz.meshcat_bridge` (meshcat's own, with two fixes) in a
+    subprocess; it runs until :meth:`close`, the end of a ``with`` block or the end of the
+    process. Browsers open :attr:`url`; the server sends them the current scene when they
+    connect. Its ports are the first free ones from 6000 (zmq) and 7000 (web).
 
     Attributes:
         viewer: The meshcat client (``meshcat.Visualizer``) drawing in the server's scene.
         url: Address of the viewer page, e.g. ``http://127.0.0.1:7000/static/``.
+
+    Raises:
+        ViewerError: The server did not start.
     """
 
     def __init__(self) -> None:
+        self._errors = tempfile.TemporaryFile(mode="w+")
+        self._process = subprocess.Popen(
+            [sys.executable, "-u", "-m", "ucontrol.viz.meshcat_bridge"],
+            stdout=subprocess.PIPE,
+            stderr=self._errors,
+            text=True,
+            start_new_session=True,  # Ctrl-C in a terminal stops the client, close() the server
+        )
+        atexit.register(self.close)
+        addresses = self._addresses()
+        # Drain what the server prints later, so that it never blocks on a full pipe.
+        threading.Thread(target=self._process.stdout.read, daemon=True).start()  # type: ignore[union-attr]
         with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
-            self.viewer = meshcat.Visualizer()
-        self.url: str = self.viewer.url()
+            self.viewer = meshcat.Visualizer(zmq_url=addresses["zmq_url"])
+        self.url: str = addresses["web_url"]
+
+    def _addresses(self) -> dict[str, str]:
+        """The ``zmq_url`` and ``web_url`` lines the server prints when it listens."""
+        addresses: dict[str, str] = {}
+        timer = threading.Timer(START_TIMEOUT, self._process.kill)
+        timer.start()
+        try:
+            while len(addresses) < 2:
+                line = self._process.stdout.readline()  # type: ignore[union-attr]
+                if not line:
+                    self._errors.seek(0)
+                    raise ViewerError(f"the meshcat server stopped: {self._errors.read()[-2000:]}")
+                key, _, value = line.strip().partition("=")
+                if key in ("zmq_url", "web_url"):
+                    addresses[key] = value
+        finally:
+            timer.cancel()
+        return addresses
 
     def wait_for_browser(self) -> None:
         """Block until a browser has the viewer page open."""
@@ -39,10 +84,9 @@ class MeshcatServer:
 
     def close(self) -> None:
         """Stop the server."""
-        process = self.viewer.window.server_proc
-        if process is not None and process.poll() is None:
-            process.kill()
-            process.wait()
+        if self._process.poll() is None:
+            self._process.kill()
+            self._process.wait()
 
     def __enter__(self) -> MeshcatServer:
         return self

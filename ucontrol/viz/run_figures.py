@@ -15,6 +15,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from ucontrol.analysis.energy_balance import actuator_work
 from ucontrol.analysis.impacts import impact_mask
 from ucontrol.control.brogliato_controller import BrogliatoController
 from ucontrol.exceptions import InvalidParameterError
@@ -125,25 +126,36 @@ def _gap_figure(log: Log) -> Figure:
 
 
 def _force_figure(log: Log) -> Figure:
-    """Mean force impulse / dt of each constraint, its moving mean and the desired force."""
+    """Mean force impulse / dt of each constraint, its moving mean and the desired force.
+
+    Constraints that never carry an impulse are only named in the title.
+    """
+    desired = _desired_forces(log)
     names = log.constraint_names
-    figure, axes = _time_axes(log, max(1, len(names)), PANEL_HEIGHT)
+    shown = [i for i, name in enumerate(names) if log.impulse[:, i].any() or name in desired]
+    figure, axes = _time_axes(log, max(1, len(shown)), PANEL_HEIGHT)
     dt = float(log.metadata["dt"])  # [s]
     window = max(1, round(FORCE_WINDOW / dt))
-    desired = _desired_forces(log)
-    for i, (ax, name) in enumerate(zip(axes, names, strict=False)):
-        force = log.impulse[:, i] / dt  # [N]
-        ax.plot(log.t, force, lw=0.5, alpha=0.5, label="impulse / dt")
-        mean = np.convolve(force, np.ones(window) / window, mode="same")
-        ax.plot(log.t, mean, lw=1.3, label=f"{FORCE_WINDOW * 1e3:.0f} ms mean")
+    t = log.t[:-1]  # [s] start of each step
+    for ax, i in zip(axes, shown, strict=False):
+        name = names[i]
+        force = log.impulse[:-1, i] / dt  # [N] over each step (the last row has none)
+        ax.plot(t, force, lw=0.5, alpha=0.5, label="impulse / dt")
+        kernel = np.ones(window)
+        mean = np.convolve(force, kernel, "same") / np.convolve(np.ones_like(force), kernel, "same")
+        ax.plot(t, mean, lw=1.3, label=f"{FORCE_WINDOW * 1e3:.0f} ms mean")
         top = float(np.percentile(force[force > 0.0], 99)) if (force > 0.0).any() else 1.0
         if name in desired:
-            ax.plot(log.t, desired[name], "k--", lw=1, label="λ_d (desired)")
+            ax.plot(t, desired[name][:-1], "k--", lw=1, label="λ_d (desired)")
             top = max(top, 1.5 * float(desired[name].max()))
         ax.set_ylim(-0.05 * top, 1.3 * top)  # impacts above are clipped
         ax.set_ylabel(name, fontsize=8)
         ax.legend(loc="upper right", fontsize=7, ncol=3)
-    axes[0].set_title("contact forces [N] (joint stops: [N m] or [N]); impact peaks clipped")
+    title = "contact forces [N] (joint stops: [N m] or [N]); impact peaks clipped"
+    idle = [name for i, name in enumerate(names) if i not in shown]
+    if idle:
+        title += f"\nno force on: {', '.join(idle)}"
+    axes[0].set_title(title, fontsize=10)
     return figure
 
 
@@ -157,11 +169,7 @@ def _desired_forces(log: Log) -> dict[str, np.ndarray]:
 
 def _energy_figure(log: Log) -> Figure:
     figure, (ax,) = _time_axes(log, 1, 3.5)
-    actuated = np.asarray(log.metadata.get("actuated", []), dtype=int)
-    dt = float(log.metadata["dt"])  # [s]
-    v_mid = 0.5 * (log.v[:-1] + log.v[1:])[:, actuated]  # [rad/s] over each step
-    power = np.einsum("ij,ij->i", log.u[:-1], v_mid)  # [W]
-    work = np.concatenate([[0.0], np.cumsum(power * dt)])  # [J]
+    work = actuator_work(log)  # [J]
     ax.plot(log.t, log.energy, lw=1.2, label="E = kinetic + potential")
     if np.any(work != 0.0):
         ax.plot(log.t, log.energy - work, lw=1.2, label="E − actuator work")

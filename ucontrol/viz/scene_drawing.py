@@ -34,11 +34,17 @@ from ucontrol.viz.phase_colours import PHASE_COLOURS
 ROBOT_COLOUR = (0.95, 0.45, 0.05, 1.0)
 #: Colour Pinocchio gives to URDF visuals without a material.
 _URDF_DEFAULT_COLOUR = (0.9, 0.9, 0.9, 1.0)
+#: Colour (hex RGB) of the surfaces, drawn translucent.
 SURFACE_COLOUR = 0x8C8C8C
+#: Colour (hex RGB) of the contact-point markers.
 CONTACT_COLOUR = 0x7B2CBF
+#: Colour (hex RGB) of the force arrows.
 ARROW_COLOUR = 0x1F9E3A
 #: Longest force arrow, as a fraction of the radius of the view.
 MAX_ARROW = 1.0
+#: Length of the arrow of a force equal to the robot's weight (default scale), as a fraction
+#: of the radius of the view.
+WEIGHT_ARROW = 0.5
 #: Vertical field of view of meshcat's default camera in [deg].
 CAMERA_FOV = 75.0
 #: Root node of the drawing in the meshcat tree.
@@ -61,8 +67,8 @@ class SceneDrawing:
         configurations: Configurations the view must frame, shape (K, nq); default the scene's
             initial configuration. A replay passes the run's configurations.
         force_scale: Arrow length per unit of contact force in [m/N]; default: the robot's
-            weight (its total mass times 9.81 m/s² when it has no gravity) is a quarter of the
-            radius of the view. Arrows are at most that radius long.
+            weight (its total mass times 9.81 m/s² when it has no gravity) is half the
+            radius of the view (:data:`WEIGHT_ARROW`). Arrows are at most that radius long.
         phases: Draw the label of the controller's phase (a run of the phase machine).
         robot_colour: RGBA in [0, 1] of robot primitives without a URDF colour.
 
@@ -108,9 +114,17 @@ class SceneDrawing:
 
         self._geometry = _visual_geometry(scene, tuple(robot_colour))
         self._geometry_data = pin.GeometryData(self._geometry)
+        # The view first: a browser receives the scene in this order, the meshes last.
+        _set_camera(viewer, self.camera_position)
+        viewer["/Axes"].set_property("visible", False)  # meshcat's origin is the view centre
+        if scene.contacts:
+            viewer["/Grid"].set_property("visible", False)  # the surfaces are drawn
         root = viewer[ROOT]
         root.delete()
         root.set_transform(_pose(self.up_rotation, -self.up_rotation @ self.centre))
+        self._draw_surfaces(root, scene)
+        self._draw_contacts(root)
+        self._labels = _draw_labels(root, self, direction) if phases else {}
         visualizer = MeshcatVisualizer(self._model, None, self._geometry)
         visualizer.initViewer(viewer=root)
         visualizer.loadViewerModel(rootNodeName="robot")
@@ -118,13 +132,6 @@ class SceneDrawing:
             visualizer.getViewerNodeName(obj, pin.GeometryType.VISUAL)
             for obj in self._geometry.geometryObjects
         ]
-        self._draw_surfaces(root, scene)
-        self._draw_contacts(root)
-        self._labels = _draw_labels(root, self, direction) if phases else {}
-        viewer["/Axes"].set_property("visible", False)  # meshcat's origin is the view centre
-        if scene.contacts:
-            viewer["/Grid"].set_property("visible", False)  # the surfaces are drawn
-        _set_camera(viewer, self.camera_position)
         self.place(viewer, scene.q0, np.zeros(len(scene.contacts)), Phase.FREE)
 
     def place(
@@ -176,7 +183,7 @@ class SceneDrawing:
         """World positions of the joints, frames and contact points at ``configurations``."""
         model, data = self._model, self._data
         step = max(1, len(configurations) // _FRAMING_SAMPLES)
-        points = []
+        points: list[Vector] = []
         for q in configurations[::step]:
             pin.framesForwardKinematics(model, data, q)
             points.extend(data.oMi[j].translation.copy() for j in range(1, model.njoints))
@@ -351,7 +358,7 @@ def _force_scale(value: float | None, model: pin.Model, gravity: Vector, radius:
         return float(value)
     mass = sum(inertia.mass for inertia in model.inertias)  # [kg]
     weight = mass * (float(np.linalg.norm(gravity)) or 9.81)  # [N]
-    return 0.25 * radius / weight if weight > 0.0 else 0.25 * radius
+    return WEIGHT_ARROW * radius / weight if weight > 0.0 else WEIGHT_ARROW * radius
 
 
 def _view_direction(points_viewer: Matrix) -> Vector:
@@ -416,10 +423,9 @@ def _visual_geometry(scene: Scene, colour: tuple[float, ...]) -> pin.GeometryMod
             for frame in model.frames
             if frame.parentJoint == joint and frame.type != pin.FrameType.JOINT
         ]
-        for k, end in enumerate(ends):
-            length = float(np.linalg.norm(end))
-            if length < 1e-6:
-                continue
+        distinct = {tuple(np.round(end, 9)) for end in ends if np.linalg.norm(end) > 1e-6}
+        for k, end in enumerate(np.array(sorted(distinct)).reshape(-1, 3)):
+            length = float(np.linalg.norm(end))  # [m]
             pose = _pose(_rotation_z_to(end / length), 0.5 * end)
             _add_shape(
                 geometry, f"skeleton_{joint}_{k}", joint, coal.Cylinder(size, length), pose, colour

@@ -1,0 +1,43 @@
+"""Sphinx configuration: ``sphinx-build -W -b html docs docs/_build/html``.
+
+The pages are the markdown files of this folder (MyST); the API reference is autodoc over the
+installed ``ucontrol`` package with Google docstrings (napoleon); maths is MathJax.
+"""
+
+from __future__ import annotations
+
+import ucontrol
+
+project = "ucontrol"
+author = "ucontrol developers"
+copyright = "ucontrol developers"
+version = release = ucontrol.__version__
+
+extensions = [
+    "myst_parser",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.napoleon",
+    "sphinx.ext.mathjax",
+    "sphinx.ext.viewcode",
+]
+source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
+root_doc = "index"
+# The tables beside the figures are data written by experiments/, shown by the pages.
+exclude_patterns = ["_build", "figures/*.md"]
+autosummary_generate = True  # docs/_autosummary/: one page per module, written at build time
+
+myst_enable_extensions = ["dollarmath", "amsmath"]
+myst_heading_anchors = 3
+
+napoleon_google_docstring = True
+napoleon_numpy_docstring = False
+napoleon_use_rtype = False
+napoleon_use_ivar = True  # "Attributes:" as fields: dataclass fields are documented once
+autodoc_member_order = "bysource"
+autodoc_typehints = "description"
+# Each object is documented in the module that defines it, not again where it is re-exported.
+autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-module-all": True}
+
+html_theme = "alabaster"
+html_title = f"ucontrol {release}"

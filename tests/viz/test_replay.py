@@ -1,0 +1,96 @@
+"""Replays and live views: which rows are drawn, with which forces, and at what pace."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from recording_window import recording_viewer
+
+from ucontrol.exceptions import ViewerError
+from ucontrol.scene import load_scene
+from ucontrol.simulate import simulate
+from ucontrol.viz.live_viewer import LiveViewer
+from ucontrol.viz.meshcat_server import MeshcatServer
+from ucontrol.viz.replay import animation, frame_rows, mean_force, write_html
+from ucontrol.viz.scene_drawing import SceneDrawing
+
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
+BALL_NODE = "/meshcat/ucontrol/robot/visuals/ball_0"
+
+
+def _ball_transforms(window: object) -> list[float]:
+    """Heights of the ball's visual in the set_transform commands sent, in [m]."""
+    return [
+        c["matrix"][14]  # column-major 4 x 4: translation z
+        for c in window.commands  # type: ignore[attr-defined]
+        if c["type"] == "set_transform" and c["path"] == BALL_NODE
+    ]
+
+
+def test_frames_are_one_per_period_of_simulated_time_and_end_on_the_last_row() -> None:
+    t = np.arange(1001) * 1e-3  # [s]
+    rows = frame_rows(t, fps=30.0)
+    np.testing.assert_allclose(t[rows], np.arange(31) / 30.0, atol=1e-3)  # 30/30 s: the end
+    assert rows[-1] == 1000 and np.all(np.diff(rows) > 0)
+    assert frame_rows(t[:990], fps=30.0)[-1] == 989  # the last row, off the frame times
+
+
+def test_mean_force_of_a_resting_ball_is_its_weight() -> None:
+    scene = load_scene(ROBOTS / "ball.toml")
+    resting = dataclasses.replace(scene, q0=np.array([0.1]))  # on the ground
+    log = simulate(resting, duration=0.2).log
+    for start, stop in ((0, 1), (10, 43), (100, 199)):
+        assert mean_force(log, start, stop)[0] == pytest.approx(9.81, rel=1e-9)
+
+
+def test_animation_shows_the_logged_configurations_at_the_frame_rows() -> None:
+    scene = load_scene(ROBOTS / "ball.toml")
+    log = simulate(scene, duration=1.0).log
+    viewer, _ = recording_viewer()
+    drawing = SceneDrawing(scene, viewer, configurations=log.q)
+    clip = animation(drawing, viewer, log, fps=20.0).clips
+    rows = frame_rows(log.t, 20.0)
+    heights = [
+        value[2]
+        for value in next(c for p, c in clip.items() if p.lower() == BALL_NODE)
+        .tracks["position"]
+        .values
+    ]
+    np.testing.assert_allclose(heights, log.q[rows, 0], atol=1e-12)
+    assert len(heights) == 21
+
+
+def test_live_viewer_draws_one_frame_per_period_and_keeps_real_time() -> None:
+    scene = load_scene(ROBOTS / "ball.toml")
+    viewer, window = recording_viewer()
+    live = LiveViewer(scene, viewer, fps=30.0, speed=None)
+    log = simulate(scene, duration=0.5, observer=live).log
+    assert live.frames == 16  # t = 0, 1/30, ..., 15/30 s
+    drawn = _ball_transforms(window)[-16:]  # after the drawing's own placements at q0
+    np.testing.assert_allclose(drawn, log.q[frame_rows(log.t, 30.0)[:16], 0], atol=1e-12)
+    paced = LiveViewer(scene, viewer, speed=2.0)
+    start = time.perf_counter()
+    simulate(scene, duration=0.4, observer=paced)
+    assert time.perf_counter() - start >= 0.4 / 2.0 - 0.02  # [s]: not faster than 2x
+
+
+def test_html_export_embeds_the_viewer_and_the_animation(tmp_path: Path) -> None:
+    scene = load_scene(ROBOTS / "ball.toml")
+    log = simulate(scene, duration=0.3).log
+    page = write_html(tmp_path / "sub" / "ball.html", scene, log)
+    html = page.read_text()
+    assert "MeshCat.Viewer" in html and "three" in html.lower()  # the viewer, in the page
+    assert html.count("data:application/octet-binary;base64,") > 10  # the scene's commands
+
+
+def test_a_server_that_cannot_start_raises_a_viewer_error(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(sys, "executable", "/bin/false")
+    with pytest.raises(ViewerError, match="meshcat server stopped"):
+        MeshcatServer()
