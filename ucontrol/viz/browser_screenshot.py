@@ -21,8 +21,13 @@ CHROMIUM_FLAGS = (
     "--disable-sync",
     "--no-first-run",
 )
-#: Longest run of the browser for one screenshot, in [s].
-TIMEOUT = 180.0
+#: Longest wait for one browser launch, in [s]; a launch that overruns it is killed.
+TIMEOUT = 60.0
+#: Browser launches tried per screenshot: headless Chromium intermittently never ends its
+#: virtual-time budget, or writes the screenshot and then never exits.
+ATTEMPTS = 3
+#: Last bytes of every complete PNG file (the IEND chunk with its CRC).
+PNG_END = b"IEND\xaeB`\x82"
 
 
 def find_chromium() -> str | None:
@@ -60,18 +65,34 @@ def screenshot(
     if executable is None:
         raise ViewerError("chromium is not installed (Debian: apt-get install -y chromium)")
     out = Path(out).resolve()
-    with tempfile.TemporaryDirectory() as profile:
-        flags = [*CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}"]
-        if offline:
-            flags += ["--proxy-server=127.0.0.1:9", "--proxy-bypass-list=<-loopback>"]
-        command = [
-            executable,
-            *flags,
-            f"--virtual-time-budget={virtual_time_ms}",
-            f"--screenshot={out}",
-            url,
-        ]
-        completed = subprocess.run(command, capture_output=True, text=True, timeout=TIMEOUT)
-    if completed.returncode != 0 or not out.is_file():
-        raise ViewerError(f"chromium failed on {url}: {completed.stderr[-2000:]}")
-    return out
+    errors = []
+    for _ in range(ATTEMPTS):
+        out.unlink(missing_ok=True)
+        with tempfile.TemporaryDirectory() as profile:
+            flags = [
+                *CHROMIUM_FLAGS,
+                f"--user-data-dir={profile}",
+                f"--window-size={width},{height}",
+            ]
+            if offline:
+                flags += ["--proxy-server=127.0.0.1:9", "--proxy-bypass-list=<-loopback>"]
+            command = [
+                executable,
+                *flags,
+                f"--virtual-time-budget={virtual_time_ms}",
+                f"--screenshot={out}",
+                url,
+            ]
+            try:
+                completed = subprocess.run(command, capture_output=True, text=True, timeout=TIMEOUT)
+                errors.append(f"exit status {completed.returncode}: {completed.stderr[-1000:]}")
+            except subprocess.TimeoutExpired:  # the file on disk decides
+                errors.append(f"no exit within {TIMEOUT:g} s")
+        if _is_complete_png(out):
+            return out
+    raise ViewerError(f"chromium failed {ATTEMPTS} times on {url}; last: {errors[-1]}")
+
+
+def _is_complete_png(path: Path) -> bool:
+    """Whether ``path`` holds a PNG file written to its end."""
+    return path.is_file() and path.read_bytes().endswith(PNG_END)
