@@ -2,31 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
+from conftest import load_experiment
 
 from ucontrol.exceptions import URDFError
 from ucontrol.model import example_robot_data_dir
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
-
-
-def _load(name: str) -> ModuleType:
-    """Import ``experiments/<name>.py`` (the folder is not a package) as ``experiments_<name>``."""
-    module_name = f"experiments_{name}"
-    if module_name in sys.modules:
-        return sys.modules[module_name]
-    spec = importlib.util.spec_from_file_location(module_name, EXPERIMENTS / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[module_name] = module  # dataclasses look their module up while being created
-    spec.loader.exec_module(module)
-    return module
+_load = load_experiment
 
 
 def _require_example_robot_data() -> None:
@@ -85,3 +70,31 @@ def test_see_it_runs(tmp_path: Path) -> None:
     assert (tmp_path / "figures" / "see_it_tracking.png").is_file()
     assert paths["replay"].stat().st_size > 500_000  # the viewer is embedded
     assert {"q", "gaps", "forces", "energy", "tracking", "cycle_path", "cycle_time"} <= set(paths)
+
+
+def test_bench_contacts_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bench = _load("bench_contacts")
+    flags = "--sizes 1 3 --steps 3 --repeats 1 --warmup 1 --fit-from 1"
+    rows = bench.main([*flags.split(), "--out", str(tmp_path)])
+    assert [row.contacts for row in rows] == [1, 3]
+    for row in rows:
+        assert row.active == row.contacts  # the column rests on every contact
+        assert set(row.step_us) == set(row.solve_us) == set(bench.SOLVERS)
+        assert max(row.residual.values()) <= 1e-8
+    assert (tmp_path / "bench_contacts.png").is_file()
+    assert "Fitted growth" in (tmp_path / "bench_contacts.md").read_text()
+    assert "| contacts |" in capsys.readouterr().out
+
+
+def test_beads_urdf_is_generated(robots_dir: Path) -> None:
+    bench = _load("bench_contacts")
+    assert (robots_dir / "beads.urdf").read_text() == bench.beads_urdf(10)
+
+
+def test_friction_cases_run(tmp_path: Path) -> None:
+    cases = _load("friction_cases")
+    flags = "--duration 0.05 --angles 20 45 --dts 1e-2 --problems 3 --seeds 0 --beads-duration 0.5"
+    tables = cases.main([*flags.split(), "--out", str(tmp_path)])
+    assert set(tables) == {"incline", "stop", "admm", "painleve", "beads"}
+    assert (tmp_path / "friction_cases.md").is_file()
+    assert (tmp_path / "painleve_rod.png").is_file()

@@ -1,6 +1,6 @@
 """ucontrol: tracking control of robots under unilateral constraints."""
 
-from ucontrol.contact import ConstraintSet, JointStop, Plane, PointContact
+from ucontrol.contact import ConstraintSet, JointStop, Plane, PointContact, SphereSphereContact
 from ucontrol.control import ContactState, Controller, JointPD, ZeroTorque
 from ucontrol.integrators import Compliant, EventDriven, MoreauJean
 from ucontrol.log import Log
@@ -28,6 +28,7 @@ __all__ = [
     "RobotModel",
     "Scene",
     "SimulationResult",
+    "SphereSphereContact",
     "ZeroTorque",
     "load_scene",
     "simulate",

@@ -284,3 +284,46 @@ class ViewerError(UControlError):
     def __init__(self, reason: str) -> None:
         self.reason = reason
         super().__init__(f"meshcat viewer: {reason}")
+
+
+class ContactSolveError(SolverError):
+    """A contact solve ended with its residual above the solver's tolerance.
+
+    Raised by :class:`ucontrol.integrators.MoreauJean` when ``on_unsolved = "raise"``
+    (the default); ``on_unsolved = "warn"`` issues a :class:`ContactSolveWarning` instead.
+
+    Attributes:
+        solver: Name of the solver.
+        status: The solver's status.
+        residual: Natural-map residual reached, in [m/s].
+        tolerance: The residual the solver had to reach, in [m/s].
+    """
+
+    def __init__(self, solver: str, status: str, residual: float, tolerance: float) -> None:
+        self.tolerance = tolerance
+        super().__init__(solver, status, residual)
+        self.args = (f"{self.args[0]}; tolerance {tolerance:.3g} m/s",)
+
+
+class ContactSolveWarning(UserWarning):
+    """A contact solve ended with its residual above the solver's tolerance; the run goes on.
+
+    Issued by :class:`ucontrol.integrators.MoreauJean` when ``on_unsolved = "warn"``; the step
+    uses the solver's best impulses.
+
+    Attributes:
+        solver: Name of the solver.
+        status: The solver's status.
+        residual: Natural-map residual reached, in [m/s].
+        tolerance: The residual the solver had to reach, in [m/s].
+    """
+
+    def __init__(self, solver: str, status: str, residual: float, tolerance: float) -> None:
+        self.solver = solver
+        self.status = status
+        self.residual = residual
+        self.tolerance = tolerance
+        super().__init__(
+            f"{solver} stopped with status {status}: residual {residual:.3g} m/s above the "
+            f"tolerance {tolerance:.3g} m/s; the step goes on with these impulses"
+        )

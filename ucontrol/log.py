@@ -22,7 +22,14 @@ SAMPLE_FIELDS: dict[str, str] = {
     "energy": "()",
     "solver_iterations": "()",
     "complementarity_residual": "()",
+    "solver_time": "()",
+    "solver_status": "()",
+    "solver_outer_iterations": "()",
 }
+
+#: ``solver_status`` codes: no contact solve in the step, solved within the solver's
+#: tolerance, or left above it (the run went on with ``on_unsolved = "warn"``).
+NO_SOLVE, SOLVED, UNSOLVED = 0, 1, 2
 
 
 class Log:
@@ -31,8 +38,11 @@ class Log:
     Row k holds the state at ``t[k]`` (``q``, ``v``, ``gap``, ``normal_velocity``, ``energy``)
     and what acts over the step that starts there: the torque ``u`` (zero-order hold), the
     normal ``impulse`` of each constraint and its membership of the ``active`` set, and the
-    contact solve's ``solver_iterations`` and ``complementarity_residual``. The last row has no
-    step after it: its impulses are zero and its torque is the one last applied.
+    contact solve's ``solver_iterations``, ``complementarity_residual`` (natural-map residual,
+    of the Coulomb problem with friction), ``solver_time`` in [s], ``solver_status``
+    (:data:`NO_SOLVE`, :data:`SOLVED`, :data:`UNSOLVED`) and ``solver_outer_iterations``
+    (fixed-point iterations of a friction solve). The last row has no step after it: its
+    impulses are zero and its torque is the one last applied.
 
     Args:
         capacity: Maximum number of rows.
@@ -69,6 +79,9 @@ class Log:
             "energy": np.zeros(capacity),
             "solver_iterations": np.zeros(capacity, dtype=np.int64),
             "complementarity_residual": np.zeros(capacity),
+            "solver_time": np.zeros(capacity),
+            "solver_status": np.zeros(capacity, dtype=np.int8),
+            "solver_outer_iterations": np.zeros(capacity, dtype=np.int64),
         }
         self._extras: dict[str, NDArray[Any]] = {}
 
@@ -123,14 +136,31 @@ class Log:
         active: NDArray[Any],
         iterations: int,
         residual: float,
+        solve_time: float = 0.0,
+        status: int = NO_SOLVE,
+        outer_iterations: int = 0,
     ) -> None:
-        """Write what acts over the step starting at the current row, then close the row."""
+        """Write what acts over the step starting at the current row, then close the row.
+
+        Args:
+            u: Torque held over the step, shape (nu,).
+            impulse: Normal impulse of each constraint in [N s], shape (n,).
+            active: Active-set membership, shape (n,).
+            iterations: Contact solver iterations.
+            residual: Contact solve residual in [m/s].
+            solve_time: Wall time of the contact solve in [s].
+            status: :data:`NO_SOLVE`, :data:`SOLVED` or :data:`UNSOLVED`.
+            outer_iterations: Fixed-point iterations of a friction solve.
+        """
         arrays, k = self._arrays, self.size
         arrays["u"][k] = u
         arrays["impulse"][k] = impulse
         arrays["active"][k] = active
         arrays["solver_iterations"][k] = iterations
         arrays["complementarity_residual"][k] = residual
+        arrays["solver_time"][k] = solve_time
+        arrays["solver_status"][k] = status
+        arrays["solver_outer_iterations"][k] = outer_iterations
         self.size = k + 1
 
     def save(self, path: str | os.PathLike[str]) -> Path:

@@ -21,6 +21,7 @@ from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
 from ucontrol.contact.point_contact import PointContact
+from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
 from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.controller import Controller
@@ -32,9 +33,11 @@ from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError
 from ucontrol.integrators import compliant, event_driven
 from ucontrol.integrators.compliant import Compliant
 from ucontrol.integrators.event_driven import EventDriven
-from ucontrol.integrators.moreau_jean import MoreauJean
+from ucontrol.integrators.moreau_jean import ON_UNSOLVED, MoreauJean
+from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.model.urdf_path import resolve_urdf
+from ucontrol.solvers.contact_solver import build_contact_solvers, check_contact_solver
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 
 #: Scene run by ``ucontrol run`` without a scene argument.
@@ -51,14 +54,25 @@ _TOP_KEYS = {
     "robot",
     "surfaces",
     "contacts",
+    "sphere_contacts",
     "stops",
     "integrator",
     "controller",
     "reference",
 }
-_ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity"}
+_ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity", "planar_axis", "flexible"}
+_FLEXIBLE_KEYS = {"joints", "stiffness", "motor_inertia", "damping", "q0", "v0"}
 _SURFACE_KEYS = {"type", "point", "normal"}
 _CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
+_SPHERE_CONTACT_KEYS = {
+    "frame",
+    "other_frame",
+    "radius",
+    "other_radius",
+    "restitution",
+    "friction",
+    "name",
+}
 _STOP_KEYS = {"joint", "lower", "upper", "restitution"}
 _INTEGRATOR_KEYS = {
     "name",
@@ -73,6 +87,11 @@ _INTEGRATOR_KEYS = {
     "stiffness",
     "contact_model",
     "restitution_threshold",
+    "contact_solver",
+    "friction_tolerance",
+    "friction_max_iter",
+    "on_unsolved",
+    "midpoint",
 }
 _METHODS = {"event_driven": event_driven.METHODS, "compliant": compliant.METHODS}
 _REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
@@ -134,6 +153,14 @@ class IntegratorSettings:
         contact_model: Force law of compliant, ``"linear"`` or ``"hunt_crossley"``.
         restitution_threshold: Closing speed in [m/s] below which Moreau–Jean treats a contact
             as persistent (e = 0); 0 applies Newton's law to every closing contact.
+        contact_solver: Contact solver of Moreau–Jean: ``"proxsuite"``, ``"pinocchio-admm"``,
+            ``"pinocchio-pgs"`` or ``"qpsolvers:<solver>"`` (frictionless scenes only).
+        friction_tolerance: Natural-map residual of the Coulomb problem a step must reach,
+            in [m/s].
+        friction_max_iter: Cap on the fixed-point iterations of the proxsuite friction solver.
+        on_unsolved: ``"raise"`` or ``"warn"`` when a contact solve ends above its tolerance.
+        midpoint: Moreau–Jean evaluates inertia, gravity and Coriolis forces at the step's
+            midpoint: second order between impacts (see :class:`MoreauJean`).
 
     Keys that do not concern the chosen integrator are checked and ignored, so one scene can
     be run with every integrator.
@@ -151,8 +178,22 @@ class IntegratorSettings:
     stiffness: float = 1e6
     contact_model: str = "linear"
     restitution_threshold: float = 0.0
+    contact_solver: str = "proxsuite"
+    friction_tolerance: float = 1e-8
+    friction_max_iter: int = 100
+    on_unsolved: str = "raise"
+    midpoint: bool = False
 
     def __post_init__(self) -> None:
+        check_contact_solver(self.contact_solver)
+        object.__setattr__(
+            self, "friction_tolerance", as_positive("friction_tolerance", self.friction_tolerance)
+        )
+        object.__setattr__(
+            self, "friction_max_iter", int(as_positive("friction_max_iter", self.friction_max_iter))
+        )
+        if self.on_unsolved not in ON_UNSOLVED:
+            raise InvalidParameterError("on_unsolved", self.on_unsolved, f"one of {ON_UNSOLVED}")
         if self.name not in INTEGRATORS:
             raise NotFoundError("integrator", self.name, INTEGRATORS)
         object.__setattr__(self, "dt", as_positive("dt", self.dt))
@@ -192,8 +233,15 @@ class Scene:
         robot: The robot.
         contacts: Point contacts.
         stops: Joint stops.
-        q0: Initial configuration, shape (nq,).
-        v0: Initial velocity, shape (nv,).
+        sphere_contacts: Contacts between two spheres on robot frames.
+        planar_axis: Unit normal of the plane the robot moves in, shape (3,): its frictional
+            contacts are then planar (one tangent), else spatial (two); None: spatial.
+        q0: Initial configuration of the links, shape (nq,).
+        v0: Initial velocity of the links, shape (nv,).
+        flexible: Flexible joints (their motor coordinates join the state), or None.
+        motor_q0: Initial motor positions of the flexible joints, shape (nf,); default their
+            link positions (unstretched springs).
+        motor_v0: Initial motor velocities, shape (nf,); default their link velocities.
         duration: Default simulated time in [s].
         integrator: Default integrator settings.
         controller: Controller table (``type`` plus parameters); ``{"type": "zero"}`` if none.
@@ -208,8 +256,13 @@ class Scene:
     robot: RobotModel
     contacts: tuple[PointContact, ...] = ()
     stops: tuple[JointStop, ...] = ()
+    sphere_contacts: tuple[SphereSphereContact, ...] = ()
+    planar_axis: NDArray[np.float64] | None = None
     q0: NDArray[np.float64]
     v0: NDArray[np.float64]
+    flexible: FlexibleJoints | None = None
+    motor_q0: NDArray[np.float64] | None = None
+    motor_v0: NDArray[np.float64] | None = None
     duration: float = 1.0
     integrator: IntegratorSettings = field(default_factory=IntegratorSettings)
     controller: Mapping[str, Any] = field(default_factory=lambda: {"type": "zero"})
@@ -220,11 +273,22 @@ class Scene:
         object.__setattr__(self, "q0", self.robot.check_configuration("q0", self.q0))
         object.__setattr__(self, "v0", self.robot.check_velocity("v0", self.v0))
         object.__setattr__(self, "duration", as_positive("duration", self.duration))
+        flexible = self.flexible
+        if flexible is None:
+            if self.motor_q0 is not None or self.motor_v0 is not None:
+                raise SceneError("motor_q0 and motor_v0 need flexible joints")
+        else:
+            motor_q0 = flexible.link_positions(self.q0) if self.motor_q0 is None else self.motor_q0
+            motor_v0 = self.v0[flexible.v_index] if self.motor_v0 is None else self.motor_v0
+            object.__setattr__(self, "motor_q0", as_vector("motor_q0", motor_q0, flexible.nf))
+            object.__setattr__(self, "motor_v0", as_vector("motor_v0", motor_v0, flexible.nf))
         object.__setattr__(self, "contacts", tuple(self.contacts))
         object.__setattr__(self, "stops", tuple(self.stops))
-        object.__setattr__(
-            self, "_constraints", ConstraintSet(self.robot, self.contacts, self.stops)
+        object.__setattr__(self, "sphere_contacts", tuple(self.sphere_contacts))
+        constraints = ConstraintSet(
+            self.robot, self.contacts, self.stops, self.sphere_contacts, self.planar_axis
         )
+        object.__setattr__(self, "_constraints", constraints)
 
     @property
     def constraints(self) -> ConstraintSet:
@@ -232,10 +296,31 @@ class Scene:
         constraints: ConstraintSet = self.__dict__["_constraints"]
         return constraints
 
+    def initial_state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The plant's initial (q, v): the links', then the motors' with flexible joints."""
+        if self.flexible is None:
+            return self.q0, self.v0
+        assert self.motor_q0 is not None and self.motor_v0 is not None
+        return np.concatenate((self.q0, self.motor_q0)), np.concatenate((self.v0, self.motor_v0))
+
     def build_integrator(self, dt: float | None = None) -> MoreauJean | EventDriven | Compliant:
-        """The integrator of this scene, optionally with another step ``dt`` in [s]."""
+        """The integrator of this scene, optionally with another step ``dt`` in [s].
+
+        Raises:
+            InvalidParameterError: The scene has friction and the integrator is not
+                ``moreau_jean`` (the others are frictionless), or a ``qpsolvers:`` contact
+                solver was asked for a scene with friction.
+        """
         settings = self.integrator
         h = settings.dt if dt is None else dt
+        friction = self.constraints.has_friction
+        if friction and settings.name != "moreau_jean":
+            raise InvalidParameterError(
+                "[integrator] name",
+                settings.name,
+                "'moreau_jean' for contacts with friction (event_driven and compliant are "
+                "frictionless)",
+            )
         if settings.name == "compliant":
             return Compliant(
                 self.robot,
@@ -245,26 +330,39 @@ class Scene:
                 contact_model=settings.contact_model,
                 **settings.solver_options(),
             )
-        solver = ProxsuiteLCPSolver(eps_abs=settings.contact_tolerance, max_iter=settings.max_iter)
         if settings.name == "event_driven":
             return EventDriven(
                 self.robot,
                 self.constraints,
                 dt=h,
                 zeno_velocity=settings.zeno_velocity,
-                impact_solver=solver,
+                impact_solver=ProxsuiteLCPSolver(
+                    eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
+                ),
                 acceleration_solver=ProxsuiteLCPSolver(
                     eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
                 ),
                 **settings.solver_options(),
             )
+        contact_solver, friction_solver = build_contact_solvers(
+            settings.contact_solver,
+            friction=friction,
+            eps_abs=settings.contact_tolerance,
+            max_iter=settings.max_iter,
+            residual_tolerance=settings.friction_tolerance,
+            friction_max_iter=settings.friction_max_iter,
+        )
         return MoreauJean(
             self.robot,
             self.constraints,
             dt=h,
             theta=settings.theta,
-            solver=solver,
+            solver=contact_solver,
+            friction_solver=friction_solver,
             restitution_threshold=settings.restitution_threshold,
+            on_unsolved=settings.on_unsolved,
+            flexible=self.flexible,
+            midpoint=settings.midpoint,
         )
 
     def build_controller(self) -> Controller:
@@ -318,13 +416,19 @@ class Scene:
             floating_base=bool(robot_table.get("floating_base", False)),
             gravity=as_vector("gravity", gravity, 3),
         )
-        q0 = robot_table.get("q0", robot.neutral())
-        v0 = robot_table.get("v0", np.zeros(robot.nv))
+        q0 = robot.check_configuration("q0", robot_table.get("q0", robot.neutral()))
+        v0 = robot.check_velocity("v0", robot_table.get("v0", np.zeros(robot.nv)))
+        flexible_table = robot_table.get("flexible")
+        flexible, motor_q0, motor_v0 = None, None, None
+        if flexible_table is not None:
+            flexible, motor_q0, motor_v0 = _flexible(flexible_table, robot)
         surfaces = {
             name: _plane(f"[surfaces.{name}]", name, spec)
             for name, spec in table.get("surfaces", {}).items()
         }
         contacts = [_contact(spec, surfaces) for spec in table.get("contacts", [])]
+        sphere_contacts = [_sphere_contact(spec) for spec in table.get("sphere_contacts", [])]
+        planar_axis = robot_table.get("planar_axis")
         stops = [_stop(spec, robot) for spec in table.get("stops", [])]
         integrator_table = dict(table.get("integrator", {}))
         _check_keys("[integrator]", integrator_table, _INTEGRATOR_KEYS)
@@ -332,9 +436,14 @@ class Scene:
             name=str(table.get("name", default_name)),
             robot=robot,
             contacts=tuple(contacts),
+            sphere_contacts=tuple(sphere_contacts),
+            planar_axis=None if planar_axis is None else as_vector("planar_axis", planar_axis, 3),
             stops=tuple(stops),
             q0=q0,
             v0=v0,
+            flexible=flexible,
+            motor_q0=motor_q0,
+            motor_v0=motor_v0,
             duration=table.get("duration", 1.0),
             integrator=IntegratorSettings(**integrator_table),
             controller=dict(table.get("controller", {"type": "zero"})),
@@ -422,6 +531,43 @@ def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointCon
         friction=spec.get("friction", 0.0),
         name=str(spec.get("name", "")),
     )
+
+
+def _sphere_contact(spec: Mapping[str, Any]) -> SphereSphereContact:
+    _check_keys("[[sphere_contacts]]", spec, _SPHERE_CONTACT_KEYS)
+    return SphereSphereContact(
+        frame=str(_require(spec, "[[sphere_contacts]]", "frame")),
+        other_frame=str(_require(spec, "[[sphere_contacts]]", "other_frame")),
+        **{
+            key: spec[key]
+            for key in ("radius", "other_radius", "restitution", "friction")
+            if key in spec
+        },
+        name=str(spec.get("name", "")),
+    )
+
+
+def _flexible(
+    spec: Mapping[str, Any], robot: RobotModel
+) -> tuple[FlexibleJoints, Any | None, Any | None]:
+    """The ``[robot.flexible]`` table: joints (default every actuated one), K, B, D, motor q0/v0."""
+    section = "[robot.flexible]"
+    _check_keys(section, spec, _FLEXIBLE_KEYS)
+    joints = spec.get("joints")
+    if joints is None:  # every actuated joint
+        joints = [
+            name
+            for name in robot.joint_names
+            if robot.model.joints[robot.joint_id(name)].idx_v in robot.actuated
+        ]
+    flexible = FlexibleJoints.from_robot(
+        robot,
+        joints,
+        stiffness=_require(spec, section, "stiffness"),
+        motor_inertia=_require(spec, section, "motor_inertia"),
+        damping=spec.get("damping", 0.0),
+    )
+    return flexible, spec.get("q0"), spec.get("v0")
 
 
 def _stop(spec: Mapping[str, Any], robot: RobotModel) -> JointStop:

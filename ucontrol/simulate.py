@@ -22,7 +22,7 @@ from ucontrol.exceptions import (
     SimulationError,
     UControlError,
 )
-from ucontrol.log import Log
+from ucontrol.log import SOLVED, UNSOLVED, Log
 from ucontrol.scene import Scene
 
 #: Largest initial penetration accepted, in [m] (or [rad] for stops).
@@ -65,6 +65,8 @@ def simulate(
         scene: The plant, its initial state and its default settings.
         controller: Called as ``controller(t, q, v, contacts)``; default the scene's. A
             :class:`~ucontrol.control.LoggingController` also adds its own fields to the log.
+            With flexible joints q and v hold the motor coordinates after the links' (the
+            log keeps them apart: ``q``, ``v`` and ``motor_q``, ``motor_v``).
         duration: Simulated time in [s]; default the scene's.
         dt: Time step in [s]; default the scene's integrator step.
         control_period: Controller period in [s] (zero-order hold); default every step.
@@ -89,9 +91,9 @@ def simulate(
         else max(1, round(as_positive("control_period", control_period) / h))
     )
     controller = scene.build_controller() if controller is None else controller
-    robot, constraints = scene.robot, integrator.constraints
-    q, v = scene.q0, scene.v0
-    gap0 = constraints.gaps(q)
+    robot, constraints, flexible = scene.robot, integrator.constraints, scene.flexible
+    q, v = scene.initial_state()  # motors after the links with flexible joints
+    gap0 = constraints.gaps(scene.q0)
     if gap0.size and gap0.min() < -PENETRATION_TOLERANCE:
         worst = int(np.argmin(gap0))
         raise InitialPenetrationError(
@@ -119,14 +121,22 @@ def simulate(
     recorder = controller if isinstance(controller, LoggingController) else None
     if recorder is not None:
         recorder.prepare_log(log)
+    if constraints.has_friction:  # world friction impulse of each constraint [N s]
+        log.add_field("friction_impulse", (constraints.size, 3))
+    actuated = robot.actuated
+    if flexible is not None:  # motor states, beside the links' q and v
+        log.add_field("motor_q", (flexible.nf,))
+        log.add_field("motor_v", (flexible.nf,))
+        log.metadata["flexible_joints"] = list(flexible.joints)
+        log.metadata["motor_inputs"] = flexible.input_index.tolist()
+        actuated = flexible.input_coordinates(actuated)
     out_dir = Path(out) if out is not None else None
     bar = _progress_bar(n_steps, progress)
     contacts_zero = np.zeros(constraints.size)
     inactive = np.zeros(constraints.size, dtype=bool)
     impulse, active = contacts_zero, inactive
     period_impulse, period_active, period_steps = np.zeros(constraints.size), inactive.copy(), 0
-    tau = np.zeros(robot.nv)
-    actuated = robot.actuated
+    tau = np.zeros(v.size)
     u = np.zeros(robot.nu)
     start = last_checkpoint = time.perf_counter()
     k, row_open, n_events, n_plastic = 0, False, 0, 0
@@ -136,12 +146,15 @@ def simulate(
             state = integrator.evaluate(q, v)
             log.record_state(
                 t,
-                q,
-                v,
+                q[: robot.nq],
+                v[: robot.nv],
                 state.gap,
                 state.normal_velocity,
                 state.kinetic_energy + state.potential_energy,
             )
+            if flexible is not None:
+                log.record_extra("motor_q", q[robot.nq :])
+                log.record_extra("motor_v", v[robot.nv :])
             row_open = True
             if k == n_steps:
                 break
@@ -164,13 +177,21 @@ def simulate(
                 recorder.record(log)
             outcome = integrator.step(state, tau)
             solution = outcome.solution
-            log.record_step(
-                u,
-                outcome.impulse,
-                outcome.active,
-                0 if solution is None else solution.iterations,
-                0.0 if solution is None else solution.residual,
-            )
+            if outcome.friction_impulse is not None:
+                log.record_extra("friction_impulse", outcome.friction_impulse)
+            if solution is None:
+                log.record_step(u, outcome.impulse, outcome.active, 0, 0.0)
+            else:
+                log.record_step(
+                    u,
+                    outcome.impulse,
+                    outcome.active,
+                    solution.iterations,
+                    solution.residual,
+                    solution.solve_time_s,
+                    SOLVED if solution.status == "solved" else UNSOLVED,
+                    solution.outer_iterations,
+                )
             row_open = False
             if observer is not None:
                 observer(log)

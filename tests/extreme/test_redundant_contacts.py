@@ -49,9 +49,9 @@ def test_tilted_table_rocks_to_rest_without_gaining_energy(name: str) -> None:
     assert np.all(np.isfinite(log.q)) and np.all(np.isfinite(log.v))
     energy = log.energy
     if name == "moreau_jean":
-        # Its impact Jacobians are those of t_k while the table rotates: an O(h²) gain,
-        # 4e-7 of the energy at h = 1e-3 s (1e-9 at 1e-4 s).
-        assert result.summary["energy_increase_at_impacts"] <= 1e-6 * energy[0]
+        # Its impact Jacobians are those of t_k while the table rotates: an O(h²) gain of
+        # 4e-7 of the energy at h = 1e-3 s, which the energy guard (on T + V) turns plastic.
+        assert result.summary["energy_increase_at_impacts"] <= 1e-12 * energy[0]
         assert log.gap.min() >= -5e-3
     else:
         assert np.max(np.diff(energy)) <= 1e-9 * energy[0]

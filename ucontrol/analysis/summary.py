@@ -7,10 +7,11 @@ from typing import Any
 import numpy as np
 
 from ucontrol.analysis.cycles import CYCLE_FIELDS
+from ucontrol.analysis.energy_balance import step_work
 from ucontrol.analysis.impacts import impact_mask
 from ucontrol.analysis.tracking import tracking
 from ucontrol.analysis.weak_stability import weak_stability
-from ucontrol.log import Log
+from ucontrol.log import SOLVED, UNSOLVED, Log
 
 
 def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, Any]:
@@ -28,11 +29,8 @@ def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, 
     impact_steps = np.flatnonzero(impacts.any(axis=1))
     energy_jump = 0.0
     if impact_steps.size:
-        robot_actuated = np.asarray(log.metadata.get("actuated", []), dtype=int)
         k = impact_steps
-        v_mid = (1.0 - theta) * log.v[k] + theta * log.v[k + 1]
-        dt = t[k + 1] - t[k]
-        work = dt * np.einsum("ij,ij->i", log.u[k], v_mid[:, robot_actuated])  # [J]
+        work = step_work(log, theta)[k]  # [J]
         energy_jump = float(np.max(log.energy[k + 1] - log.energy[k] - work))
     summary = {
         "scene": log.metadata.get("scene", ""),
@@ -51,8 +49,24 @@ def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, 
         "final_energy": float(log.energy[-1]) if len(log) else None,
         "max_complementarity_residual": float(log.complementarity_residual.max(initial=0.0)),
         "max_solver_iterations": int(log.solver_iterations.max(initial=0)),
+        **_contact_solves(log),
     }
     if CYCLE_FIELDS <= set(log.fields):  # a phase-machine controller ran
         summary["weak_stability"] = weak_stability(log).to_dict()
         summary["tracking"] = tracking(log).to_dict()
     return summary
+
+
+def _contact_solves(log: Log) -> dict[str, Any]:
+    """Count, timing and failures of the contact solves of a run."""
+    solved = log.solver_status == SOLVED
+    unsolved = log.solver_status == UNSOLVED
+    times = log.solver_time[solved | unsolved]  # [s]
+    return {
+        "contact_solves": int(times.size),
+        "n_unsolved_contact_solves": int(unsolved.sum()),
+        "contact_solve_time_s": float(times.sum()),
+        "mean_contact_solve_us": 1e6 * float(times.mean()) if times.size else None,
+        "max_contact_solve_us": 1e6 * float(times.max()) if times.size else None,
+        "max_solver_outer_iterations": int(log.solver_outer_iterations.max(initial=0)),
+    }

@@ -8,29 +8,58 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from ucontrol._validation import as_vector
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
+from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
+from ucontrol.contact.tangent_basis import cross, tangent_basis
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.model.robot_model import RobotModel
 
 Vector = NDArray[np.float64]
 _LWA = pin.LOCAL_WORLD_ALIGNED
+#: Largest |n · a| of a plane contact of a planar robot (n the plane normal, a the axis).
+_PLANAR_TOLERANCE = 1e-9
 
 
 class ConstraintSet:
-    """Point contacts followed by joint stops, as one ordered list of unilateral constraints.
+    r"""Point contacts, sphere–sphere contacts, then joint stops, as one ordered list.
 
     Constraint ``i`` has gap ``g_i(q)`` (>= 0 when admissible), normal velocity
-    ``u_i = J_i v`` and restitution ``e_i``. Contacts come first, in the order given, then each
-    finite stop bound (lower before upper).
+    ``u_i = J_i v`` and restitution ``e_i``. Point contacts come first, in the order given, then
+    sphere–sphere contacts, then each finite stop bound (lower before upper).
+
+    Contacts with a positive friction coefficient also have tangential rows (:meth:`tangent_rows`):
+    two (spatial friction) or, when the robot moves in a plane (``planar_axis``), one — the
+    tangent :math:`a \times n` in the plane of motion (:mod:`ucontrol.contact.tangent_basis`).
+    A contact point is the point of the sphere nearest the other body, so its tangential
+    velocity includes the sphere's rotation: :math:`v_F + \omega \times (-r n)`.
+
+    Args:
+        robot: The robot whose data buffer is read.
+        contacts: Point contacts against planes.
+        stops: Joint stops.
+        sphere_contacts: Contacts between two spheres on robot frames.
+        planar_axis: Unit normal of the plane the robot moves in, shape (3,), or None: with it
+            every frictional contact is planar (one tangent), without it spatial (two).
 
     Attributes:
         robot: The robot whose data buffer is read.
         contacts: The point contacts.
+        sphere_contacts: The sphere–sphere contacts.
         stops: The joint stops.
+        planar_axis: The axis of planar motion, or None.
         names: One label per constraint.
         restitution: Restitution coefficients, shape (n,).
+        friction: Coulomb coefficients, shape (n,) (0 for stops).
+        tangent_count: Tangential rows of each constraint (0, 1 or 2), shape (n,).
+        has_friction: Whether any constraint has tangential rows.
+        n_contacts: Number of point and sphere–sphere contacts (the first constraints).
         size: Number of constraints n.
+
+    Raises:
+        InvalidParameterError: A stop is on a joint with more than one degree of freedom, or
+            a plane contact of a planar robot has a normal out of the plane of motion.
     """
 
     def __init__(
@@ -38,17 +67,35 @@ class ConstraintSet:
         robot: RobotModel,
         contacts: Sequence[PointContact] = (),
         stops: Sequence[JointStop] = (),
+        sphere_contacts: Sequence[SphereSphereContact] = (),
+        planar_axis: Vector | None = None,
     ) -> None:
         self.robot = robot
         self.contacts = tuple(contacts)
+        self.sphere_contacts = tuple(sphere_contacts)
         self.stops = tuple(stops)
+        self.planar_axis = None
+        if planar_axis is not None:
+            axis = as_vector("planar_axis", planar_axis, 3)
+            norm = float(np.linalg.norm(axis))
+            if norm < 1e-12:
+                raise InvalidParameterError("planar_axis", planar_axis, "a non-zero vector")
+            self.planar_axis = axis / norm
         self._frame_ids = [robot.frame_id(contact.frame) for contact in self.contacts]
         self._normals = np.array([c.surface.normal for c in self.contacts]).reshape(-1, 3)
         self._offsets = np.array(
             [c.surface.normal @ c.surface.point + c.radius for c in self.contacts]
         )
-        names = [contact.name for contact in self.contacts]
-        restitution = [contact.restitution for contact in self.contacts]
+        pairs = self.sphere_contacts
+        self._pair_terms = [
+            (robot.frame_id(c.frame), robot.frame_id(c.other_frame), c.radius + c.other_radius)
+            for c in pairs
+        ]
+        self._pair_radii = [(c.radius, c.other_radius) for c in pairs]
+        all_contacts: tuple[PointContact | SphereSphereContact, ...] = (*self.contacts, *pairs)
+        names = [contact.name for contact in all_contacts]
+        restitution = [contact.restitution for contact in all_contacts]
+        friction = [contact.friction for contact in all_contacts]
         stop_q, stop_v, stop_sign, stop_bound = [], [], [], []
         for stop in self.stops:
             joint = robot.model.joints[robot.joint_id(stop.joint)]
@@ -65,18 +112,39 @@ class ConstraintSet:
                 stop_bound.append(bound)
                 names.append(f"{stop.joint}/{side}")
                 restitution.append(stop.restitution)
+                friction.append(0.0)
         self._stop_q = np.array(stop_q, dtype=int)
         self._stop_v = np.array(stop_v, dtype=int)
         self._stop_sign = np.array(stop_sign)
         self._stop_bound = np.array(stop_bound)
         self.names = names
         self.restitution = np.array(restitution, dtype=float)
-        self.n_contacts = len(self.contacts)
+        self.friction = np.array(friction, dtype=float)
+        self.n_contacts = len(all_contacts)
         self.size = len(names)
+        self._n_point = len(self.contacts)
+        spatial_rows = 1 if self.planar_axis is not None else 2
+        self.tangent_count = np.where(self.friction > 0.0, spatial_rows, 0)
+        self.has_friction = bool(self.tangent_count.any())
         self._has_stops = self.size > self.n_contacts
         self._contact_terms = list(
             zip(self._frame_ids, list(self._normals), self._offsets.tolist(), strict=True)
         )
+        self._plane_tangents = [tangent_basis(normal, self.planar_axis) for normal in self._normals]
+        # Contact point p_F - r n: velocity v_F + ω × (-r n), i.e. t·v_F + r (t × n)·ω.
+        self._plane_levers = [
+            contact.radius * cross(tangents, contact.surface.normal)
+            for contact, tangents in zip(self.contacts, self._plane_tangents, strict=True)
+        ]
+        if self.planar_axis is not None:
+            for contact in self.contacts:
+                if abs(contact.surface.normal @ self.planar_axis) > _PLANAR_TOLERANCE:
+                    raise InvalidParameterError(
+                        "planar_axis",
+                        self.planar_axis.tolist(),
+                        f"orthogonal to the normal {contact.surface.normal.tolist()} of "
+                        f"{contact.name!r} (the robot moves in the plane normal to the axis)",
+                    )
 
     def evaluate(self, data: pin.Data, q: Vector, v: Vector) -> tuple[Vector, Vector]:
         """Gaps and normal velocities, each of shape (n,).
@@ -90,6 +158,15 @@ class ConstraintSet:
         for i, (frame_id, normal, offset) in enumerate(self._contact_terms):
             gap[i] = normal.dot(data.oMf[frame_id].translation) - offset
             velocity[i] = normal.dot(pin.getFrameVelocity(model, data, frame_id, _LWA).linear)
+        for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
+            delta = data.oMf[first].translation - data.oMf[second].translation
+            distance = np.sqrt(delta.dot(delta))
+            gap[i] = distance - radii
+            relative = (
+                pin.getFrameVelocity(model, data, first, _LWA).linear
+                - pin.getFrameVelocity(model, data, second, _LWA).linear
+            )
+            velocity[i] = delta.dot(relative) / distance
         if self._has_stops:
             k = self.n_contacts
             gap[k:] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
@@ -106,12 +183,95 @@ class ConstraintSet:
         rows = np.zeros((len(indices), self.robot.nv))
         k = self.n_contacts
         for row, i in enumerate(indices):
-            if i < k:
+            if i < self._n_point:
                 frame_id, normal, _ = self._contact_terms[i]
                 rows[row] = normal.dot(pin.getFrameJacobian(model, data, frame_id, _LWA)[:3])
+            elif i < k:
+                first, second, _ = self._pair_terms[i - self._n_point]
+                normal = self._pair_normal(data, first, second)
+                rows[row] = normal.dot(
+                    pin.getFrameJacobian(model, data, first, _LWA)[:3]
+                    - pin.getFrameJacobian(model, data, second, _LWA)[:3]
+                )
             else:
                 rows[row, self._stop_v[i - k]] = self._stop_sign[i - k]
         return rows
+
+    def tangent_rows(
+        self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]
+    ) -> tuple[Vector, Vector]:
+        """Tangential Jacobian rows of the frictional constraints among ``indices``.
+
+        Constraint ``indices[j]`` contributes ``tangent_count[indices[j]]`` rows, in the order
+        of ``indices``: the velocity of its contact point (sphere 1 relative to sphere 2 for a
+        sphere–sphere contact) along each tangent. Same requirements on ``data`` as
+        :meth:`jacobian`.
+
+        Returns:
+            The rows, shape (k, nv), and the unit tangent of each row in world coordinates,
+            shape (k, 3).
+        """
+        model = self.robot.model
+        counts = self.tangent_count[np.asarray(indices, dtype=np.intp)]
+        rows = np.empty((int(counts.sum()), self.robot.nv))
+        directions = np.empty((rows.shape[0], 3))
+        start = 0
+        for i, count in zip(indices, counts.tolist(), strict=True):
+            if count == 0:
+                continue
+            end = start + count
+            if i < self._n_point:
+                tangents = self._plane_tangents[i]
+                J = pin.getFrameJacobian(model, data, self._frame_ids[i], _LWA)
+                rows[start:end] = tangents @ J[:3] + self._plane_levers[i] @ J[3:]
+            else:
+                first, second, _ = self._pair_terms[i - self._n_point]
+                radius, other_radius = self._pair_radii[i - self._n_point]
+                normal = self._pair_normal(data, first, second)
+                tangents = tangent_basis(normal, self.planar_axis)
+                J1 = pin.getFrameJacobian(model, data, first, _LWA)
+                J2 = pin.getFrameJacobian(model, data, second, _LWA)
+                # Points p1 - r1 n and p2 + r2 n: t·(v1 - v2) + (t × n)·(r1 ω1 + r2 ω2).
+                lever = cross(tangents, normal)
+                rows[start:end] = tangents @ (J1[:3] - J2[:3]) + lever @ (
+                    radius * J1[3:] + other_radius * J2[3:]
+                )
+            directions[start:end] = tangents
+            start = end
+        return rows, directions
+
+    def normal_drift(self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]) -> Vector:
+        r"""``J̇ v`` of the constraints ``indices`` in [m/s²] or [rad/s²], shape (len(indices),).
+
+        The constraint accelerations at zero joint acceleration: :math:`n \cdot a_F` for a plane
+        contact, :math:`n \cdot (a_1 - a_2) + \|(I - n n^T)(v_1 - v_2)\|^2 / \|p_1 - p_2\|` for a
+        sphere–sphere contact (the normal turns), 0 for stops; :math:`a_F` are classical frame
+        accelerations. ``data`` must hold ``pin.forwardKinematics(model, data, q, v, 0)`` and the
+        frame placements.
+        """
+        model = self.robot.model
+        drift = np.zeros(len(indices))
+        for row, i in enumerate(indices):
+            if i < self._n_point:
+                frame_id, normal, _ = self._contact_terms[i]
+                acceleration = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA)
+                drift[row] = normal @ acceleration.linear
+            elif i < self.n_contacts:
+                first, second, _ = self._pair_terms[i - self._n_point]
+                delta = data.oMf[first].translation - data.oMf[second].translation
+                distance = np.sqrt(delta.dot(delta))
+                normal = delta / distance
+                relative = (
+                    pin.getFrameVelocity(model, data, first, _LWA).linear
+                    - pin.getFrameVelocity(model, data, second, _LWA).linear
+                )
+                tangential = relative - normal.dot(relative) * normal
+                acceleration = (
+                    pin.getFrameClassicalAcceleration(model, data, first, _LWA).linear
+                    - pin.getFrameClassicalAcceleration(model, data, second, _LWA).linear
+                )
+                drift[row] = normal @ acceleration + tangential.dot(tangential) / distance
+        return drift
 
     def gaps(self, q: Vector) -> Vector:
         """Gaps at configuration ``q``, shape (n,); runs forward kinematics on the robot's data."""
@@ -124,5 +284,14 @@ class ConstraintSet:
         gap = np.empty(self.size)
         for i, (frame_id, normal, offset) in enumerate(self._contact_terms):
             gap[i] = normal.dot(data.oMf[frame_id].translation) - offset
+        for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
+            delta = data.oMf[first].translation - data.oMf[second].translation
+            gap[i] = np.sqrt(delta.dot(delta)) - radii
         gap[self.n_contacts :] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
         return gap
+
+    @staticmethod
+    def _pair_normal(data: pin.Data, first: int, second: int) -> Vector:
+        """Unit normal from the centre of frame ``second`` to that of ``first``, shape (3,)."""
+        delta = data.oMf[first].translation - data.oMf[second].translation
+        return delta / np.sqrt(delta.dot(delta))

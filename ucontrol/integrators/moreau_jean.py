@@ -1,4 +1,4 @@
-r"""Moreau–Jean time-stepping (event-capturing θ-scheme), frictionless.
+r"""Moreau–Jean time-stepping (event-capturing θ-scheme), with or without Coulomb friction.
 
 One step from :math:`(q_k, v_k)` with step :math:`h` and :math:`\theta \in [1/2, 1]`:
 
@@ -13,46 +13,96 @@ One step from :math:`(q_k, v_k)` with step :math:`h` and :math:`\theta \in [1/2,
 Every matrix is evaluated at step k. The scheme is of order one, captures impacts without
 locating them, and enforces Newton's law exactly at every impact.
 
+**Flexible joints.** With :class:`~ucontrol.model.FlexibleJoints` the state holds the motor
+coordinates after the link ones and the joint springs (stiffness matrix :math:`K_q`) and
+dampers (:math:`C_v`) are treated θ-implicitly (DESIGN §4.1): with
+:math:`W = \operatorname{diag}(M(q_k), B) + h\theta C_v + h^2\theta^2 K_q`,
+
+.. math:: v_\text{free} = v_k + W^{-1} h \big(F_k - h\theta K_q v_k\big),
+
+:math:`F_k` holding the spring and damper forces at step k; the impulses act through
+:math:`W^{-1}` on the link coordinates only. For θ = 1/2 the springs' energy is kept exactly
+(trapezoidal rule), for θ = 1 it is dissipated; both stay bounded at any :math:`\sqrt{K/B}\,h`,
+where an explicit update diverges once it exceeds 2.
+
+**Midpoint variant** (``midpoint=True``). Step 1 above evaluates M, gravity and the Coriolis
+forces at :math:`(q_k, v_k)`: the energy of a smooth motion then drifts at O(h) even with
+θ = 1/2. The variant evaluates M and gravity at :math:`q_{k+1/2} = q_k \oplus \tfrac h2 v_k` and
+the Coriolis forces as the symmetric bilinear form :math:`\Gamma(q_{k+1/2}; v_k, v^*)`
+(:math:`\Gamma(q; v, v) = C(q, v)v`), :math:`v^*` being the free velocity of a first solve with
+:math:`\Gamma(v_k, v_k)`. With θ = 1/2 the step is then of second order between impacts
+(energy error O(h²), tested on a flexible arm); gaps, the active set and the constraint
+Jacobians stay at :math:`q_k`, and the scheme stays of order one through impacts.
+
 Newton's law uses :math:`e_a` for closing constraints only (:math:`u_a < -u_\text{th}`, the
 ``restitution_threshold``, 0 by default); separating or persistent ones get :math:`e_a = 0`.
-With unequal restitutions on simultaneous impacts the generalized Newton law can add kinetic
-energy (the impulses' work :math:`\tfrac12 P^T(u_\text{free} + u^+)` turns positive, e.g. near
-singular configurations where constraint rows are almost dependent); such a step is redone with
-the plastic law (e = 0), which never adds energy, and flagged in :attr:`StepOutcome.plastic`.
+On simultaneous impacts this generalized Newton law can add energy: with unequal restitutions,
+near singular configurations where constraint rows are almost dependent, or when a body joins
+an impacting group within the step (a column of beads: a bead rebounding on a resting stack
+catches the one above it, and the group leaves at :math:`e` times the speed of the first). The
+energy the impulses add to the scheme's discrete energy :math:`T + V` over the step is
+
+.. math:: G = \tfrac12 P^T(u_\text{free} + u^+) - \theta P^T (u_\text{free} - u_k),
+
+the kinetic part and the work of the step's smooth forces over the displacement the impulses
+cause (for θ = 1/2, :math:`\tfrac12 P^T (u_k + u^+)`); a step with :math:`G > 0` is redone with
+the plastic law (e = 0), flagged in :attr:`StepOutcome.plastic`. (The kinetic part alone misses
+the beads' case: it is measured from :math:`v_\text{free}`, which holds a step of gravity.)
+
+**Friction.** Active contacts with a friction coefficient add their tangential rows
+(:meth:`~ucontrol.contact.ConstraintSet.tangent_rows`) below the normal ones; step 3 is then
+Coulomb's law at velocity level with Newton's restitution on the normal components only
+(:class:`~ucontrol.solvers.coulomb_problem.CoulombProblem`), solved by the friction solver
+(default :class:`~ucontrol.solvers.ProxsuiteCoulombSolver`, built only when the constraints
+have friction). The energy guard applies unchanged, over normal and tangential rows (with e = 0
+Coulomb's impulses dissipate: :math:`P^T u^+ = -\mu P_n \|u_t^+\| + P_t \cdot u_t^+ \le 0`).
+
+**Unsolved problems.** A solve whose residual stays above its solver's tolerance raises
+:class:`~ucontrol.exceptions.ContactSolveError` (``on_unsolved = "raise"``), or issues a
+:class:`~ucontrol.exceptions.ContactSolveWarning` carrying the residual and goes on with the
+solver's best impulses (``on_unsolved = "warn"``); the residual is in every step's solution.
 """
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
+import scipy.linalg
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_float, as_in_interval, as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
-from ucontrol.exceptions import InvalidParameterError, SolverError
+from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidParameterError
+from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.solvers.contact_solution import ContactSolution
+from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
+from ucontrol.solvers.coulomb_problem import CoulombProblem
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 
 Vector = NDArray[np.float64]
 
-#: Kinetic energy the restitution impulses of a step may add, relative to 1 + the kinetic
-#: energy in [J], before the step is redone with a plastic law (e = 0).
+#: Energy the restitution impulses of a step may add, relative to 1 + the kinetic energy in
+#: [J], before the step is redone with a plastic law (e = 0).
 ENERGY_GAIN_TOLERANCE = 1e-12
+#: What a step does with a contact problem left above its residual tolerance.
+ON_UNSOLVED = ("raise", "warn")
 
 
 class PlantEvaluation(NamedTuple):
     """Everything the plant knows at the start of a step, at (q_k, v_k).
 
     Attributes:
-        q: Configuration, shape (nq,).
-        v: Velocity, shape (nv,).
+        q: Configuration, shape (nq,) (nq + nf with flexible joints: motors last).
+        v: Velocity, shape (nv,) (nv + nf with flexible joints).
         gap: Constraint gaps, shape (n,).
         normal_velocity: Constraint velocities ``J v``, shape (n,).
-        kinetic_energy: In [J].
-        potential_energy: Gravitational, in [J].
+        kinetic_energy: In [J], motors included.
+        potential_energy: Gravitational plus the joint springs' elastic energy, in [J].
     """
 
     q: Vector
@@ -67,8 +117,8 @@ class StepOutcome(NamedTuple):
     """The result of one step from a :class:`PlantEvaluation`.
 
     Attributes:
-        q: Configuration at the end of the step, shape (nq,).
-        v: Velocity at the end of the step, shape (nv,).
+        q: Configuration at the end of the step, shape (nq,) (nq + nf with flexible joints).
+        v: Velocity at the end of the step, shape (nv,) (nv + nf with flexible joints).
         impulse: Normal impulse of each constraint over the step in [N s], shape (n,).
         active: Which constraints were in the active set, shape (n,).
         solution: The contact solve, or None when the active set was empty.
@@ -76,6 +126,10 @@ class StepOutcome(NamedTuple):
             because the restitution impulses would have added kinetic energy.
         events: Events located within the step (impacts, contact closures and releases) by
             event-driven integrators; 0 for time-stepping, which locates none.
+        friction_impulse: Friction impulse of each constraint over the step in world
+            coordinates, in [N s], shape (n, 3) (on the first sphere of a sphere–sphere
+            contact, the opposite on the second), or None when the constraints have no
+            friction.
     """
 
     q: Vector
@@ -85,6 +139,7 @@ class StepOutcome(NamedTuple):
     solution: ContactSolution | None
     events: int = 0
     plastic: bool = False
+    friction_impulse: Vector | None = None
 
 
 class MoreauJean:
@@ -98,10 +153,21 @@ class MoreauJean:
         constraints: Its unilateral constraints.
         dt: Time step h in [s].
         theta: θ of the position update, in [1/2, 1].
-        solver: Contact LCP solver; default a :class:`ProxsuiteLCPSolver`.
+        solver: Frictionless contact solver; default a :class:`ProxsuiteLCPSolver`.
+        friction_solver: Solver of the steps with friction, used only when ``constraints``
+            have friction; default a :class:`~ucontrol.solvers.ProxsuiteCoulombSolver`.
         restitution_threshold: Closing speed in [m/s] (or [rad/s]) below which a contact is
             treated as persistent and gets e = 0; separating contacts always get e = 0.
             0 applies Newton's law to every closing contact.
+        on_unsolved: ``"raise"`` a :class:`~ucontrol.exceptions.ContactSolveError` or
+            ``"warn"`` (:class:`~ucontrol.exceptions.ContactSolveWarning`) when a contact
+            solve ends above its solver's residual tolerance.
+        flexible: Flexible joints of the robot: the state then holds their motor coordinates.
+        midpoint: Evaluate the inertia, gravity and Coriolis forces at the midpoint (module
+            docstring): second order between impacts, at about three more RNEA per step.
+
+    Attributes:
+        friction_solver: The friction solver, or None for constraints without friction.
     """
 
     name = "moreau_jean"
@@ -114,79 +180,230 @@ class MoreauJean:
         *,
         dt: float,
         theta: float = 0.5,
-        solver: ProxsuiteLCPSolver | None = None,
+        solver: LCPSolver | None = None,
+        friction_solver: CoulombSolver | None = None,
         restitution_threshold: float = 0.0,
+        on_unsolved: str = "raise",
+        flexible: FlexibleJoints | None = None,
+        midpoint: bool = False,
     ) -> None:
         self.robot = robot
+        self.flexible = flexible
+        self.midpoint = bool(midpoint)
+        self._midpoint_data = robot.model.createData()
+        self._zero_acceleration = np.zeros(robot.nv)
         self.constraints = constraints
         self.dt = as_positive("dt", dt)
         self.theta = as_in_interval("theta", theta, 0.5, 1.0)
-        self.solver = solver if solver is not None else ProxsuiteLCPSolver()
+        self.solver: LCPSolver = solver if solver is not None else ProxsuiteLCPSolver()
+        self.friction_solver: CoulombSolver | None = None
+        if constraints.has_friction:
+            self.friction_solver = (
+                friction_solver if friction_solver is not None else _default_friction_solver()
+            )
+        if on_unsolved not in ON_UNSOLVED:
+            raise InvalidParameterError("on_unsolved", on_unsolved, f"one of {ON_UNSOLVED}")
+        self.on_unsolved = on_unsolved
         self.restitution_threshold = as_float("restitution_threshold", restitution_threshold)
         if self.restitution_threshold < 0.0:
             raise InvalidParameterError("restitution_threshold", restitution_threshold, ">= 0")
         self._model = robot.model
         self._data = robot.model.createData()
         self._has_contacts = constraints.n_contacts > 0
+        self._friction = constraints.has_friction
+        if flexible is not None:
+            ht = self.dt * self.theta
+            self._stiffness = flexible.coupling_matrix(flexible.stiffness)  # K_q
+            self._implicit_forces = ht * flexible.coupling_matrix(flexible.damping) + ht * ht * (
+                self._stiffness
+            )  # hθ C_v + h²θ² K_q
+            self._motor_inertia = np.diag(flexible.motor_inertia)
 
     def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
         """Dynamics, kinematics and constraint gaps at (q, v); prepares :meth:`step`."""
-        model, data = self._model, self._data
-        pin.computeAllTerms(model, data, q, v)
+        model, data, flexible = self._model, self._data, self.flexible
+        q1, v1 = (q, v) if flexible is None else flexible.split(q, v)[:2]
+        pin.computeAllTerms(model, data, q1, v1)
         if self._has_contacts:
             pin.updateFramePlacements(model, data)
-        gap, normal_velocity = self.constraints.evaluate(data, q, v)
-        return PlantEvaluation(
-            q, v, gap, normal_velocity, data.kinetic_energy, data.potential_energy
-        )
+        gap, normal_velocity = self.constraints.evaluate(data, q1, v1)
+        kinetic, potential = data.kinetic_energy, data.potential_energy
+        if flexible is not None:
+            _, _, q2, v2 = flexible.split(q, v)
+            kinetic += flexible.motor_kinetic_energy(v2)
+            potential += flexible.spring_energy(q1, q2)
+        return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential)
 
     def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
         """Advance one step from ``state`` (the last :meth:`evaluate`) under forces ``tau``.
 
         Args:
             state: The evaluation at the start of the step.
-            tau: Generalized forces (actuation plus external), shape (nv,), in [N m] or [N].
+            tau: Generalized forces (actuation plus external), shape (nv,), in [N m] or [N]
+                (nv + nf with flexible joints: the motor torques last).
         """
         model, data, h = self._model, self._data, self.dt
-        pin.cholesky.decompose(model, data)
-        v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)
+        if self.flexible is None and not self.midpoint:
+            pin.cholesky.decompose(model, data)
+            v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)
+            inverse_inertia = self._rigid_inverse_inertia
+        else:
+            v_free, inverse_inertia = self._free_velocity(state, tau)
         active = state.gap + (self.gamma * h) * state.normal_velocity <= 0.0
         indices = active.nonzero()[0]
         impulse = np.zeros(self.constraints.size)
+        friction_impulse = np.zeros((self.constraints.size, 3)) if self._friction else None
         solution = None
         plastic = False
         if indices.size:
             J = self.constraints.jacobian(data, indices)
-            if indices.size == 1:  # M⁻¹ Jᵀ by one triangular solve instead of M⁻¹
-                Minv_Jt = pin.cholesky.solve(model, data, J[0])[:, None]
+            tangents = self.constraints.tangent_count[indices] if self._friction else None
+            if tangents is not None and tangents.any():
+                T, directions = self.constraints.tangent_rows(data, indices)
+                J = np.vstack((J, T))
             else:
-                Minv_Jt = pin.cholesky.computeMinv(model, data) @ J.T
+                tangents = None
+            if self.flexible is not None:  # contacts act on the links only
+                J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
+            Minv_Jt = inverse_inertia(J)
             D = J.dot(Minv_Jt)
             u_free = J.dot(v_free)
             u_minus = state.normal_velocity[indices]
             restitution = self.constraints.restitution[indices]
             rebound = np.where(u_minus < -self.restitution_threshold, restitution * u_minus, 0.0)
-            solution = self._solve(D, u_free + rebound)
+            if tangents is not None:  # no restitution on the tangential rows
+                rebound = np.concatenate((rebound, np.zeros(T.shape[0])))
+            solution = self._solve(D, u_free + rebound, indices, tangents)
             if rebound.any():
-                # Kinetic energy given by the impulses, ½ Pᵀ(u_free + u⁺) [J]: never positive
-                # for a plastic law or equal restitutions, it can be with unequal ones.
+                # Energy the impulses add to T + V over the step [J] (module docstring).
                 u_plus = solution.velocity - rebound
-                gain = 0.5 * solution.impulses.dot(u_free + u_plus)
+                u_k = J.dot(state.v)
+                gain = solution.impulses.dot(0.5 * (u_free + u_plus) - self.theta * (u_free - u_k))
                 if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
-                    solution = self._solve(D, u_free)
+                    solution = self._solve(D, u_free, indices, tangents)
                     plastic = True
-            impulse[indices] = solution.impulses
+            impulse[indices] = solution.impulses[: indices.size]
+            if tangents is not None and friction_impulse is not None:
+                owners = np.repeat(indices, tangents)
+                tangential = solution.impulses[indices.size :, None] * directions  # [N s]
+                np.add.at(friction_impulse, owners, tangential)
             v_next = v_free + Minv_Jt.dot(solution.impulses)
         else:
             v_next = v_free
-        q_next = pin.integrate(
-            model, state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next)
+        q_next = self._advance(state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next))
+        return StepOutcome(
+            q_next,
+            v_next,
+            impulse,
+            active,
+            solution,
+            plastic=plastic,
+            friction_impulse=friction_impulse,
         )
-        return StepOutcome(q_next, v_next, impulse, active, solution, plastic=plastic)
 
-    def _solve(self, D: Vector, b: Vector) -> ContactSolution:
-        """The contact LCP (D, b), or :class:`SolverError` when it is not solved."""
-        solution = self.solver.solve(D, b)
+    def _rigid_inverse_inertia(self, J: Vector) -> Vector:
+        """:math:`M^{-1} J^T` for rows J (m, nv), with M factorized in the data buffer."""
+        model, data = self._model, self._data
+        if J.shape[0] == 1:  # one triangular solve instead of M⁻¹
+            return pin.cholesky.solve(model, data, J[0])[:, None]
+        return pin.cholesky.computeMinv(model, data) @ J.T
+
+    def _free_velocity(
+        self, state: PlantEvaluation, tau: Vector
+    ) -> tuple[Vector, Callable[[Vector], Vector]]:
+        r"""Free velocity of a flexible or midpoint step, and the map J ↦ W⁻¹ Jᵀ.
+
+        W is the inertia (of the links at q_k or at the midpoint, and of the motors) plus the
+        θ-implicit spring and damper terms; with ``midpoint`` the Coriolis forces are the
+        symmetric :math:`\Gamma(v_k, v^*)` of a first solve's velocity :math:`v^*`.
+        """
+        model, h, flexible = self._model, self.dt, self.flexible
+        nv = self.robot.nv
+        q1, v1 = (state.q, state.v) if flexible is None else flexible.split(state.q, state.v)[:2]
+        force = tau.copy()
+        if self.midpoint:
+            data = self._midpoint_data
+            q_mid = pin.integrate(model, q1, (0.5 * h) * v1)
+            pin.crba(model, data, q_mid)
+            force[:nv] -= pin.computeGeneralizedGravity(model, data, q_mid)
+        else:
+            data, q_mid = self._data, q1
+            force[:nv] -= data.nle
+        M = np.triu(data.M) + np.triu(data.M, 1).T
+        if flexible is None:
+            W = M
+        else:
+            _, _, q2, v2 = flexible.split(state.q, state.v)
+            transmission = flexible.spring_torque(q1, v1, q2, v2)  # on the motors [N m]
+            force[flexible.v_index] -= transmission
+            force[nv:] += transmission
+            force -= (h * self.theta) * (self._stiffness @ state.v)
+            W = self._implicit_forces.copy()
+            W[:nv, :nv] += M
+            W[nv:, nv:] += self._motor_inertia
+        factor = scipy.linalg.cho_factor(W)
+        if self.midpoint:
+            first = force.copy()  # Coriolis at v_k: a predictor
+            first[:nv] -= self._coriolis(data, q_mid, v1, v1)
+            v_star = state.v + scipy.linalg.cho_solve(factor, h * first)
+            force[:nv] -= self._coriolis(data, q_mid, v1, v_star[:nv])
+        v_free = state.v + scipy.linalg.cho_solve(factor, h * force)
+        return v_free, lambda J: scipy.linalg.cho_solve(factor, J.T)
+
+    def _coriolis(self, data: pin.Data, q: Vector, a: Vector, b: Vector) -> Vector:
+        r"""Symmetric Coriolis and centrifugal forces :math:`\Gamma(q; a, b)`, shape (nv,).
+
+        :math:`\Gamma(q; v, v) = C(q, v) v`, polarized from Pinocchio's RNEA at zero
+        acceleration (gravity cancels in the difference).
+        """
+        model, zero = self._model, self._zero_acceleration
+        plus = pin.rnea(model, data, q, a + b, zero).copy()
+        return 0.25 * (plus - pin.rnea(model, data, q, a - b, zero))
+
+    def _advance(self, q: Vector, dq: Vector) -> Vector:
+        """``q ⊕ dq``: Pinocchio's integration on the links, a sum on the motors."""
+        if self.flexible is None:
+            return pin.integrate(self._model, q, dq)
+        nq, nv = self.flexible.nq, self.flexible.nv
+        return np.concatenate((pin.integrate(self._model, q[:nq], dq[:nv]), q[nq:] + dq[nv:]))
+
+    def _solve(
+        self,
+        D: Vector,
+        b: Vector,
+        indices: NDArray[np.intp],
+        tangents: NDArray[np.intp] | None,
+    ) -> ContactSolution:
+        """The contact problem (D, b) of the constraints ``indices``.
+
+        Frictionless when ``tangents`` is None, else a Coulomb problem whose constraint
+        ``indices[j]`` has ``tangents[j]`` tangential rows. An unsolved problem raises
+        :class:`ContactSolveError` or warns, as ``on_unsolved`` says.
+        """
+        solver: LCPSolver | CoulombSolver
+        if tangents is None or self.friction_solver is None:  # the latter: not with tangents
+            solver = self.solver
+            solution = self.solver.solve(D, b)
+        else:
+            solver = self.friction_solver
+            problem = CoulombProblem(D, b, self.constraints.friction[indices], tangents)
+            solution = self.friction_solver.solve_coulomb(problem)
         if solution.status != "solved":
-            raise SolverError(self.solver.name, solution.status, solution.residual)
+            if self.on_unsolved == "raise":
+                raise ContactSolveError(
+                    solver.name, solution.status, solution.residual, solver.residual_tolerance
+                )
+            warnings.warn(
+                ContactSolveWarning(
+                    solver.name, solution.status, solution.residual, solver.residual_tolerance
+                ),
+                stacklevel=3,
+            )
         return solution
+
+
+def _default_friction_solver() -> CoulombSolver:
+    """A :class:`~ucontrol.solvers.ProxsuiteCoulombSolver`, imported only when needed."""
+    from ucontrol.solvers.proxsuite_coulomb import ProxsuiteCoulombSolver
+
+    return ProxsuiteCoulombSolver()

@@ -25,7 +25,6 @@ from ucontrol.integrators.moreau_jean import PlantEvaluation
 from ucontrol.model.robot_model import RobotModel
 
 Vector = NDArray[np.float64]
-_LWA = pin.LOCAL_WORLD_ALIGNED
 
 
 @dataclass(frozen=True)
@@ -77,8 +76,6 @@ class SmoothDynamics:
         self.nv = robot.nv
         self._euclidean = robot.nq == robot.nv
         self._zero_acceleration = np.zeros(robot.nv)
-        self._frame_ids = [robot.frame_id(contact.frame) for contact in constraints.contacts]
-        self._normals = [contact.surface.normal for contact in constraints.contacts]
 
     def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
         """Gaps, normal velocities and energies at (q (nq,), v (nv,)): the protocol's evaluate."""
@@ -145,15 +142,9 @@ class SmoothDynamics:
 
     def _drift(self, q: Vector, v: Vector, indices: NDArray[np.intp]) -> Vector:
         """``J̇ v`` of the constraints ``indices``: zero for joint stops, shape (m,)."""
-        drift = np.zeros(len(indices))
-        contact_rows = [row for row, i in enumerate(indices) if i < len(self._frame_ids)]
-        if contact_rows:
-            model, data = self.model, self.data
-            pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
-            for row in contact_rows:
-                i = indices[row]
-                acceleration = pin.getFrameClassicalAcceleration(
-                    model, data, self._frame_ids[i], _LWA
-                ).linear
-                drift[row] = self._normals[i] @ acceleration
-        return drift
+        if not np.any(np.asarray(indices) < self.constraints.n_contacts):
+            return np.zeros(len(indices))
+        model, data = self.model, self.data
+        pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
+        pin.updateFramePlacements(model, data)
+        return self.constraints.normal_drift(data, indices)

@@ -1,6 +1,16 @@
-"""One-step nonsmooth problems: contact LCPs and their solvers."""
+"""One-step nonsmooth problems: contact LCPs, Coulomb friction, and their solvers.
+
+:class:`ProxsuiteCoulombSolver` and :class:`QpsolversLCPSolver` are imported on first access
+only: a scene without friction never loads the friction machinery, and one without a qpsolvers
+backend never imports qpsolvers.
+"""
+
+import importlib
+from typing import Any
 
 from ucontrol.solvers.contact_solution import ContactSolution, complementarity_residual
+from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
+from ucontrol.solvers.coulomb_problem import CoulombProblem
 from ucontrol.solvers.lemke import LemkeResult, solve_lcp_lemke
 from ucontrol.solvers.pinocchio_constraint_solver import (
     PinocchioContactSolver,
@@ -10,14 +20,32 @@ from ucontrol.solvers.pinocchio_constraint_solver import (
 )
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 
+#: Public classes loaded on first access, and their modules.
+_LAZY = {
+    "ProxsuiteCoulombSolver": "ucontrol.solvers.proxsuite_coulomb",
+    "QpsolversLCPSolver": "ucontrol.solvers.qpsolvers_lcp",
+}
+
 __all__ = [
     "ContactSolution",
+    "CoulombProblem",
+    "CoulombSolver",
+    "LCPSolver",
     "LemkeResult",
     "PinocchioContactSolver",
     "PinocchioStepOutcome",
     "PinocchioStepper",
+    "ProxsuiteCoulombSolver",
     "ProxsuiteLCPSolver",
+    "QpsolversLCPSolver",
     "complementarity_residual",
     "pinocchio_step",
     "solve_lcp_lemke",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """The classes of :data:`_LAZY`, imported when first asked for."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,4 +1,4 @@
-"""Result of one frictionless contact problem (a linear complementarity problem)."""
+"""Result of one contact problem: frictionless (an LCP) or with Coulomb friction."""
 
 from __future__ import annotations
 
@@ -37,16 +37,26 @@ def natural_map_residual(
 
 
 class ContactSolution(NamedTuple):
-    r"""Impulses solving :math:`0 \le P \perp D P + b \ge 0` and how they were obtained.
+    r"""Impulses solving one contact problem and how they were obtained.
+
+    Frictionless, the problem is the LCP :math:`0 \le P \perp D P + b \ge 0` and there is one
+    row per constraint. With friction it is the Coulomb problem of
+    :class:`~ucontrol.solvers.coulomb_problem.CoulombProblem`, whose rows are the m normal
+    components followed by the tangential ones.
 
     Attributes:
-        impulses: Normal impulses P in [N s], shape (m,).
-        velocity: Post-step constraint velocities with restitution, ``D P + b`` in [m/s], (m,).
-        status: ``"solved"`` or the backend's status text.
-        iterations: Backend iterations.
-        residual: Complementarity residual, see :func:`complementarity_residual`, in [m/s].
+        impulses: Impulses P in [N s], shape (r,): normal, then tangential with friction.
+        velocity: Post-step constraint velocities with restitution, ``D P + b`` in [m/s], (r,).
+        status: ``"solved"`` when ``residual`` is within the solver's tolerance, otherwise
+            the backend's status text.
+        iterations: Backend iterations (summed over the QPs of a fixed point).
+        residual: Natural-map residual of the problem in [m/s]: see
+            :func:`complementarity_residual`, or
+            :meth:`~ucontrol.solvers.coulomb_problem.CoulombProblem.residual` with friction.
         solve_time_s: Wall time of the solve in [s].
         polished: Whether the solution was refined by an exact solve on its active set.
+        outer_iterations: Fixed-point iterations (QPs solved) of a Coulomb solve; 0 for one
+            QP or a closed form.
     """
 
     impulses: NDArray[np.float64]
@@ -56,3 +66,4 @@ class ContactSolution(NamedTuple):
     residual: float
     solve_time_s: float
     polished: bool = False
+    outer_iterations: int = 0

@@ -1,11 +1,17 @@
 r"""Pinocchio 4.1's ADMM and PGS constraint solvers, as a reference for our contact solver.
 
 Two entry points, both for verification and benchmarks (the plant uses
-:class:`~ucontrol.solvers.proxsuite_lcp.ProxsuiteLCPSolver`):
+:class:`~ucontrol.solvers.proxsuite_lcp.ProxsuiteLCPSolver` and
+:class:`~ucontrol.solvers.proxsuite_coulomb.ProxsuiteCoulombSolver` by default):
 
-- :class:`PinocchioContactSolver` solves the same frictionless LCP as our solver,
-  :math:`0 \le P \perp D P + b \ge 0`, from the Delassus matrix D and the term b of one
-  Moreau–Jean step, with ``pin.ADMMConstraintSolver`` or ``pin.PGSConstraintSolver``.
+- :class:`PinocchioContactSolver` solves the same problems as our solvers from the Delassus
+  matrix D and the term b of one Moreau–Jean step, with ``pin.ADMMConstraintSolver`` or
+  ``pin.PGSConstraintSolver``: the frictionless LCP :math:`0 \le P \perp D P + b \ge 0`
+  (:meth:`~PinocchioContactSolver.solve`) and the Coulomb problem of
+  :class:`~ucontrol.solvers.coulomb_problem.CoulombProblem`
+  (:meth:`~PinocchioContactSolver.solve_coulomb`, friction set on each
+  ``PointContactConstraintModel``, ``solve_ncp = True``). It can replace our solvers in
+  :class:`~ucontrol.integrators.MoreauJean` (scene key ``contact_solver``).
 - :class:`PinocchioStepper` (and :func:`pinocchio_step`) runs one whole velocity-level step
   "the Pinocchio way": ``aba`` for the free velocity, ``crba`` in the WORLD convention,
   ``PointContactConstraintModel`` contacts, the Delassus operator of a
@@ -22,7 +28,10 @@ components. We therefore use one frictionless ``PointContactConstraintModel`` pe
 
 - in :class:`PinocchioContactSolver`, the m normal rows are embedded in a 3m problem whose
   local z components carry D and b, the tangential block is the identity and the tangential
-  drift is 0 (so the tangential impulses are 0 and do not couple);
+  drift is 0 (so the tangential impulses are 0 and do not couple). With friction, the
+  tangential rows of contact a go to its local x (and y) components, its model gets
+  ``setFriction(mu_a)``, and the local y of a planar contact keeps the uncoupled identity row
+  (its impulse is then 0: a planar Coulomb law);
 - in :class:`PinocchioStepper`, joint 1 is the universe with a placement whose z axis is the
   plane normal and joint 2 is the contact frame's parent joint with the frame's placement; the
   constraint velocity is then (velocity of point 2 - velocity of point 1) in the axes of
@@ -51,8 +60,9 @@ components. We therefore use one frictionless ``PointContactConstraintModel`` pe
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -61,6 +71,7 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_in_interval, as_positive, as_vector
 from ucontrol.contact.point_contact import PointContact
+from ucontrol.contact.tangent_basis import tangent_basis
 from ucontrol.exceptions import (
     FrameNotFoundError,
     InvalidParameterError,
@@ -69,6 +80,7 @@ from ucontrol.exceptions import (
     SolverError,
 )
 from ucontrol.solvers.contact_solution import ContactSolution, complementarity_residual
+from ucontrol.solvers.coulomb_problem import CoulombProblem
 
 Vector = NDArray[np.float64]
 
@@ -111,6 +123,7 @@ def _backend(method: str, size: int, tolerance: float, max_iter: int) -> tuple[A
     settings.absolute_complementarity_tol = tolerance
     settings.relative_complementarity_tol = tolerance
     settings.max_iterations = max_iter
+    settings.solve_ncp = True  # De Saxcé's Coulomb NCP, not its convex relaxation
     return solver, settings, result
 
 
@@ -135,9 +148,12 @@ def _solve(
     models: Any,
     datas: Any,
     *,
-    pgs_until: tuple[Vector, float, int] | None = None,
+    pgs_until: tuple[Callable[[Vector], float], float, int] | None = None,
 ) -> tuple[Vector, bool, int]:
-    """Run the backend; for PGS with ``pgs_until = (G, tolerance, max_sweeps)`` sweep again.
+    """Run the backend; for PGS with ``pgs_until = (residual, tolerance, max_sweeps)`` sweep.
+
+    PGS is swept again, warm-started, until ``residual(impulses)`` (in [m/s]) is at most
+    ``tolerance`` or ``max_sweeps`` sweeps were made.
 
     Returns:
         The stacked impulses (3m,), whether the backend (or our residual check) converged, and
@@ -152,15 +168,15 @@ def _solve(
         impulses = result.retrieveConstraintImpulses()
         iterations = int(result.iterations)
         if pgs_until is not None:
-            G, tolerance, max_sweeps = pgs_until
+            residual, tolerance, max_sweeps = pgs_until
             iterations += 1  # pin counts PGS sweeps from 0
-            converged = _normal_residual(G, drift, impulses) <= tolerance
+            converged = residual(impulses) <= tolerance
             while not converged and iterations < max_sweeps and np.all(np.isfinite(impulses)):
                 result.setConstraintImpulseGuess(impulses)
                 solver.solve(delassus, drift, models, datas, settings, result)
                 impulses = result.retrieveConstraintImpulses()
                 iterations += int(result.iterations) + 1
-                converged = _normal_residual(G, drift, impulses) <= tolerance
+                converged = residual(impulses) <= tolerance
     except (RuntimeError, ValueError, ArithmeticError) as error:
         raise SolverError(name, f"raised {error!r}") from error
     if not np.all(np.isfinite(impulses)):
@@ -169,21 +185,26 @@ def _solve(
 
 
 class PinocchioContactSolver:
-    r"""Frictionless contact LCPs solved by Pinocchio's ADMM or PGS constraint solver.
+    r"""Contact problems solved by Pinocchio's ADMM or PGS constraint solver.
 
-    Same interface as :class:`~ucontrol.solvers.proxsuite_lcp.ProxsuiteLCPSolver`: given the
-    Delassus matrix D and the term b, return the impulses of :math:`0 \le P \perp D P + b \ge 0`.
-    The m normal constraints are frictionless 3D ``PointContactConstraintModel`` cones whose
-    local z rows carry (D, b) (see the module docstring). Solver objects are kept per size.
-    PGS is swept again, warm-started, until our complementarity residual is below
-    ``tolerance`` (pin's own PGS stopping test is not reliable, see the module docstring).
+    Same interfaces as :class:`~ucontrol.solvers.proxsuite_lcp.ProxsuiteLCPSolver` (:meth:`solve`:
+    the impulses of :math:`0 \le P \perp D P + b \ge 0`) and
+    :class:`~ucontrol.solvers.proxsuite_coulomb.ProxsuiteCoulombSolver` (:meth:`solve_coulomb`).
+    Each contact is a 3D ``PointContactConstraintModel`` cone whose local z row carries the
+    normal row of (D, b) and whose local x, y rows carry its tangential rows, or an uncoupled
+    identity (see the module docstring). Solver objects are kept per size. PGS is swept again,
+    warm-started, until our residual is below ``tolerance`` (frictionless) or
+    ``residual_tolerance`` (Coulomb): pin's own PGS stopping test is not reliable, see the
+    module docstring.
 
     Args:
         method: ``"admm"`` or ``"pgs"``.
         tolerance: Absolute and relative feasibility and complementarity tolerance of the
-            backend, and bound on our residual for PGS, in [m/s].
+            backend, and bound on our frictionless residual for PGS, in [m/s].
         max_iter: Iteration cap of ADMM, or cap on the total PGS sweeps.
         compliance: Added to the diagonal of D in [m/s per N s], >= 0.
+        residual_tolerance: Natural-map residual of a Coulomb problem accepted as solved, in
+            [m/s] (:meth:`solve_coulomb`).
     """
 
     def __init__(
@@ -193,18 +214,24 @@ class PinocchioContactSolver:
         tolerance: float = 1e-12,
         max_iter: int = 10_000,
         compliance: float = 0.0,
+        residual_tolerance: float = 1e-8,
     ) -> None:
         self.method = _check_method(method)
         self.name = f"pinocchio-{method}"
         self.tolerance = as_positive("tolerance", tolerance)
         self.max_iter = int(as_positive("max_iter", max_iter))
         self.compliance = _check_compliance(compliance)
+        self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
         self._empty_model = pin.Model()
-        self._problems: dict[int, tuple[Any, ...]] = {}
+        self._problems: dict[tuple[int, bool], tuple[Any, ...]] = {}
 
-    def _problem(self, m: int) -> tuple[Any, ...]:
-        """Constraint models, datas, backend and buffers for m contacts."""
-        problem = self._problems.get(m)
+    def _problem(self, m: int, friction: bool = False) -> tuple[Any, ...]:
+        """Constraint models, datas, backend and buffers for m contacts.
+
+        The frictionless problems keep friction 0 on their models; the Coulomb ones (own
+        models, ``friction`` True) get the coefficients of each solve.
+        """
+        problem = self._problems.get((m, friction))
         if problem is None:
             models = pin.StdVec_ConstraintModel()
             datas = pin.StdVec_ConstraintData()
@@ -215,8 +242,25 @@ class PinocchioContactSolver:
             G = np.eye(3 * m)  # tangential block: identity, uncoupled
             g = np.zeros(3 * m)  # tangential drift: 0
             problem = (models, datas, backend, G, g)
-            self._problems[m] = problem
+            self._problems[m, friction] = problem
         return problem
+
+    def _run(
+        self,
+        G: Vector,
+        g: Vector,
+        models: Any,
+        datas: Any,
+        backend: tuple[Any, Any, Any],
+        residual: Callable[[Vector], float],
+        tolerance: float,
+    ) -> tuple[Vector, bool, int]:
+        """Solve the stacked 3D problem (G, g): impulses (3m,), converged, iterations."""
+        delassus = pin.DelassusOperatorDense(G)  # fresh: ADMM changes its damping in place
+        if self.compliance > 0.0:
+            delassus.updateCompliance(self.compliance)
+        pgs_until = (residual, tolerance, self.max_iter) if self.method == "pgs" else None
+        return _solve(self.name, backend, delassus, g, models, datas, pgs_until=pgs_until)
 
     def solve(self, D: NDArray[np.float64], b: NDArray[np.float64]) -> ContactSolution:
         """Impulses P >= 0 with D P + b >= 0 and P · (D P + b) = 0.
@@ -251,12 +295,9 @@ class PinocchioContactSolver:
         models, datas, backend, G, g = self._problem(m)
         G[_NORMAL, _NORMAL] = D
         g[_NORMAL] = b
-        delassus = pin.DelassusOperatorDense(G)  # fresh: ADMM changes its damping in place
-        if self.compliance > 0.0:
-            delassus.updateCompliance(self.compliance)
-        pgs_until = (G, self.tolerance, self.max_iter) if self.method == "pgs" else None
-        stacked, converged, iterations = _solve(
-            self.name, backend, delassus, g, models, datas, pgs_until=pgs_until
+        residual = partial(_normal_residual, G, g)
+        stacked, converged, iterations = self._run(
+            G, g, models, datas, backend, residual, self.tolerance
         )
         impulses = np.maximum(stacked[_NORMAL], 0.0)
         return ContactSolution(
@@ -265,6 +306,58 @@ class PinocchioContactSolver:
             status="solved" if converged else "max_iterations_reached",
             iterations=iterations,
             residual=complementarity_residual(D, b, impulses),
+            solve_time_s=time.perf_counter() - start,
+        )
+
+    def solve_coulomb(self, problem: CoulombProblem) -> ContactSolution:
+        """Impulses of the Coulomb problem ``problem``, by ADMM (``solve_ncp``) or PGS.
+
+        The status is ``"solved"`` when our natural-map residual is within
+        ``residual_tolerance``, otherwise ``"max_iterations_reached"`` (the backend did not
+        converge) or ``"inaccurate"`` (it converged by its own criteria only).
+
+        Args:
+            problem: The contact problem (D, b, friction coefficients, layout).
+
+        Raises:
+            NonFiniteValueError: ``problem.D`` holds NaN or infinity (flat indices).
+            SolverError: Pinocchio raised, or returned non-finite impulses.
+        """
+        start = time.perf_counter()
+        m = problem.m
+        bad = np.flatnonzero(~np.isfinite(problem.D))
+        if bad.size:
+            raise NonFiniteValueError("D", problem.D, bad.tolist())
+        models, datas, backend, G, g = self._problem(m, friction=True)
+        for constraint_model, mu in zip(models, problem.mu.tolist(), strict=True):
+            constraint_model.extract().setFriction(mu)
+        positions = _local_positions(problem)
+        G[:] = 0.0
+        G[np.diag_indices(3 * m)] = 1.0  # uncoupled identity where no row of ours goes
+        G[np.ix_(positions, positions)] = problem.D
+        g[:] = 0.0
+        g[positions] = problem.b
+
+        def residual(stacked: Vector) -> float:
+            return problem.residual(stacked[positions])
+
+        stacked, converged, iterations = self._run(
+            G, g, models, datas, backend, residual, self.residual_tolerance
+        )
+        impulses = stacked[positions]
+        impulses[:m] = np.maximum(impulses[:m], 0.0)
+        velocity = problem.velocity(impulses)
+        value = problem.residual(impulses, velocity)
+        if value <= self.residual_tolerance:
+            status = "solved"
+        else:
+            status = "inaccurate" if converged else "max_iterations_reached"
+        return ContactSolution(
+            impulses=impulses,
+            velocity=velocity,
+            status=status,
+            iterations=iterations,
+            residual=value,
             solve_time_s=time.perf_counter() - start,
         )
 
@@ -434,7 +527,8 @@ class PinocchioStepper:
             drift[_NORMAL] += restitution * normal_velocity[list(indices)]
             pgs_until = None
             if self.pgs_until_solved:
-                pgs_until = (delassus.matrix(), self.tolerance, self.max_iter)
+                residual = partial(_normal_residual, delassus.matrix(), drift)
+                pgs_until = (residual, self.tolerance, self.max_iter)
             impulses, converged, iterations = _solve(
                 self.name, backend, delassus, drift, models, datas, pgs_until=pgs_until
             )
@@ -478,9 +572,20 @@ def pinocchio_step(
     return PinocchioStepper(model, contacts, dt=dt, data=data, **options).step(q, v, tau)
 
 
+def _local_positions(problem: CoulombProblem) -> NDArray[np.intp]:
+    """Where each row of ``problem`` goes in the stacked 3D problem, shape (r,).
+
+    Contact a occupies rows 3a (local x: first tangent), 3a + 1 (local y: second tangent)
+    and 3a + 2 (local z: normal).
+    """
+    m = problem.m
+    positions = np.empty(problem.size + 1, dtype=np.intp)  # last entry: sink of missing rows
+    positions[:m] = 3 * np.arange(m) + 2
+    positions[problem.tangent_rows[:, 0]] = 3 * np.arange(m)
+    positions[problem.tangent_rows[:, 1]] = 3 * np.arange(m) + 1
+    return positions[: problem.size]
+
+
 def _rotation_with_z(normal: Vector) -> Vector:
     """A rotation matrix (3, 3) whose third column is the unit vector ``normal``."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x_axis = np.cross(helper, normal)
-    x_axis /= np.linalg.norm(x_axis)
-    return np.column_stack((x_axis, np.cross(normal, x_axis), normal))
+    return np.column_stack((*tangent_basis(normal), normal))

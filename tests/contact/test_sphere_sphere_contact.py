@@ -1,0 +1,161 @@
+"""Sphere–sphere contacts and friction rows of ConstraintSet, against finite differences.
+
+Two free-flying spheres (free-flyer joints, nq = 14, nv = 12) and a sphere against a plane:
+gaps, normal rows, tangential rows (velocity of the contact points, rotation included) and the
+drift J̇v are compared with finite differences along ``pin.integrate``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import ROBOTS
+
+from ucontrol.contact import ConstraintSet, Plane, PointContact, SphereSphereContact
+from ucontrol.contact.tangent_basis import tangent_basis
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.model import RobotModel
+
+_STEP = 1e-7  # finite-difference step [s]
+_FD_TOLERANCE = 1e-6  # relative
+_R1, _R2 = 0.1, 0.15  # [m]
+
+_TWO_SPHERES = """<?xml version="1.0"?>
+<robot name="two_spheres">
+  <link name="base"/>
+  <joint name="first_joint" type="floating"><parent link="base"/><child link="first"/></joint>
+  <link name="first"><inertial><mass value="1.0"/>
+    <inertia ixx="0.004" ixy="0" ixz="0" iyy="0.004" iyz="0" izz="0.004"/></inertial></link>
+  <joint name="second_joint" type="floating"><parent link="base"/><child link="second"/></joint>
+  <link name="second"><inertial><mass value="2.0"/>
+    <inertia ixx="0.018" ixy="0" ixz="0" iyy="0.018" iyz="0" izz="0.018"/></inertial></link>
+</robot>
+"""
+
+
+def _spheres(friction: float = 0.4) -> tuple[RobotModel, ConstraintSet]:
+    robot = RobotModel(pin.buildModelFromXML(_TWO_SPHERES))
+    ground = Plane(normal=np.array([0.1, 0.2, 1.0]), name="ground")
+    contacts = [PointContact(frame="second", surface=ground, radius=_R2, friction=friction)]
+    pair = SphereSphereContact(
+        frame="first", other_frame="second", radius=_R1, other_radius=_R2, friction=friction
+    )
+    return robot, ConstraintSet(robot, contacts, sphere_contacts=[pair])
+
+
+def _state(robot: RobotModel, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    q = pin.randomConfiguration(robot.model, -np.ones(robot.nq), np.ones(robot.nq))
+    q[:3] = [0.3, 0.1, 0.5]
+    q[7:10] = [0.0, 0.0, 0.1]
+    return q, rng.standard_normal(robot.nv)
+
+
+def _kinematics(robot: RobotModel, q: np.ndarray, v: np.ndarray) -> pin.Data:
+    data = robot.model.createData()
+    pin.computeAllTerms(robot.model, data, q, v)
+    pin.updateFramePlacements(robot.model, data)
+    return data
+
+
+def test_gap_and_normal_velocity() -> None:
+    robot, constraints = _spheres()
+    q, v = _state(robot)
+    data = _kinematics(robot, q, v)
+    gap, velocity = constraints.evaluate(data, q, v)
+    p1, p2 = (data.oMf[robot.frame_id(name)].translation for name in ("first", "second"))
+    assert gap[1] == pytest.approx(np.linalg.norm(p1 - p2) - _R1 - _R2, abs=1e-15)
+    q_next = pin.integrate(robot.model, q, _STEP * v)
+    numeric = (constraints.gaps(q_next) - constraints.gaps(q)) / _STEP
+    assert np.allclose(velocity, numeric, rtol=_FD_TOLERANCE, atol=_FD_TOLERANCE)
+    rows = constraints.jacobian(data, [0, 1])
+    assert np.allclose(rows @ v, velocity)
+
+
+def test_tangent_rows_are_contact_point_velocities() -> None:
+    """Each row times v is the tangential velocity of the contact point, spin included."""
+    robot, constraints = _spheres()
+    q, v = _state(robot, 1)
+    data = _kinematics(robot, q, v)
+    rows, directions = constraints.tangent_rows(data, [0, 1])
+    assert rows.shape == (4, robot.nv) and directions.shape == (4, 3)
+    first, second = (data.oMf[robot.frame_id(name)] for name in ("first", "second"))
+    pair_normal = first.translation - second.translation
+    pair_normal /= np.linalg.norm(pair_normal)
+    ground = constraints.contacts[0].surface.normal
+    # material points: on `second` at -R2 n_ground; on `first` at -R1 n; on `second` at +R2 n
+    points = [
+        (second, -_R2 * ground, +1.0),
+        (first, -_R1 * pair_normal, +1.0),
+        (second, _R2 * pair_normal, -1.0),
+    ]
+    local = [(frame, frame.rotation.T @ offset, sign) for frame, offset, sign in points]
+
+    def positions(q_: np.ndarray) -> list[np.ndarray]:
+        data_ = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data_, q_)
+        frames = {id(first): "first", id(second): "second"}
+        return [
+            data_.oMf[robot.frame_id(frames[id(frame)])].act(offset) for frame, offset, _ in local
+        ]
+
+    before, after = positions(q), positions(pin.integrate(robot.model, q, _STEP * v))
+    velocity = [(b - a) / _STEP for a, b in zip(before, after, strict=True)]
+    plane_velocity = velocity[0]
+    pair_velocity = velocity[1] - velocity[2]
+    assert np.allclose(directions[:2], tangent_basis(ground))
+    assert np.allclose(directions[2:], tangent_basis(pair_normal))
+    assert np.allclose(rows[:2] @ v, directions[:2] @ plane_velocity, atol=1e-6)
+    assert np.allclose(rows[2:] @ v, directions[2:] @ pair_velocity, atol=1e-6)
+
+
+def test_normal_drift() -> None:
+    """J̇v: the derivative of J(q(t)) v along the motion at constant v."""
+    robot, constraints = _spheres()
+    q, v = _state(robot, 2)
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, q, v, np.zeros(robot.nv))
+    pin.updateFramePlacements(robot.model, data)
+    drift = constraints.normal_drift(data, [0, 1])
+    q_next = pin.integrate(robot.model, q, _STEP * v)
+    rows = [constraints.jacobian(_kinematics(robot, x, v), [0, 1]) @ v for x in (q, q_next)]
+    assert np.allclose(drift, (rows[1] - rows[0]) / _STEP, rtol=1e-5, atol=1e-5)
+
+
+def test_friction_layout() -> None:
+    _, constraints = _spheres()
+    assert constraints.names == ["second/ground", "first/second"]
+    assert constraints.tangent_count.tolist() == [2, 2] and constraints.has_friction
+    _, frictionless = _spheres(friction=0.0)
+    assert not frictionless.has_friction
+
+
+def test_planar_axis_gives_one_tangent_in_the_plane() -> None:
+    robot = RobotModel.from_urdf(ROBOTS / "rod.urdf")
+    ground = Plane(name="ground")
+    contact = PointContact(frame="rod_end", surface=ground, friction=0.5)
+    constraints = ConstraintSet(robot, [contact], planar_axis=np.array([0.0, 2.0, 0.0]))
+    assert constraints.tangent_count.tolist() == [1]
+    data = _kinematics(robot, np.array([0.0, 0.3, 0.4]), np.zeros(3))
+    _, directions = constraints.tangent_rows(data, [0])
+    assert np.allclose(directions, [[1.0, 0.0, 0.0]])  # y × z
+
+
+def test_bad_contacts_raise() -> None:
+    with pytest.raises(InvalidParameterError, match="`other_frame` must be a frame other"):
+        SphereSphereContact(frame="a", other_frame="a")
+    with pytest.raises(InvalidParameterError, match="`other_radius` must be >= 0"):
+        SphereSphereContact(frame="a", other_frame="b", other_radius=-1.0)
+    with pytest.raises(InvalidParameterError, match="`friction` must be >= 0"):
+        SphereSphereContact(frame="a", other_frame="b", friction=-0.1)
+    robot = RobotModel.from_urdf(ROBOTS / "rod.urdf")
+    tilted = Plane(normal=np.array([0.0, 1.0, 1.0]), name="tilted")
+    with pytest.raises(InvalidParameterError, match="`planar_axis` must be orthogonal"):
+        ConstraintSet(
+            robot,
+            [PointContact(frame="rod_end", surface=tilted)],
+            planar_axis=np.array([0.0, 1.0, 0.0]),
+        )
+    with pytest.raises(InvalidParameterError, match="`planar_axis` must be a non-zero"):
+        ConstraintSet(robot, planar_axis=np.zeros(3))

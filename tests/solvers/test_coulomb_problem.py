@@ -1,0 +1,99 @@
+"""The Coulomb problem's natural-map residual and cone projection, against their definitions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ucontrol.exceptions import InvalidParameterError, ShapeError
+from ucontrol.solvers import CoulombProblem, complementarity_residual
+from ucontrol.solvers.coulomb_problem import project_on_cones
+
+_ROUND_OFF = 1e-14  # [m/s] on problems of unit scale
+
+
+def _single(mu: float, D: np.ndarray, b: np.ndarray) -> CoulombProblem:
+    """One contact with len(b) - 1 tangential rows."""
+    return CoulombProblem(D, b, np.array([mu]), np.array([b.size - 1]))
+
+
+def test_frictionless_residual_is_the_lcp_natural_map() -> None:
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((5, 5))
+    D = A @ A.T + np.eye(5)
+    b = rng.standard_normal(5)
+    problem = CoulombProblem(D, b, np.full(5, 0.7), np.zeros(5, dtype=int))  # mu ignored
+    for _ in range(10):
+        P = np.maximum(rng.standard_normal(5), 0.0)
+        assert problem.residual(P) == pytest.approx(complementarity_residual(D, b, P), abs=1e-15)
+
+
+@pytest.mark.parametrize("tangents", [1, 2])
+def test_residual_vanishes_at_the_three_statuses(tangents: int) -> None:
+    D = np.eye(1 + tangents)
+    mu = 0.5
+    # separating: P = 0, u_n > 0, any u_t
+    b = np.array([1.0, 2.0, -1.0][: 1 + tangents])
+    assert _single(mu, D, b).residual(np.zeros(1 + tangents)) <= _ROUND_OFF
+    # sticking: u = 0 with |P_t| < mu P_n
+    b = np.array([-1.0, 0.3, -0.2][: 1 + tangents])
+    assert _single(mu, D, b).residual(-b) <= _ROUND_OFF
+    # sliding: u_n = 0, P_t = -mu P_n u_t / |u_t|
+    b = np.array([-1.0, 2.0, 1.0][: 1 + tangents])
+    direction = b[1:] / np.linalg.norm(b[1:])
+    P = np.concatenate(([1.0], -mu * direction))
+    problem = _single(mu, D, b)
+    u = problem.velocity(P)
+    assert u[0] == pytest.approx(0.0, abs=1e-15)
+    assert np.allclose(u[1:] / np.linalg.norm(u[1:]), direction)
+    assert problem.residual(P) <= _ROUND_OFF
+
+
+@pytest.mark.parametrize(
+    ("P", "reason"),
+    [
+        ([1.0, 0.8], "outside the cone"),
+        ([1.0, 0.2], "sticks while sliding"),
+        ([1.0, 0.5], "friction along the sliding velocity"),
+        ([0.0, 0.0], "lets the contact penetrate"),
+    ],
+)
+def test_residual_is_positive_away_from_a_solution(P: list[float], reason: str) -> None:
+    problem = _single(0.5, np.eye(2), np.array([-1.0, 2.0]))
+    assert problem.residual(np.array(P)) > 0.01, reason
+
+
+def test_projection_on_cones() -> None:
+    rng = np.random.default_rng(1)
+    mu = rng.uniform(0.0, 1.5, 200)
+    z_n, z_t = rng.standard_normal(200), rng.standard_normal((200, 2))
+    p_n, p_t = project_on_cones(z_n, z_t, mu)
+    assert np.all(np.linalg.norm(p_t, axis=1) <= mu * p_n + 1e-12)  # in the cone
+    again = project_on_cones(p_n, p_t, mu)  # idempotent
+    assert np.allclose(again[0], p_n) and np.allclose(again[1], p_t)
+    # Moreau: z - p is in the polar cone and orthogonal to p
+    r_n, r_t = z_n - p_n, z_t - p_t
+    assert np.allclose(r_n * p_n + np.sum(r_t * p_t, axis=1), 0.0, atol=1e-12)
+    assert np.all(mu * np.linalg.norm(r_t, axis=1) <= -r_n + 1e-12)
+
+
+def test_layout_and_gathers() -> None:
+    tangents = np.array([2, 0, 1])
+    problem = CoulombProblem(np.eye(6), np.arange(6.0), np.array([0.5, 0.5, 0.2]), tangents)
+    assert problem.m == 3 and problem.size == 6 and problem.spatial
+    assert problem.tangent_rows.tolist() == [[3, 4], [6, 6], [5, 6]]
+    assert problem.mu.tolist() == [0.5, 0.0, 0.2]  # no tangential row: frictionless
+    assert problem.tangential(np.arange(6.0)).tolist() == [[3.0, 4.0], [0.0, 0.0], [5.0, 0.0]]
+
+
+def test_bad_problems_raise() -> None:
+    with pytest.raises(ShapeError, match="`b` must have shape"):
+        CoulombProblem(np.eye(3), np.zeros(2), np.array([0.5]), np.array([2]))
+    with pytest.raises(ShapeError, match="`D` must have shape"):
+        CoulombProblem(np.eye(2), np.zeros(3), np.array([0.5]), np.array([2]))
+    with pytest.raises(ShapeError, match="`mu` must have shape"):
+        CoulombProblem(np.eye(3), np.zeros(3), np.array([0.5, 0.5]), np.array([2]))
+    with pytest.raises(InvalidParameterError, match="`mu` must be >= 0"):
+        CoulombProblem(np.eye(3), np.zeros(3), np.array([-0.5]), np.array([2]))
+    with pytest.raises(InvalidParameterError, match="`tangents` must be 0, 1 or 2"):
+        CoulombProblem(np.eye(4), np.zeros(4), np.array([0.5]), np.array([3]))

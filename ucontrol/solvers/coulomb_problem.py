@@ -1,0 +1,139 @@
+r"""The velocity-level Coulomb contact problem of one Moreau–Jean step, and its residual.
+
+m contacts; contact a has a normal row and :math:`k_a \in \{0, 1, 2\}` tangential rows (0:
+frictionless or a joint stop, 1: planar friction, 2: spatial friction). The rows are stacked
+**normals first** (rows 0 … m-1), then the tangential rows contact after contact. With
+:math:`u = D P + b` (:math:`D = H W^{-1} H^T`, :math:`b = H v_\text{free}` plus the restitution
+term :math:`e_a u_{n,a}^-` on the normal rows), each contact obeys Coulomb's law at velocity
+level with Newton's restitution, in De Saxcé's form
+
+.. math:: K_a \ni P_a \perp \hat u_a \in K_a^*, \qquad
+          \hat u_a = u_a + \mu_a \|u_{t,a}\| e_n, \qquad
+          K_a = \{ \|P_t\| \le \mu_a P_n \},
+
+the second-order cone complementarity problem of Acary & Brogliato (2008) ch. 13: a separating
+contact has :math:`P_a = 0, u_n \ge 0`; a sticking one :math:`u_a = 0, \|P_t\| \le \mu P_n`; a
+sliding one :math:`u_n = 0, P_t = -\mu P_n u_t / \|u_t\|`.
+
+Its **natural-map residual** (:meth:`CoulombProblem.residual`), in [m/s], is
+
+.. math:: r = \max_a \big\| \sigma_a P_a - \Pi_{K_a}(\sigma_a P_a - \hat u_a) \big\|_\infty,
+
+with :math:`\sigma_a = D_{n_a n_a}` turning impulses into velocities; it vanishes exactly at
+solutions of the true (non-convex) Coulomb problem, and for frictionless contacts it is the
+LCP's :math:`|\min(\sigma P, u)|` of :func:`~ucontrol.solvers.complementarity_residual`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol.exceptions import InvalidParameterError, ShapeError
+
+Vector = NDArray[np.float64]
+
+
+class CoulombProblem:
+    """Data of a Coulomb contact problem (see the module docstring for the row layout).
+
+    Args:
+        D: Delassus matrix, symmetric positive semidefinite, shape (r, r), [m/s per N s].
+        b: Free velocity plus restitution, shape (r,), in [m/s].
+        mu: Friction coefficient of each contact, >= 0, shape (m,).
+        tangents: Tangential rows of each contact (0, 1 or 2), shape (m,); the contacts
+            with 0 are frictionless whatever their ``mu``.
+
+    Attributes:
+        m: Number of contacts.
+        size: Number of rows r = m + sum(tangents).
+        tangent_rows: Row of the first and second tangential component of each contact,
+            shape (m, 2); ``size`` where the contact has no such row (gathers read a 0 there).
+        spatial: Whether any contact has two tangential rows.
+
+    Raises:
+        ShapeError: The shapes do not fit together.
+        InvalidParameterError: A friction coefficient is negative or a tangent count is not
+            0, 1 or 2.
+    """
+
+    def __init__(self, D: Vector, b: Vector, mu: Vector, tangents: NDArray[np.intp]) -> None:
+        tangents = np.asarray(tangents, dtype=np.intp)
+        mu = np.asarray(mu, dtype=float)
+        m = tangents.size
+        size = m + int(tangents.sum())
+        if b.shape != (size,):
+            raise ShapeError("b", (size,), b.shape)
+        if D.shape != (size, size):
+            raise ShapeError("D", (size, size), D.shape)
+        if mu.shape != (m,):
+            raise ShapeError("mu", (m,), mu.shape)
+        if np.any(mu < 0.0):
+            raise InvalidParameterError("mu", mu.tolist(), ">= 0 for every contact")
+        if np.any((tangents < 0) | (tangents > 2)):
+            raise InvalidParameterError("tangents", tangents.tolist(), "0, 1 or 2 per contact")
+        self.D = D
+        self.b = b
+        self.tangents = tangents
+        self.mu = np.where(tangents > 0, mu, 0.0)
+        self.m = m
+        self.size = size
+        first = m + np.concatenate(([0], np.cumsum(tangents)[:-1])).astype(np.intp)
+        self.tangent_rows = np.column_stack(
+            (np.where(tangents > 0, first, size), np.where(tangents > 1, first + 1, size))
+        )
+        self.spatial = bool(np.any(tangents == 2))
+        scale = D.diagonal()[:m].copy()
+        scale[scale <= 0.0] = 1.0
+        self.normal_scale = scale
+
+    def velocity(self, P: Vector) -> Vector:
+        """Constraint velocities with restitution ``D P + b`` in [m/s], shape (r,)."""
+        return self.D @ P + self.b
+
+    def tangential(self, x: Vector) -> Vector:
+        """The tangential components of stacked rows ``x`` (r,), per contact, shape (m, 2).
+
+        Missing components (frictionless or planar contacts) are 0.
+        """
+        return np.append(x, 0.0)[self.tangent_rows]
+
+    def residual(self, P: Vector, velocity: Vector | None = None) -> float:
+        """Natural-map residual of the Coulomb problem at impulses ``P`` (r,), in [m/s].
+
+        Args:
+            P: Stacked impulses in [N s], shape (r,).
+            velocity: ``D P + b`` if already computed, shape (r,).
+        """
+        if self.m == 0:
+            return 0.0
+        u = self.velocity(P) if velocity is None else velocity
+        sigma = self.normal_scale
+        u_t = self.tangential(u)
+        z_n = sigma * P[: self.m] - (u[: self.m] + self.mu * np.linalg.norm(u_t, axis=1))
+        sigma_P_t = sigma[:, None] * self.tangential(P)
+        pi_n, pi_t = project_on_cones(z_n, sigma_P_t - u_t, self.mu)
+        r_n = np.abs(sigma * P[: self.m] - pi_n)
+        r_t = np.abs(sigma_P_t - pi_t)
+        return float(max(r_n.max(), r_t.max()))
+
+
+def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vector]:
+    r"""Euclidean projection of each :math:`(z_n, z_t)` on :math:`\{\|x_t\| \le \mu x_n\}`.
+
+    Args:
+        z_n: Normal components, shape (m,).
+        z_t: Tangential components, shape (m, 2).
+        mu: Cone apertures (friction coefficients) >= 0, shape (m,).
+
+    Returns:
+        The projected normal (m,) and tangential (m, 2) components.
+    """
+    t = np.linalg.norm(z_t, axis=1)
+    inside = (t <= mu * z_n) & (z_n >= 0.0)  # z_n >= 0 matters for mu = 0
+    polar = mu * t <= -z_n  # the polar cone projects on the apex
+    boundary_n = (z_n + mu * t) / (1.0 + mu * mu)
+    ratio = np.divide(mu * boundary_n, t, out=np.zeros_like(t), where=t > 0.0)
+    p_n = np.where(inside, z_n, np.where(polar, 0.0, boundary_n))
+    p_t = np.where(inside[:, None], z_t, np.where(polar[:, None], 0.0, ratio[:, None] * z_t))
+    return p_n, p_t

@@ -1,0 +1,155 @@
+r"""From an approximate QP solution to an exact one of the frictionless contact LCP.
+
+Every QP backend of :math:`0 \le P \perp D P + b \ge 0`
+(:class:`~ucontrol.solvers.proxsuite_lcp.ProxsuiteLCPSolver`,
+:class:`~ucontrol.solvers.qpsolvers_lcp.QpsolversLCPSolver`) returns impulses accurate to its
+tolerance. :func:`refine_lcp_solution` then polishes them: the linear system of the active set the
+QP identified is solved directly and kept when it satisfies complementarity better, which brings
+restitution to machine precision. Small problems still above the residual tolerance (nearly
+dependent constraints, where iterative QP methods stall) are solved again by Lemke's method.
+:func:`single_constraint_solution` is the closed form of a one-constraint problem.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import numpy as np
+import scipy.optimize
+from numpy.typing import NDArray
+
+from ucontrol.exceptions import SolverError
+from ucontrol.solvers.contact_solution import (
+    ContactSolution,
+    natural_map_residual,
+    velocity_scale,
+)
+from ucontrol.solvers.lemke import solve_lcp_lemke
+
+#: QP solutions with a complementarity residual above this, in [m/s], are polished: Newton's
+#: law then holds to this accuracy at every impact whatever the QP's tolerance.
+POLISH_THRESHOLD = 1e-13
+#: Problems up to this size that the QP and the polish leave above the residual tolerance
+#: are solved again by Lemke's pivoting method.
+LEMKE_FALLBACK_SIZE = 50
+
+Vector = NDArray[np.float64]
+
+
+class RefinedSolution(NamedTuple):
+    """Impulses after refinement.
+
+    Attributes:
+        impulses: Normal impulses P >= 0 in [N s], shape (m,).
+        velocity: ``D P + b`` in [m/s], shape (m,).
+        residual: Complementarity residual in [m/s].
+        polished: Whether the polish or Lemke's method replaced the QP's impulses.
+    """
+
+    impulses: Vector
+    velocity: Vector
+    residual: float
+    polished: bool
+
+
+def refine_lcp_solution(
+    D: Vector, b: Vector, x: Vector, *, polish: bool, residual_tolerance: float
+) -> RefinedSolution:
+    """Polish the QP solution ``x`` (m,) of ``(D, b)``; Lemke for small stalled problems.
+
+    Args:
+        D: Delassus matrix, symmetric positive semidefinite, shape (m, m), [m/s per N s].
+        b: Free constraint velocity plus restitution term in [m/s], shape (m,).
+        x: Impulses returned by the QP backend in [N s], shape (m,).
+        polish: Refine on the active set when the residual exceeds :data:`POLISH_THRESHOLD`.
+        residual_tolerance: Residual in [m/s] above which Lemke's method is tried.
+    """
+    scale = velocity_scale(D)
+    impulses = np.maximum(x, 0.0)
+    velocity = D @ impulses + b
+    residual = natural_map_residual(scale, impulses, velocity)
+    polished = False
+    if polish and residual > POLISH_THRESHOLD:
+        candidate = _solve_on_active_set(D, b, scale * impulses > velocity)
+        if candidate is not None:
+            candidate_velocity = D @ candidate + b
+            candidate_residual = natural_map_residual(scale, candidate, candidate_velocity)
+            if candidate_residual <= residual:
+                impulses, velocity, residual = candidate, candidate_velocity, candidate_residual
+                polished = True
+    if residual > residual_tolerance and b.size <= LEMKE_FALLBACK_SIZE:
+        # Ill-conditioned D (constraints nearly dependent): pivoting is exact where the
+        # proximal iterations stall.
+        try:
+            pivoted = solve_lcp_lemke(D, b)
+        except SolverError:
+            pivoted = None
+        if pivoted is not None and pivoted.residual < residual:
+            impulses, velocity, residual = pivoted.impulses, pivoted.velocity, pivoted.residual
+            polished = True
+    return RefinedSolution(impulses, velocity, residual, polished)
+
+
+def single_constraint_solution(D: Vector, b: Vector, start: float) -> ContactSolution:
+    """Exact solution of a one-constraint LCP, the projection ``P = max(0, -b / D)``.
+
+    Args:
+        D: Shape (1, 1), in [m/s per N s].
+        b: Shape (1,), in [m/s].
+        start: ``time.perf_counter()`` at the start of the solve, for its timing.
+    """
+    d, beta = float(D[0, 0]), float(b[0])
+    impulse = -beta / d if beta < 0.0 and d > 0.0 else 0.0
+    velocity = d * impulse + beta
+    residual = abs(min(d * impulse if d > 0.0 else impulse, velocity))
+    return ContactSolution(
+        np.array([impulse]),
+        np.array([velocity]),
+        "solved" if d > 0.0 or beta >= 0.0 else "infeasible",
+        0,
+        residual,
+        time.perf_counter() - start,
+        False,
+    )
+
+
+def _solve_on_active_set(D: Vector, b: Vector, active: NDArray[np.bool_]) -> Vector | None:
+    """Impulses with ``D_AA P_A = -b_A`` on ``active`` and 0 elsewhere; None if some P_A < 0."""
+    candidate = np.zeros(b.size)
+    if not active.any():
+        return candidate
+    if active.all():
+        D_active, b_active = D, b
+    else:
+        D_active, b_active = D[np.ix_(active, active)], b[active]
+    if b_active.size == 1:
+        if D_active[0, 0] <= 0.0:
+            return None
+        P_active = -b_active / D_active[0, 0]
+    else:
+        P_active = _non_negative_solve(D_active, -b_active)
+    if np.any(P_active < 0.0):
+        return None
+    candidate[active] = P_active
+    return candidate
+
+
+def _non_negative_solve(A: Vector, y: Vector) -> NDArray[np.floating]:
+    """A solution x >= 0 of the consistent system ``A x = y`` (A symmetric PSD), if one exists.
+
+    A direct solve first (regular A); redundant constraints make A singular, where the
+    minimum-norm least-squares solution may be negative although a non-negative one exists,
+    which non-negative least squares finds.
+    """
+    x: NDArray[np.floating]
+    try:
+        x = np.linalg.solve(A, y)
+        if np.all(x >= 0.0) and np.max(np.abs(A @ x - y)) <= 1e-12 * (1.0 + np.max(np.abs(y))):
+            return x
+    except np.linalg.LinAlgError:
+        pass
+    x = np.linalg.lstsq(A, y, rcond=1e-12)[0]
+    if np.any(x < 0.0):
+        x = scipy.optimize.nnls(A, y)[0]
+    return x

@@ -1,0 +1,447 @@
+r"""Coulomb friction at velocity level as a fixed point of proxsuite QPs (Tresca iterations).
+
+The Coulomb problem of :mod:`ucontrol.solvers.coulomb_problem` is not the optimality system of
+any convex QP: the friction bound :math:`\mu P_n` depends on the unknown normal impulse. With the
+bound frozen at thresholds :math:`s_a` it becomes Tresca's problem, which is a convex QP
+(Haslinger's method; Acary & Brogliato 2008, §13.4):
+
+.. math:: \min_P \tfrac12 P^T D P + b^T P \quad \text{s.t.} \quad P_{n,a} \ge 0, \quad
+          P_{t,a} \in s_a \mathcal{D}_a,
+
+:math:`\mathcal{D}_a` the unit interval :math:`[-1, 1]` for a planar contact (a box constraint)
+and, for a spatial one, a polygon of ``facets`` facets tangent to the unit disk (linear
+inequalities :math:`c_k \cdot P_t \le s_a`; a square by default). One facet is turned at every
+iteration to face the current tangential impulse, so that where a contact slides its impulse
+ends on the disk itself, not on the polygon; the polish (below) then makes it exact.
+:class:`ProxsuiteCoulombSolver` iterates
+
+1. solve Tresca's QP for the thresholds :math:`s` (proxsuite, warm-started);
+2. measure the natural-map residual of the *true* Coulomb problem; stop when it is at most
+   ``residual_tolerance``;
+3. polish (when the residual exceeds
+   :data:`~ucontrol.solvers.lcp_refinement.POLISH_THRESHOLD`, as for the frictionless LCP):
+   semismooth Newton iterations on the Alart–Curnier function from the QP's impulses, kept
+   while the residual decreases; where the QP found the right contact statuses this brings the
+   residual to round-off, which makes friction impulses exact and a sliding block's
+   acceleration exact to ~1e-12;
+4. :math:`s \leftarrow s + \omega (\mu P_n - s)` (:math:`\omega = 1`, halved whenever two
+   successive updates point in opposite directions) and facets turned; repeat.
+
+The first solve of a contact layout starts from unbounded friction (:math:`s = \infty`: the
+sticking problem, solved in one QP wherever the contacts stick; from :math:`s = 0`, the
+frictionless problem, if that QP is unbounded); later ones start from the last
+solution of the same layout, and start again from :math:`s = \infty` if that has not converged
+halfway through ``max_iter`` or has stalled. Starting from small thresholds misses tangential
+impacts (Painlevé's paradox): there the map :math:`s \mapsto \mu P_n(s)` of the sliding
+contacts expands and the solution is a sticking impulse far above the sliding ones.
+
+The fixed point converges for moderate friction and conditioning; the solve reports
+``"solved"`` only when the residual is within ``residual_tolerance``, otherwise
+``"max_iterations_reached"`` (or ``"stalled"`` when the thresholds stopped moving) and the
+caller decides (error or warning).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_positive
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.solvers.contact_solution import ContactSolution
+from ucontrol.solvers.coulomb_problem import CoulombProblem
+from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD
+from ucontrol.solvers.proxsuite_qp import INFINITY, QP_SOLVED, WarmStartedQP
+
+Vector = NDArray[np.float64]
+
+#: Smallest relaxation factor of the threshold update.
+MIN_RELAXATION = 1.0 / 16.0
+#: Exact solves on guessed contact statuses per polish (each turns the sliding directions).
+STATUS_PASSES = 1
+#: Newton iterations of the polish per fixed-point iteration.
+NEWTON_ITERATIONS = 20
+#: Relative singular value below which least squares drops a direction (redundant contacts).
+LSTSQ_CONDITION = 1e-10
+#: Smallest step length of the polish's backtracking line search.
+MIN_STEP = 1.0 / 64.0
+
+
+class ProxsuiteCoulombSolver:
+    """Solve Coulomb contact problems by Tresca fixed-point iterations of proxsuite QPs.
+
+    Args:
+        residual_tolerance: Natural-map residual of the Coulomb problem accepted as solved,
+            in [m/s].
+        max_iter: Cap on the fixed-point iterations (Tresca QPs) per solve.
+        eps_abs: Absolute tolerance of proxsuite for each Tresca QP, in [m/s].
+        qp_max_iter: Iteration cap of proxsuite for each Tresca QP.
+        facets: Facets of the polygon that stands for the friction disk of spatial contacts.
+        polish: Refine each iterate by exact solves on the contact statuses it suggests and
+            semismooth Newton iterations (step 3 of the module docstring).
+    """
+
+    name = "proxsuite-tresca"
+
+    def __init__(
+        self,
+        *,
+        residual_tolerance: float = 1e-8,
+        max_iter: int = 100,
+        eps_abs: float = 1e-10,
+        qp_max_iter: int = 5000,
+        facets: int = 4,
+        polish: bool = True,
+    ) -> None:
+        self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
+        self.max_iter = int(as_positive("max_iter", max_iter))
+        if int(facets) < 3:
+            raise InvalidParameterError("facets", facets, ">= 3")
+        self.facets = int(facets)
+        self.polish = polish
+        self._qp = WarmStartedQP(eps_abs=eps_abs, max_iter=qp_max_iter, bounds_change=True)
+        angles = 2.0 * np.pi * np.arange(self.facets) / self.facets
+        self._facet_angles = np.column_stack((np.cos(angles), np.sin(angles)))  # (facets, 2)
+        self._guesses: dict[bytes, Vector] = {}
+
+    def solve_coulomb(self, problem: CoulombProblem) -> ContactSolution:
+        """Impulses solving ``problem`` to ``residual_tolerance``, if it is reached.
+
+        Args:
+            problem: The contact problem (D, b, friction coefficients, layout).
+        """
+        start = time.perf_counter()
+        m = problem.m
+        key = problem.tangents.tobytes()
+        guess = self._guesses.get(key)
+        free = -problem.tangential(problem.b)
+        thresholds, directions = _unbounded(problem, free)
+        if guess is not None:
+            thresholds = problem.mu * np.maximum(guess[:m], 0.0)
+            directions = _directions(problem.tangential(guess), free)
+        best_P, best_u, best = np.zeros(problem.size), problem.b, np.inf
+        qp_iterations, polished, status, outer = 0, False, "", 0
+        relaxation, previous_step = 1.0, np.zeros(m)
+        restarted = guess is None
+        while outer < self.max_iter:
+            outer += 1
+            P, iterations, qp_solved = self._tresca(problem, thresholds, directions)
+            qp_iterations += iterations
+            if not qp_solved and thresholds.max(initial=0.0) >= INFINITY:
+                # The sticking problem can be unbounded (redundant contacts whose b leaves the
+                # range of D): start from the frictionless impulses instead (s = 0).
+                thresholds = np.zeros(m)
+                continue
+            u = problem.velocity(P)
+            candidate = (P, u, problem.residual(P, u), False)
+            if self.polish and candidate[2] > POLISH_THRESHOLD:
+                candidate = _polish(problem, *candidate[:3])
+                polished = polished or candidate[3]
+            if candidate[2] < best:
+                best_P, best_u, best = candidate[:3]
+            if best <= self.residual_tolerance:
+                break
+            step = problem.mu * P[:m] - thresholds  # the Tresca map, from the QP's impulses
+            stalled = np.max(np.abs(step), initial=0.0) <= 1e-15 * (1.0 + np.max(thresholds))
+            if (stalled or outer == self.max_iter // 2) and not restarted:
+                # A warm start that does not converge (e.g. a tangential impact after sliding:
+                # the map then expands) starts again from unbounded friction.
+                thresholds, directions = _unbounded(problem, free)
+                relaxation, previous_step, restarted = 1.0, np.zeros(m), True
+                continue
+            if stalled:
+                status = "stalled"
+                break
+            if thresholds.max(initial=0.0) >= INFINITY:  # from unbounded friction
+                thresholds, previous_step = problem.mu * P[:m], np.zeros(m)
+            else:
+                if step @ previous_step < 0.0:  # oscillation: damp
+                    relaxation = max(0.5 * relaxation, MIN_RELAXATION)
+                thresholds = thresholds + relaxation * step
+                previous_step = step
+            directions = _directions(problem.tangential(P), -problem.tangential(u), directions)
+        self._guesses[key] = best_P
+        if best <= self.residual_tolerance:
+            status = "solved"
+        return ContactSolution(
+            best_P,
+            best_u,
+            status or "max_iterations_reached",
+            qp_iterations,
+            best,
+            time.perf_counter() - start,
+            polished,
+            outer,
+        )
+
+    def _tresca(
+        self, problem: CoulombProblem, thresholds: Vector, directions: Vector
+    ) -> tuple[Vector, int, bool]:
+        """Solve Tresca's QP for ``thresholds`` (m,).
+
+        Returns:
+            The impulses (r,), proxsuite's iterations, and whether proxsuite solved the QP.
+        """
+        m, size = problem.m, problem.size
+        lower = np.full(size + 1, -INFINITY)  # last entry: sink of the missing tangent rows
+        upper = np.full(size + 1, INFINITY)
+        lower[:m] = 0.0
+        planar = problem.tangents == 1
+        rows = problem.tangent_rows[planar, 0]
+        lower[rows] = -thresholds[planar]
+        upper[rows] = thresholds[planar]
+        C = u = None
+        if problem.spatial:
+            spatial = np.flatnonzero(problem.tangents == 2)
+            # Facet normals c_k = R(direction) (cos 2πk/N, sin 2πk/N), shape (n_s, facets, 2).
+            cos, sin = directions[spatial, 0, None], directions[spatial, 1, None]
+            fx, fy = self._facet_angles[:, 0], self._facet_angles[:, 1]
+            normals = np.stack((cos * fx - sin * fy, sin * fx + cos * fy), axis=-1)
+            n_in = spatial.size * self.facets
+            C = np.zeros((n_in, size))
+            facet_rows = np.arange(n_in).reshape(spatial.size, self.facets)
+            tangent_rows = problem.tangent_rows[spatial]
+            C[facet_rows, tangent_rows[:, 0, None]] = normals[..., 0]
+            C[facet_rows, tangent_rows[:, 1, None]] = normals[..., 1]
+            u = np.repeat(thresholds[spatial], self.facets)
+        results = self._qp.solve(
+            problem.D,
+            problem.b,
+            C,
+            None if C is None else np.full(C.shape[0], -INFINITY),
+            u,
+            lower[:size],
+            upper[:size],
+        )
+        P = np.array(results.x)
+        P[:m] = np.maximum(P[:m], 0.0)
+        return P, int(results.info.iter), results.info.status == QP_SOLVED
+
+
+def _unbounded(problem: CoulombProblem, free: Vector) -> tuple[Vector, Vector]:
+    """Thresholds (m,) of unbounded friction (the sticking problem), facets facing ``free``."""
+    return np.full(problem.m, INFINITY), _directions(np.zeros((problem.m, 2)), free)
+
+
+def _directions(
+    P_t: Vector, fallback: Vector, previous: Vector | None = None, floor: float = 1e-300
+) -> Vector:
+    """Unit tangential directions (m, 2): of ``P_t`` where non-zero, else of ``fallback``.
+
+    Where both vanish, the ``previous`` direction (or (1, 0)) is kept.
+    """
+    directions = np.zeros_like(P_t)
+    directions[:, 0] = 1.0
+    if previous is not None:
+        directions[:] = previous
+    for vectors in (fallback, P_t):  # P_t last: it wins where both are defined
+        norms = np.linalg.norm(vectors, axis=1)
+        defined = norms > floor
+        directions[defined] = vectors[defined] / norms[defined, None]
+    return directions
+
+
+def _polish(
+    problem: CoulombProblem, P: Vector, u: Vector, residual: float
+) -> tuple[Vector, Vector, float, bool]:
+    r"""Refine (P, u): exact solves on guessed contact statuses, then semismooth Newton.
+
+    First, up to :data:`STATUS_PASSES` times, the statuses the natural map suggests (separate,
+    stick, slide in the direction of :math:`-u_t`) are imposed and their linear equations
+    solved directly (:func:`_solve_on_statuses`): exact in one pass where the statuses and
+    directions are right, also with redundant contacts. Then semismooth Newton iterations on
+    the Alart–Curnier function (:func:`_newton`) turn the sliding directions. Each candidate
+    is kept only if its natural-map residual is lower.
+
+    Returns:
+        The best impulses (r,), their velocities (r,), natural-map residual in [m/s], and
+        whether the polish improved on ``P``.
+    """
+    improved = False
+    for _ in range(STATUS_PASSES):
+        candidate = _solve_on_statuses(problem, P, u)
+        if candidate is None:
+            break
+        candidate_u = problem.velocity(candidate)
+        candidate_residual = problem.residual(candidate, candidate_u)
+        if not candidate_residual < residual:
+            break
+        P, u, residual, improved = candidate, candidate_u, candidate_residual, True
+        if residual <= POLISH_THRESHOLD:
+            return P, u, residual, improved
+    P, u, residual, newton_improved = _newton(problem, P, u, residual)
+    return P, u, residual, improved or newton_improved
+
+
+def _newton(
+    problem: CoulombProblem, P: Vector, u: Vector, residual: float
+) -> tuple[Vector, Vector, float, bool]:
+    r"""Semismooth Newton iterations on the Alart–Curnier function from (P, u).
+
+    With :math:`\rho_a = 1 / \sigma_a` the function (in [N s])
+
+    .. math:: F_n = P_n - \max(0, P_n - \rho u_n), \qquad
+              F_t = P_t - \Pi_{B(\mu \max(P_n, 0))}(P_t - \rho u_t)
+
+    vanishes exactly at Coulomb solutions (Alart & Curnier 1991). Each iteration solves
+    :math:`J \Delta = -F` with J an element of its generalized Jacobian (least squares when
+    redundant contacts make J singular) and backtracks on :math:`\|F\|^2`; the best iterate
+    by natural-map residual is returned. Where the contact statuses are right it converges
+    quadratically.
+
+    Returns:
+        The best impulses (r,), their velocities (r,), natural-map residual in [m/s], and
+        whether Newton improved on ``P``.
+    """
+    rho = 1.0 / problem.normal_scale
+    best = (P, u, residual, False)
+    F, J = _alart_curnier(problem, P, u, rho)
+    merit = F @ F
+    for _ in range(NEWTON_ITERATIONS):
+        step = _least_squares(J, -F)
+        alpha = 1.0
+        while alpha >= MIN_STEP:
+            candidate = P + alpha * step
+            candidate_u = problem.velocity(candidate)
+            candidate_F, candidate_J = _alart_curnier(problem, candidate, candidate_u, rho)
+            candidate_merit = candidate_F @ candidate_F
+            if candidate_merit < (1.0 - 1e-4 * alpha) * merit:
+                break
+            alpha *= 0.5
+        else:
+            break
+        P, u, F, J, merit = candidate, candidate_u, candidate_F, candidate_J, candidate_merit
+        clipped = P.copy()
+        clipped[: problem.m] = np.maximum(P[: problem.m], 0.0)
+        clipped_u = problem.velocity(clipped)
+        value = problem.residual(clipped, clipped_u)
+        if value < best[2]:
+            best = (clipped, clipped_u, value, True)
+        if best[2] <= POLISH_THRESHOLD or merit == 0.0:
+            break
+    return best
+
+
+def _alart_curnier(
+    problem: CoulombProblem, P: Vector, u: Vector, rho: Vector
+) -> tuple[Vector, Vector]:
+    """The Alart–Curnier function F (r,) at P and an element J (r, r) of its Jacobian."""
+    m, size, D, mu = problem.m, problem.size, problem.D, problem.mu
+    F = np.empty(size)
+    J = np.zeros((size, size))
+    x_n = P[:m] - rho * u[:m]
+    F[:m] = P[:m] - np.maximum(x_n, 0.0)
+    closed = x_n > 0.0
+    J[:m][closed] = rho[closed, None] * D[:m][closed]
+    open_ = np.flatnonzero(~closed)
+    J[open_, open_] = 1.0
+    if size == m:
+        return F, J
+    y = problem.tangential(P) - rho[:, None] * problem.tangential(u)
+    radius = mu * np.maximum(P[:m], 0.0)
+    norm_y = np.linalg.norm(y, axis=1)
+    frictional = problem.tangents > 0
+    slide = frictional & (norm_y > radius)
+    ratio = np.divide(radius, norm_y, out=np.zeros(m), where=slide)
+    projection = np.where(slide[:, None], ratio[:, None] * y, y)
+    F_t = problem.tangential(P) - projection
+    rows = problem.tangent_rows
+    for j in (0, 1):  # scatter; missing rows land in the sink and are dropped
+        present = rows[:, j] < size
+        F[rows[present, j]] = F_t[present, j]
+    stick_rows = rows[frictional & ~slide].ravel()
+    stick_rows = stick_rows[stick_rows < size]
+    J[stick_rows] = rho[_owner(problem)[stick_rows - m], None] * D[stick_rows]
+    for a in np.flatnonzero(slide):
+        t = rows[a, : problem.tangents[a]]
+        direction = y[a, : t.size] / norm_y[a]
+        Q = ratio[a] * (np.eye(t.size) - np.outer(direction, direction))
+        block = Q @ (rho[a] * D[t])  # -Q (E_t - rho D_t), E_t part below
+        block[:, t] += np.eye(t.size) - Q
+        if P[a] > 0.0:
+            block[:, a] -= mu[a] * direction
+        J[t] = block
+    return F, J
+
+
+def _owner(problem: CoulombProblem) -> NDArray[np.intp]:
+    """Contact of each tangential row (r - m,)."""
+    return np.repeat(np.arange(problem.m), problem.tangents)
+
+
+def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector | None:
+    r"""Impulses satisfying exactly the equations of the statuses suggested by (P, u).
+
+    With :math:`z = \sigma P - \hat u` (the natural map's argument), a contact whose z lies in
+    the polar cone separates (:math:`P_a = 0`), one inside the cone sticks (:math:`u_a = 0`)
+    and one outside slides (:math:`u_n = 0, P_t = \mu P_n d`) with d the direction of
+    :math:`-u_t` (of :math:`z_t` where :math:`u_t = 0`). The equations are solved directly, by
+    least squares where redundant contacts make them singular. Returns None when that gives a
+    negative normal impulse.
+    """
+    m, size, mu = problem.m, problem.size, problem.mu
+    sigma = problem.normal_scale
+    u_t = problem.tangential(u)
+    norm_u_t = np.linalg.norm(u_t, axis=1)
+    z_n = sigma * P[:m] - (u[:m] + mu * norm_u_t)
+    z_t = sigma[:, None] * problem.tangential(P) - u_t
+    t = np.linalg.norm(z_t, axis=1)
+    separated = mu * t <= -z_n
+    stick = ~separated & ((problem.tangents == 0) | (t < mu * z_n))
+    slide = np.flatnonzero(~separated & ~stick)
+    stick_contacts = np.flatnonzero(stick)
+    stick_rows = np.concatenate((stick_contacts, problem.tangent_rows[stick_contacts].ravel()))
+    stick_rows = stick_rows[stick_rows < size]
+    moving = norm_u_t[slide] > 0.0
+    d = np.where(
+        moving[:, None],
+        -u_t[slide] / np.where(moving, norm_u_t[slide], 1.0)[:, None],
+        z_t[slide] / t[slide, None],
+    )
+    E_slide = np.zeros((size + 1, slide.size))  # last row: sink of the missing tangent rows
+    columns = np.arange(slide.size)
+    rows = problem.tangent_rows[slide]
+    E_slide[slide, columns] = 1.0
+    E_slide[rows[:, 0], columns] = mu[slide] * d[:, 0]
+    E_slide[rows[:, 1], columns] += mu[slide] * d[:, 1]  # += : planar ones hit the sink row
+    E_slide = E_slide[:size]
+    equations = np.concatenate((stick_rows, slide))
+    if equations.size == 0:
+        return np.zeros(size)
+    D_rows = problem.D[equations]
+    A = np.hstack((D_rows[:, stick_rows], D_rows @ E_slide))
+    rhs = -problem.b[equations]
+    y = _least_squares(A, rhs)
+    candidate = _impulses(y, stick_rows, E_slide, size)
+    if np.any(candidate[:m] < 0.0):
+        # The minimum-norm solution of singular equations may have negative normal impulses
+        # where non-negative ones exist: bounded least squares on the normal unknowns.
+        normal = np.concatenate((stick_rows < m, np.ones(slide.size, dtype=bool)))
+        lower = np.where(normal, 0.0, -np.inf)
+        y = scipy.optimize.lsq_linear(A, rhs, bounds=(lower, np.inf), method="bvls").x
+        candidate = _impulses(y, stick_rows, E_slide, size)
+    if np.any(candidate[:m] < -1e-12 * (1.0 + np.abs(candidate[:m]).max())):
+        return None
+    candidate[:m] = np.maximum(candidate[:m], 0.0)
+    return candidate
+
+
+def _least_squares(A: Vector, y: Vector) -> Vector:
+    """The minimum-norm least-squares solution x of ``A x = y`` (QR with column pivoting).
+
+    Redundant contacts make A singular; a plain solve then returns a huge step along its
+    null space (measured: |step| 10 times the impulses, for cond(A) ~ 1e16), which
+    redistributes the impulses between the redundant contacts and changes their statuses.
+    """
+    return scipy.linalg.lstsq(A, y, cond=LSTSQ_CONDITION, lapack_driver="gelsy")[0]
+
+
+def _impulses(y: Vector, stick_rows: NDArray[np.intp], E_slide: Vector, size: int) -> Vector:
+    """Impulses (r,) from the unknowns y of :func:`_solve_on_statuses`."""
+    impulses = E_slide @ y[stick_rows.size :]
+    impulses[stick_rows] += y[: stick_rows.size]
+    return impulses
