@@ -15,47 +15,25 @@ Run: ``python experiments/panda_table.py --cycles 3 --dt 1e-3`` (needs the ``rob
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
+from cycle_case import run_case
 
-from ucontrol.analysis.cycle_table import cycle_table, summary_line
-from ucontrol.scene import load_scene
-from ucontrol.simulate import SimulationResult, simulate
-from ucontrol.viz.cycle_figures import cycle_figures
-
-ROOT = Path(__file__).resolve().parents[1]
-SCENE = ROOT / "robots" / "panda_table.toml"
-NAME = "panda_table"
+from ucontrol.scene import Scene
+from ucontrol.simulate import SimulationResult
 
 
 def main(argv: Sequence[str] | None = None) -> SimulationResult:
     """Run the case; return the simulation result (log and summary)."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cycles", type=int, default=3, help="number of 4 s cycles")
-    parser.add_argument("--dt", type=float, default=1e-3, help="time step in [s]")
-    parser.add_argument(
-        "--figures", type=Path, default=ROOT / "docs" / "figures", help="folder of the figures"
-    )
-    parser.add_argument("--no-figures", action="store_true", help="write no figure")
-    parser.add_argument("--out", type=Path, default=None, help="folder for log.npz, summary.json")
-    args = parser.parse_args(argv)
+    return run_case("panda_table", __doc__.splitlines()[0], argv, plane=(0, 2), report=_excursion)
 
-    scene = load_scene(SCENE)
-    controller = scene.build_controller()
-    duration = args.cycles * controller.cycle.period + 0.5  # [s], the last takeoff included
-    result = simulate(scene, controller, duration=duration, dt=args.dt, out=args.out)
-    print(cycle_table(result.log))
-    print(summary_line(result.summary))
+
+def _excursion(result: SimulationResult, scene: Scene) -> str:
+    """How far the seven arm joints moved from the posture."""
     arm = slice(0, 7)
     excursion = np.abs(result.log.q[:, arm] - scene.q0[arm]).max()  # [rad]
-    print(f"largest arm-joint excursion from the posture: {excursion:.3f} rad")
-    if not args.no_figures:
-        for path in cycle_figures(result.log, controller, args.figures, NAME, plane=(0, 2)):
-            print(f"wrote {path}")
-    return result
+    return f"largest arm-joint excursion from the posture: {excursion:.3f} rad"
 
 
 if __name__ == "__main__":

@@ -14,53 +14,16 @@ Run: ``python experiments/two_link_one_constraint.py --cycles 3 --dt 1e-3``.
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 from collections.abc import Sequence
-from pathlib import Path
 
-from ucontrol.analysis.cycle_table import cycle_table, summary_line
-from ucontrol.scene import load_scene
-from ucontrol.simulate import SimulationResult, simulate
-from ucontrol.viz.cycle_figures import cycle_figures
+from cycle_case import run_case
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENE = ROOT / "robots" / "two_link_one_constraint.toml"
-NAME = "two_link_one_constraint"
+from ucontrol.simulate import SimulationResult
 
 
 def main(argv: Sequence[str] | None = None) -> SimulationResult:
     """Run the case; return the simulation result (log and summary)."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cycles", type=int, default=3, help="number of 10 s cycles")
-    parser.add_argument("--dt", type=float, default=1e-3, help="time step in [s]")
-    parser.add_argument("--restitution", type=float, default=None, help="e of the ground [-]")
-    parser.add_argument(
-        "--mass-scale", type=float, default=1.0, help="masses of the controller's model × this [-]"
-    )
-    parser.add_argument(
-        "--figures", type=Path, default=ROOT / "docs" / "figures", help="folder of the figures"
-    )
-    parser.add_argument("--no-figures", action="store_true", help="write no figure")
-    parser.add_argument("--out", type=Path, default=None, help="folder for log.npz, summary.json")
-    args = parser.parse_args(argv)
-
-    scene = load_scene(SCENE)
-    if args.restitution is not None:
-        ground = dataclasses.replace(scene.contacts[0], restitution=args.restitution)
-        scene = dataclasses.replace(scene, contacts=(ground,))
-    scene = dataclasses.replace(
-        scene, controller={**scene.controller, "mass_scale": args.mass_scale}
-    )
-    controller = scene.build_controller()
-    duration = args.cycles * controller.cycle.period + 0.5  # [s], the last takeoff included
-    result = simulate(scene, controller, duration=duration, dt=args.dt, out=args.out)
-    print(cycle_table(result.log))
-    print(summary_line(result.summary))
-    if not args.no_figures:
-        for path in cycle_figures(result.log, controller, args.figures, NAME):
-            print(f"wrote {path}")
-    return result
+    return run_case("two_link_one_constraint", __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

@@ -21,6 +21,8 @@ def load_experiment(name: str) -> ModuleType:
     module_name = f"experiments_{name}"
     if module_name in sys.modules:
         return sys.modules[module_name]
+    if str(EXPERIMENTS) not in sys.path:  # the case scripts import their shared runner
+        sys.path.append(str(EXPERIMENTS))
     spec = importlib.util.spec_from_file_location(module_name, EXPERIMENTS / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

@@ -38,13 +38,20 @@ def test_bench_step_runs(capsys: pytest.CaptureFixture[str]) -> None:
 def test_work_precision_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     work_precision = _load("work_precision")
     flags = (
-        "--ball-duration 0.5 --arm-duration 0.2 --tracking-duration 0.1 --dts 1e-2 1e-3 "
-        "--tolerances 1e-6 --stiffnesses 1e5 --tracking-stiffnesses 1e5 "
+        "--ball-duration 0.5 --arm-duration 0.2 --tracking-duration 0.1 --flexible-duration 0.2 "
+        "--dts 1e-2 1e-3 --tolerances 1e-6 --stiffnesses 1e5 --tracking-stiffnesses 1e5 "
         "--hunt-crossley-stiffnesses 1e6 --sample-dt 1e-2 --zeno-velocities 1e-2 "
         "--zeno-sample-dt 1e-3"
     )
     studies = work_precision.main([*flags.split(), "--out", str(tmp_path)])
-    assert set(studies) == {"ball_e09", "ball_e05", "two_link_drop", "two_link_tracking"}
+    assert set(studies) == {
+        "ball_e09",
+        "ball_e05",
+        "two_link_drop",
+        "two_link_tracking",
+        "two_link_flexible_drop",
+    }
+    assert "moreau_jean midpoint" in studies["two_link_flexible_drop"].curves()
     for case, study in studies.items():
         assert (tmp_path / f"work_precision_{case}.png").is_file()
         assert all(np.isfinite(run.error) for run in study.runs)

@@ -26,6 +26,7 @@ from ucontrol.control.brogliato_controller import BrogliatoController, Brogliato
 from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.controller import Controller
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
+from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
 from ucontrol.control.joint_pd import JointPD
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
@@ -328,6 +329,7 @@ class Scene:
                 dt=h,
                 stiffness=settings.stiffness,
                 contact_model=settings.contact_model,
+                flexible=self.flexible,
                 **settings.solver_options(),
             )
         if settings.name == "event_driven":
@@ -342,6 +344,7 @@ class Scene:
                 acceleration_solver=ProxsuiteLCPSolver(
                     eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
                 ),
+                flexible=self.flexible,
                 **settings.solver_options(),
             )
         contact_solver, friction_solver = build_contact_solvers(
@@ -379,6 +382,7 @@ class Scene:
                 kp=_require(table, "[controller]", "kp"),
                 kd=_require(table, "[controller]", "kd"),
                 gravity_compensation=bool(table.get("gravity_compensation", True)),
+                flexible=self.flexible,
             )
         if kind == "brogliato":
             return _brogliato(self, table)
@@ -624,4 +628,9 @@ def _brogliato(scene: Scene, table: Mapping[str, Any]) -> BrogliatoController:
         **{key: table[key] for key in _BROGLIATO_GAIN_KEYS if key in table},
     )
     robot = scene.robot.with_scaled_inertia(table.get("mass_scale", 1.0))
-    return BrogliatoController(robot, task, cycle, gains, posture=table.get("posture", scene.q0))
+    posture = table.get("posture", scene.q0)
+    if scene.flexible is not None:  # the passivity-based law, through the motors
+        return FlexibleBrogliatoController(
+            robot, scene.flexible, task, cycle, gains, posture=posture
+        )
+    return BrogliatoController(robot, task, cycle, gains, posture=posture)

@@ -12,7 +12,7 @@ from conftest import ROBOTS, ball_scene
 
 from ucontrol.analysis.convergence import run_convergence, write_report
 from ucontrol.cli import main
-from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.exceptions import InvalidParameterError, NotFoundError, UnknownKeyError
 from ucontrol.scene import Scene, load_scene
 
 
@@ -136,3 +136,47 @@ def test_a_scene_method_of_another_integrator_is_left_to_it() -> None:
     )
     assert [run.integrator for run in study.runs] == ["moreau_jean", "event_driven", "compliant"]
     assert study.of("event_driven")[0].error <= 1e-12
+
+
+def test_a_settings_variant_is_a_curve_of_its_own(tmp_path: Path) -> None:
+    # Moreau–Jean with midpoint = true beside the default one, on the flexible-joint arm.
+    study = run_convergence(
+        load_scene(ROBOTS / "two_link_flexible_drop.toml"),
+        duration=0.1,  # before the first impact
+        integrators=["moreau_jean"],
+        dts=(2e-4, 1e-4),
+        sample_dt=1e-3,
+        variants={"moreau_jean midpoint": {"name": "moreau_jean", "midpoint": True}},
+    )
+    assert study.curves() == ["moreau_jean", "moreau_jean midpoint"]
+    default, midpoint = study.of("moreau_jean"), study.of("moreau_jean midpoint")
+    assert [run.variant for run in default + midpoint] == ["", "", *["moreau_jean midpoint"] * 2]
+    assert all(run.integrator == "moreau_jean" for run in midpoint)
+    orders = study.orders()
+    assert orders["moreau_jean"] == pytest.approx(1.0, abs=0.15)  # measured 0.97
+    assert orders["moreau_jean midpoint"] == pytest.approx(2.0, abs=0.1)  # measured 2.00
+    paths = write_report(study, tmp_path)
+    with paths["csv"].open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [row["variant"] for row in rows] == ["", "", *["moreau_jean midpoint"] * 2]
+    assert "| moreau_jean midpoint | dt |" in paths["markdown"].read_text()
+
+
+def test_bad_variants_are_typed_errors() -> None:
+    scene = ball_scene(0.9)
+
+    def study(variants):
+        return run_convergence(scene, integrators=["moreau_jean"], dts=(1e-2,), variants=variants)
+
+    with pytest.raises(UnknownKeyError, match="midpiont"):
+        study({"mid": {"name": "moreau_jean", "midpiont": True}})
+    with pytest.raises(InvalidParameterError, match="name"):
+        study({"mid": {"midpoint": True}})
+    with pytest.raises(NotFoundError, match="integrator 'rk4'"):
+        study({"mid": {"name": "rk4"}})
+    with pytest.raises(InvalidParameterError, match="variant label"):
+        study({"moreau_jean": {"name": "moreau_jean", "theta": 1.0}})
+    with pytest.raises(InvalidParameterError, match="the sweep sets"):
+        study({"coarse": {"name": "moreau_jean", "dt": 1e-2}})
+    with pytest.raises(InvalidParameterError, match="theta"):
+        study({"implicit": {"name": "moreau_jean", "theta": 2.0}})

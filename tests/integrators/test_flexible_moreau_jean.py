@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 from conftest import ROBOTS
 
-from ucontrol.control import ZeroTorque
+from ucontrol.control import JointPD, ZeroTorque
 from ucontrol.exceptions import (
     InvalidParameterError,
     JointNotFoundError,
@@ -260,3 +260,14 @@ def test_bad_flexible_joints_raise() -> None:
         dataclasses.replace(scene, motor_q0=np.zeros(3))
     with pytest.raises(SceneError, match="flexible"):
         dataclasses.replace(scene, flexible=None)
+
+
+def test_collocated_pd_holds_the_links_at_the_target_against_gravity() -> None:
+    scene = _arm(2000.0, gravity=True, theta=1.0, duration=6.0)
+    scene = dataclasses.replace(scene, v0=np.zeros(2), motor_q0=Q0, motor_v0=np.zeros(2))
+    target = np.array([1.2, -1.0])
+    controller = JointPD(scene.robot, q_ref=target, kp=200.0, kd=20.0, flexible=scene.flexible)
+    log = simulate(scene, controller).log
+    np.testing.assert_allclose(log.q[-1], target, atol=1e-6)  # Tomei: exact at rest
+    g = scene.robot.gravity_torque(target)
+    np.testing.assert_allclose(log.motor_q[-1], target + g / 2000.0, atol=1e-6)

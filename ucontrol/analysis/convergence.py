@@ -21,6 +21,9 @@ and measures each run's error against a reference:
   :math:`\|q \ominus q_\text{ref}\|_\infty` in [m] or [rad] at the times the runs share
   (multiples of the largest step).
 
+A *variant* adds a curve: one integrator swept over its range with other settings (e.g.
+Moreau–Jean with ``midpoint = True``), labelled in the tables and the figure.
+
 The wall time is the simulation loop's. :meth:`ConvergenceStudy.equal_error` puts each
 event-driven run beside the Moreau–Jean wall time at the same error, interpolated (or
 extrapolated, and flagged) along Moreau–Jean's power law of time against error.
@@ -34,8 +37,9 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,10 +50,10 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
 from ucontrol.analysis.bouncing_ball import BouncingBall
-from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.exceptions import InvalidParameterError, NotFoundError, UnknownKeyError
 from ucontrol.integrators import compliant, event_driven
 from ucontrol.log import Log
-from ucontrol.scene import INTEGRATORS, Scene
+from ucontrol.scene import INTEGRATORS, IntegratorSettings, Scene
 from ucontrol.simulate import simulate
 
 #: Default Moreau–Jean steps in [s].
@@ -60,6 +64,8 @@ DEFAULT_TOLERANCES = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
 DEFAULT_STIFFNESSES = (1e4, 1e5, 1e6, 1e7)
 #: Parameter swept for each integrator.
 PARAMETERS = {"moreau_jean": "dt", "event_driven": "rtol", "compliant": "stiffness"}
+#: Integrator settings the sweep of each integrator sets, which a variant may not.
+_SWEPT = {"moreau_jean": {"dt"}, "event_driven": {"rtol", "atol"}, "compliant": {"stiffness"}}
 #: atol / rtol of the event-driven and compliant runs, in the state's units.
 ATOL_RATIO = 1e-2
 #: Relative tolerance of the compliant runs.
@@ -75,7 +81,10 @@ _CSV_FIELDS = (
     "wall_time_s",
     "steps",
     "n_events",
+    "variant",
 )
+#: Markers of the curves of a work-precision figure, in order.
+_MARKERS = "osD^v<>"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -91,6 +100,7 @@ class ConvergenceRun:
         wall_time_s: Wall time of the simulation loop in [s].
         steps: Number of steps.
         n_events: Events located (event-driven and compliant integrators).
+        variant: Label of the settings variant of the run, or ``""`` for the scene's settings.
     """
 
     integrator: str
@@ -101,6 +111,12 @@ class ConvergenceRun:
     wall_time_s: float
     steps: int
     n_events: int
+    variant: str = ""
+
+    @property
+    def curve(self) -> str:
+        """The curve the run belongs to: its variant's label, else its integrator's name."""
+        return self.variant or self.integrator
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,23 +152,31 @@ class ConvergenceStudy:
     reference: str
     runs: tuple[ConvergenceRun, ...]
 
-    def of(self, integrator: str) -> list[ConvergenceRun]:
-        """The runs of one integrator, in the order they were made."""
-        return [run for run in self.runs if run.integrator == integrator]
+    def of(self, curve: str) -> list[ConvergenceRun]:
+        """The runs of one curve, in the order they were made.
+
+        Args:
+            curve: An integrator name (its runs with the scene's settings) or a variant label.
+        """
+        return [run for run in self.runs if run.curve == curve]
+
+    def curves(self) -> list[str]:
+        """The curves of the study (integrator names, then variant labels), in run order."""
+        return list(dict.fromkeys(run.curve for run in self.runs))
 
     def orders(self) -> dict[str, float]:
-        """Observed order of each integrator with two runs or more of positive error.
+        """Observed order of each curve with two runs or more of positive error.
 
         Least-squares slope of log(error) against log(parameter): against h for
         Moreau–Jean, rtol for event-driven, k for compliant. NaN when the error does not vary.
         """
         orders = {}
-        for integrator in dict.fromkeys(run.integrator for run in self.runs):
-            runs = [run for run in self.of(integrator) if run.error > 0.0]
+        for curve in self.curves():
+            runs = [run for run in self.of(curve) if run.error > 0.0]
             if len(runs) >= 2:
                 x = np.log([run.value for run in runs])
                 y = np.log([run.error for run in runs])
-                orders[integrator] = float(np.polyfit(x, y, 1)[0]) if np.ptp(y) > 0 else math.nan
+                orders[curve] = float(np.polyfit(x, y, 1)[0]) if np.ptp(y) > 0 else math.nan
         return orders
 
     def equal_error(self) -> list[EqualError]:
@@ -199,6 +223,7 @@ class ConvergenceStudy:
                     f"{run.wall_time_s:.6g}",
                     run.steps,
                     run.n_events,
+                    run.variant,
                 ]
             )
         return buffer.getvalue()
@@ -213,7 +238,7 @@ class ConvergenceStudy:
             "|---|---|---|---|---|---|---|---|",
         ]
         lines += [
-            f"| {run.integrator} | {run.parameter} | {run.value:.3g} | {run.dt:.3g} "
+            f"| {run.curve} | {run.parameter} | {run.value:.3g} | {run.dt:.3g} "
             f"| {run.error:.3e} | {run.wall_time_s:.3g} | {run.steps} | {run.n_events} |"
             for run in self.runs
         ]
@@ -221,8 +246,8 @@ class ConvergenceStudy:
         if orders:
             lines += ["", "| integrator | observed order | against |", "|---|---|---|"]
             lines += [
-                f"| {name} | {_order_text(order)} | log {PARAMETERS[name]} |"
-                for name, order in orders.items()
+                f"| {curve} | {_order_text(order)} | log {self.of(curve)[0].parameter} |"
+                for curve, order in orders.items()
             ]
         best = min(self.of("moreau_jean"), key=lambda run: run.error, default=None)
         if best is not None and self.of("event_driven"):
@@ -261,6 +286,7 @@ def run_convergence(
     sample_dt: float | None = None,
     control_period: float | None = None,
     reference_tolerance: float = 1e-12,
+    variants: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> ConvergenceStudy:
     """Run ``scene`` with each integrator over its parameter range and measure the errors.
 
@@ -278,11 +304,18 @@ def run_convergence(
             the same system across runs with a common control period.
         reference_tolerance: rtol of the event-driven reference run when the scene declares
             no analytic reference.
+        variants: Extra curves, each a label and the :class:`~ucontrol.scene.IntegratorSettings`
+            fields that differ from the scene's, ``name`` (the integrator, swept over its
+            range above) included: e.g. ``{"moreau_jean midpoint": {"name": "moreau_jean",
+            "midpoint": True}}``. Run after the ``integrators``.
 
     Raises:
         NotFoundError: An integrator name is unknown.
         InvalidParameterError: A range is empty or holds a non-positive value, a step does
-            not divide the control period, or (numerical reference) the largest step.
+            not divide the control period, or (numerical reference) the largest step; a
+            variant's label is empty or an integrator's name, it sets the swept parameter,
+            or a setting is out of range.
+        UnknownKeyError: A variant sets a field that integrator settings do not have.
     """
     duration = as_positive("duration", scene.duration if duration is None else duration)
     for name in integrators:
@@ -294,14 +327,16 @@ def run_convergence(
         "event_driven": _positive_range("tolerances", tolerances),
         "compliant": _positive_range("stiffnesses", stiffnesses),
     }
+    curves = [(name, name, {}) for name in integrators]
+    curves += [_variant(label, changes) for label, changes in (variants or {}).items()]
     settings = [
-        (name, value, _settings(name, value, sample_dt))
-        for name in integrators
+        (curve, name, value, _settings(name, value, sample_dt, changes))
+        for curve, name, changes in curves
         for value in sweeps[name]
     ]
     if control_period is not None:
         control_period = as_positive("control_period", control_period)
-        for _, _, (step, _) in settings:
+        for *_, (step, _) in settings:
             _check_divides(step, control_period, "the control period")
     if scene.reference is not None:
         ball, index = _bouncing_ball(scene, scene.reference["contact"])
@@ -315,8 +350,8 @@ def run_convergence(
             return float(np.max(np.abs(log.gap[:, index] - height)))
 
     else:
-        period = max(sample_dt, *(step for _, _, (step, _) in settings))
-        for _, _, (step, _) in settings:
+        period = max(sample_dt, *(step for *_, (step, _) in settings))
+        for *_, (step, _) in settings:
             _check_divides(step, period, "the largest step or sampling period")
         method = "DOP853" if scene.integrator.method == "RK45" else "RK45"
         options = {
@@ -336,7 +371,7 @@ def run_convergence(
             return _configuration_error(scene, log, reference_log, period)
 
     runs = []
-    for name, value, (step, options) in settings:
+    for curve, name, value, (step, options) in settings:
         log, summary = _simulate(scene, name, step, options, duration, control_period)
         runs.append(
             ConvergenceRun(
@@ -348,6 +383,7 @@ def run_convergence(
                 wall_time_s=summary["wall_time_s"],
                 steps=summary["steps"],
                 n_events=summary["n_events"],
+                variant="" if curve == name else curve,
             )
         )
     return ConvergenceStudy(
@@ -356,7 +392,7 @@ def run_convergence(
 
 
 def plot_work_precision(study: ConvergenceStudy, path: str | Path) -> Path:
-    """Log-log plot of error against wall time, one line per integrator, saved to ``path``."""
+    """Log-log plot of error against wall time, one line per curve, saved to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -364,14 +400,12 @@ def plot_work_precision(study: ConvergenceStudy, path: str | Path) -> Path:
 
     figure, axes = plt.subplots(figsize=(6.4, 4.4), layout="constrained")
     floor = np.finfo(float).eps
-    for name, marker in zip(INTEGRATORS, "osD", strict=True):
-        runs = study.of(name)
-        if not runs:
-            continue
+    labelled: list[tuple[float, float]] = []
+    for curve, marker in zip(study.curves(), itertools.cycle(_MARKERS), strict=False):
+        runs = study.of(curve)
         times = [run.wall_time_s for run in runs]
         errors = [max(run.error, floor) for run in runs]
-        axes.loglog(times, errors, marker=marker, label=name)
-        labelled: list[tuple[float, float]] = []
+        axes.loglog(times, errors, marker=marker, label=curve)
         for run, time, err in zip(runs, times, errors, strict=True):
             if any(
                 abs(math.log(time / t)) < 0.3 and abs(math.log(err / e)) < 0.3 for t, e in labelled
@@ -412,17 +446,44 @@ def write_report(study: ConvergenceStudy, out: str | Path) -> dict[str, Path]:
     return paths
 
 
-def _settings(name: str, value: float, sample_dt: float) -> tuple[float, dict[str, Any]]:
-    """Step [s] and integrator settings of one run."""
+def _settings(
+    name: str, value: float, sample_dt: float, changes: Mapping[str, Any]
+) -> tuple[float, dict[str, Any]]:
+    """Step [s] and integrator settings of one run, a variant's ``changes`` included."""
     if name == "moreau_jean":
-        return value, {}
+        return value, {**changes}
     if name == "event_driven":
-        return sample_dt, {"rtol": value, "atol": ATOL_RATIO * value}
+        return sample_dt, {"rtol": value, "atol": ATOL_RATIO * value, **changes}
     return sample_dt, {
         "stiffness": value,
         "rtol": COMPLIANT_RTOL,
         "atol": ATOL_RATIO * COMPLIANT_RTOL,
+        **changes,
     }
+
+
+def _variant(label: str, changes: Mapping[str, Any]) -> tuple[str, str, dict[str, Any]]:
+    """A checked variant: (label, integrator name, the other settings it changes)."""
+    section = f"variants[{label!r}]"
+    if not label or label in INTEGRATORS:
+        raise InvalidParameterError("variant label", label, "a non-empty name of no integrator")
+    fields = {field.name for field in dataclasses.fields(IntegratorSettings)}
+    unknown = set(changes) - fields
+    if unknown:
+        raise UnknownKeyError(section, unknown, fields)
+    if "name" not in changes:
+        raise InvalidParameterError(f"{section} name", None, f"one of {list(INTEGRATORS)}")
+    name = changes["name"]
+    if name not in INTEGRATORS:
+        raise NotFoundError("integrator", str(name), INTEGRATORS)
+    swept = _SWEPT[name]
+    if swept & set(changes):
+        raise InvalidParameterError(
+            section, dict(changes), f"no setting the sweep sets ({', '.join(sorted(swept))})"
+        )
+    others = {key: value for key, value in changes.items() if key != "name"}
+    IntegratorSettings(name=name, **others)  # checks the values now, not after the first runs
+    return label, name, others
 
 
 def _simulate(
@@ -460,7 +521,7 @@ def _bouncing_ball(scene: Scene, name: str) -> tuple[BouncingBall, int]:
             gravity,
             f"gravity pressing contact {contact.name!r} onto its surface (> 0 along -normal)",
         )
-    start = scene.build_integrator().evaluate(scene.q0, scene.v0)
+    start = scene.build_integrator().evaluate(*scene.initial_state())
     ball = BouncingBall(
         height=float(start.gap[index]),
         velocity=float(start.normal_velocity[index]),

@@ -4,6 +4,7 @@ from ucontrol.control.brogliato_controller import BrogliatoController, Brogliato
 from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.controller import ContactState, Controller, LoggingController
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle, NominalPath
+from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
 from ucontrol.control.joint_pd import JointPD
 from ucontrol.control.phase import Event, Phase
 from ucontrol.control.phase_machine import DesiredState, PhaseMachine
@@ -20,6 +21,7 @@ __all__ = [
     "DesiredCycle",
     "DesiredState",
     "Event",
+    "FlexibleBrogliatoController",
     "JointPD",
     "LoggingController",
     "NominalPath",

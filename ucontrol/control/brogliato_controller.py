@@ -27,6 +27,7 @@ divided by its length.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -123,6 +124,9 @@ class BrogliatoController:
             phases.
     """
 
+    #: Number of time derivatives of the desired trajectory the law uses.
+    _order = 2
+
     def __init__(
         self,
         robot: RobotModel,
@@ -141,7 +145,7 @@ class BrogliatoController:
         self.posture = robot.check_configuration(
             "posture", robot.neutral() if posture is None else posture
         )
-        self.machine = PhaseMachine(task, cycle)
+        self.machine = PhaseMachine(task, cycle, order=self._order)
         self._model = robot.model
         self._data = robot.model.createData()
         self._redundant = task.m < robot.nv
@@ -155,12 +159,7 @@ class BrogliatoController:
         self._last_t = -np.inf
         self.V = self.V1 = 0.0
         self.X = np.zeros(m)
-        self.desired = DesiredState(
-            (np.zeros(m), np.zeros(m), np.zeros(m)),
-            (np.zeros(m), np.zeros(m)),
-            np.zeros(n),
-            np.zeros(n, dtype=bool),
-        )
+        self.desired = DesiredState.zeros(m, n, self._order)
         self.contact_force = np.zeros(n)
         self._settled = np.zeros(n, dtype=bool)
         self._persistent = np.zeros(n, dtype=bool)
@@ -172,34 +171,18 @@ class BrogliatoController:
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Torques, shape (nu,), in [N m] (or [N] for prismatic joints)."""
-        if t < self._last_t:
-            raise InvalidParameterError(
-                "t", t, f">= {self._last_t} (the controller is stateful: reset() it per run)"
-            )
-        self._last_t = t
-        if self._plant_index is None:
-            self._plant_index = self._find_contacts(contacts.names)
-        index = self._plant_index
-        self.contact_force = contacts.force[index]
-        # The impulse / dt of a step is a contact force only if the contact stayed closed over
-        # it without impact: feeding an impact back would push the robot off the surface.
-        closed = self.contact_force > 0.0
-        self._persistent = closed & self._settled
-        self._settled = closed & (contacts.normal_velocity[index] >= -IMPACT_SPEED)
+        closed = self._measure(t, contacts)
         state, M, dyn = self._kinematics(q, v)
-        machine = self.machine
-        desired = machine.desired(t)
-        s_q = self._sliding(state, desired.reference[0], desired.reference[1], dyn)
-        V1 = float(0.5 * s_q @ M @ s_q)  # [J]
-        if machine.update(t, closed, V1, desired):
-            desired = machine.desired(t)
+
+        def lyapunov(desired: DesiredState) -> float:
             s_q = self._sliding(state, desired.reference[0], desired.reference[1], dyn)
-            V1 = float(0.5 * s_q @ M @ s_q)
+            return float(0.5 * s_q @ M @ s_q)  # V1 [J]
+
+        desired, V1 = self._advance(t, closed, lyapunov)
         X_error = state.X - desired.reference[0]
         self.V1 = V1
         self.V = float(V1 + self.gains.gamma1 * self.gains.gamma2 * X_error @ X_error)
         self.X = state.X
-        self.desired = desired
         return self._torque(state, M, dyn, desired)
 
     def prepare_log(self, log: Log) -> None:
@@ -229,6 +212,37 @@ class BrogliatoController:
         log.record_extra("task_target", desired.target[0])
         log.record_extra("lambda_d", desired.force)
         log.record_extra("contact_force", self.contact_force)
+
+    def _measure(self, t: float, contacts: ContactState) -> NDArray[np.bool_]:
+        """Check the time, read the contact forces; return which declared contacts closed."""
+        if t < self._last_t:
+            raise InvalidParameterError(
+                "t", t, f">= {self._last_t} (the controller is stateful: reset() it per run)"
+            )
+        self._last_t = t
+        if self._plant_index is None:
+            self._plant_index = self._find_contacts(contacts.names)
+        index = self._plant_index
+        self.contact_force = contacts.force[index]
+        # The impulse / dt of a step is a contact force only if the contact stayed closed over
+        # it without impact: feeding an impact back would push the robot off the surface.
+        closed = self.contact_force > 0.0
+        self._persistent = closed & self._settled
+        self._settled = closed & (contacts.normal_velocity[index] >= -IMPACT_SPEED)
+        return closed
+
+    def _advance(
+        self, t: float, closed: NDArray[np.bool_], lyapunov: Callable[[DesiredState], float]
+    ) -> tuple[DesiredState, float]:
+        """Update the phases at ``t``; the desired state after it and V1 (``lyapunov``) on it."""
+        machine = self.machine
+        desired = machine.desired(t)
+        V1 = lyapunov(desired)
+        if machine.update(t, closed, V1, desired):
+            desired = machine.desired(t)
+            V1 = lyapunov(desired)
+        self.desired = desired
+        return desired, V1
 
     def _find_contacts(self, names: list[str]) -> NDArray[np.int64]:
         missing = [name for name in self.machine.contacts if name not in names]

@@ -55,10 +55,21 @@ class CirclePath:
 
     def __call__(self, t: float) -> tuple[Vector, Vector, Vector]:
         """Position [m], velocity [m/s] and acceleration [m/s²] at time ``t`` [s], each (3,)."""
+        p, dp, ddp = self.derivatives(t, 2)
+        return p, dp, ddp
+
+    def derivatives(self, t: float, order: int) -> tuple[Vector, ...]:
+        r"""Position [m] and its first ``order`` time derivatives [m/s^k] at ``t`` [s], each (3,).
+
+        :math:`p^{(k)} = r \omega^k (\cos(\varphi + k\pi/2)\,u + \sin(\varphi + k\pi/2)\,w)`
+        for k >= 1, with :math:`\omega = 2\pi/P`.
+        """
         omega = 2.0 * math.pi / self.period  # [rad/s]
         angle = self.start_angle + omega * t
         u, w = self.axes
         radial = math.cos(angle) * u + math.sin(angle) * w
         tangent = -math.sin(angle) * u + math.cos(angle) * w
         r = self.radius
-        return self.centre + r * radial, r * omega * tangent, -r * omega**2 * radial
+        turns = (radial, tangent, -radial, -tangent)  # the direction rotated by k π/2
+        derivatives = (r * omega**k * turns[k % 4] for k in range(1, order + 1))
+        return (self.centre + r * radial, *derivatives)

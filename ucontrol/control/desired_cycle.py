@@ -44,6 +44,10 @@ class NominalPath(Protocol):
         """Position [m], velocity [m/s] and acceleration [m/s²] at ``t`` [s], each (3,)."""
         ...
 
+    def derivatives(self, t: float, order: int) -> tuple[Vector, ...]:
+        """Position [m] and its first ``order`` time derivatives at ``t`` [s], each (3,)."""
+        ...
+
 
 @dataclass(frozen=True, kw_only=True)
 class ContactPhase:
@@ -95,6 +99,11 @@ class DesiredCycle:
             :math:`t_d` (where it is 0 with zero velocity).
         takeoff_time: Duration in [s] of the blend from the takeoff parabola into the nominal
             path.
+        takeoff_ramp_time: For a law that holds more than 2 derivatives of the desired
+            trajectory (the flexible-joint law), the takeoff parabola starts with zero
+            acceleration at :math:`t_d` and its acceleration rises smoothly to
+            ``takeoff_acceleration`` over this time, in [s]
+            (:class:`ucontrol.control.trajectory_segment.SmoothParabola`).
         blend_time: Duration in [s] of the blend of coordinates frozen during a transition
             back into the nominal path, from :math:`t_f`.
     """
@@ -110,6 +119,7 @@ class DesiredCycle:
     force_fall_time: float = 0.5
     takeoff_acceleration: float = 1.0
     takeoff_time: float = 0.4
+    takeoff_ramp_time: float = 0.1
     blend_time: float = 0.8
 
     def __post_init__(self) -> None:
@@ -122,6 +132,7 @@ class DesiredCycle:
             "force_fall_time",
             "takeoff_acceleration",
             "takeoff_time",
+            "takeoff_ramp_time",
             "blend_time",
         ):
             object.__setattr__(self, name, as_positive(name, getattr(self, name)))
@@ -178,8 +189,26 @@ class DesiredCycle:
             t: Time in [s].
             t_d: Takeoff time of the current cycle in [s].
         """
-        beta = smooth_step((t - t_d) / self.force_fall_time + 1.0)[0]
-        return phase.force * (1.0 - beta)
+        return self.desired_force_derivatives(phase, t, t_d, 0)[0]
+
+    def desired_force_derivatives(
+        self, phase: ContactPhase, t: float, t_d: float, order: int
+    ) -> tuple[float, ...]:
+        r""":math:`\lambda_d` [N] and its first ``order`` time derivatives [N/s^k] at ``t`` [s].
+
+        :math:`\lambda_d = F (1 - \beta(\sigma))`, :math:`\sigma = (t - t_d)/T_f + 1`, so
+        :math:`\lambda_d^{(k)} = -F \beta^{(k)}(\sigma) / T_f^k` (see :func:`smooth_step`).
+
+        Args:
+            phase: The contact phase.
+            t: Time in [s].
+            t_d: Takeoff time of the current cycle in [s].
+            order: Number of derivatives, >= 0.
+        """
+        T = self.force_fall_time
+        beta = smooth_step((t - t_d) / T + 1.0, order)
+        derivatives = (-phase.force * beta[k] / T**k for k in range(1, order + 1))
+        return (phase.force * (1.0 - beta[0]), *derivatives)
 
     def check(self, task: TaskCoordinates) -> None:
         """Check the cycle against the task: known contacts, no path through an obstacle.

@@ -8,20 +8,25 @@ import pinocchio as pin
 from ucontrol._validation import as_vector
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.exceptions import InvalidParameterError
+from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 
 
 class JointPD:
     r"""Regulate the actuated joints to ``q_ref``: :math:`u = K_p (q_{ref} - q) - K_d v + g(q)`.
 
-    Defined for robots whose actuated joints have nq = nv (revolute, prismatic).
+    Defined for robots whose actuated joints have nq = nv (revolute, prismatic). With flexible
+    joints the feedback is collocated, on the motors, with the gravity of the target (Tomei's
+    law): :math:`u = K_p (q_{2,ref} - q_2) - K_d \dot q_2 + g(q_{ref})`, the motor target
+    :math:`q_{2,ref} = q_{ref} + K^{-1} g(q_{ref})` holding the links at :math:`q_{ref}` at rest.
 
     Args:
         robot: The robot (the controller keeps its own Pinocchio data).
         q_ref: Target configuration, shape (nq,).
         kp: Stiffness gains, scalar or shape (nu,), in [N m/rad] or [N/m].
         kd: Damping gains, scalar or shape (nu,), in [N m s/rad] or [N s/m].
-        gravity_compensation: Add the generalized gravity g(q).
+        gravity_compensation: Add the generalized gravity g(q) (g(q_ref) with flexible joints).
+        flexible: The robot's flexible joints, if any: q and v then hold the motors last.
     """
 
     def __init__(
@@ -32,6 +37,7 @@ class JointPD:
         kp: float | Vector,
         kd: float | Vector,
         gravity_compensation: bool = True,
+        flexible: FlexibleJoints | None = None,
     ) -> None:
         if robot.nq != robot.nv:
             raise InvalidParameterError("robot", robot.name, "a robot with nq = nv for JointPD")
@@ -42,13 +48,32 @@ class JointPD:
         self.kp = _gain("kp", kp, robot.nu)
         self.kd = _gain("kd", kd, robot.nu)
         self.gravity_compensation = gravity_compensation
+        self._flexible = flexible
+        self._target = self.q_ref[self._actuated]  # of the measured positions [rad]
+        self._measured_q = self._measured_v = self._actuated  # indices in the plant's q, v
+        if flexible is not None:
+            self._gravity_at_target = pin.computeGeneralizedGravity(
+                self._model, self._data, self.q_ref
+            )[self._actuated]
+            motors = flexible.input_index
+            self._target = self._target.copy()
+            self._target[motors] += (
+                self._gravity_at_target[motors] / flexible.stiffness
+                if gravity_compensation
+                else 0.0
+            )
+            self._measured_q = self._actuated.copy()
+            self._measured_q[motors] = robot.nq + np.arange(flexible.nf)
+            self._measured_v = flexible.input_coordinates(self._actuated)
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Torques, shape (nu,)."""
-        a = self._actuated
-        torque = self.kp * (self.q_ref[a] - q[a]) - self.kd * v[a]
+        torque = self.kp * (self._target - q[self._measured_q]) - self.kd * v[self._measured_v]
         if self.gravity_compensation:
-            torque += pin.computeGeneralizedGravity(self._model, self._data, q)[a]
+            if self._flexible is None:
+                torque += pin.computeGeneralizedGravity(self._model, self._data, q)[self._actuated]
+            else:
+                torque += self._gravity_at_target
         return torque
 
 

@@ -15,9 +15,19 @@ Per declared contact (a gap coordinate :math:`X_{1,i}`) and per cycle k:
   nominal path, then FREE again for cycle k + 1.
 
 If the contact is not reached or not settled by :math:`t_d`, the takeoff starts anyway (the
-cycle is then reported without :math:`t_f`). The machine only keeps times and segment
-parameters, so every cycle is built from the same declared values: nothing of cycle k leaks
-into cycle k + 1 except the state of the robot.
+cycle is then reported without :math:`t_f`).
+
+The pieces depend on the ``order`` k of the machine (the number of derivatives its law holds,
+see :mod:`ucontrol.control.trajectory_segment`). For k = 2 (the rigid law) they are those above
+(cubic, parabola, quintic blends): :math:`C^1` joins. For k > 2 (the flexible-joint law,
+k = 4) every join is :math:`C^k`: the approach and the stops are the Hermite polynomials of
+degree 2k + 1 to their end at rest (:class:`RestHermite`), the takeoff parabola starts with
+zero acceleration and its acceleration rises to a along the smooth step of continuity k - 2
+(:class:`SmoothParabola`), and the blends use the smooth step of continuity k. Only the gap
+target of a contact jumps, from the virtual target to the surface at :math:`t_f`, by design.
+
+The machine only keeps times and segment parameters, so every cycle is built from the same
+declared values: nothing of cycle k leaks into cycle k + 1 except the state of the robot.
 """
 
 from __future__ import annotations
@@ -36,8 +46,11 @@ from ucontrol.control.trajectory_segment import (
     Nominal,
     Parabola,
     RestCubic,
+    RestHermite,
+    SmoothParabola,
     TrajectorySegment,
 )
+from ucontrol.exceptions import InvalidParameterError
 
 Vector = NDArray[np.float64]
 
@@ -50,19 +63,34 @@ class DesiredState:
     r"""The desired trajectory at one time, in task coordinates.
 
     Attributes:
-        target: Position, velocity, acceleration tracked by the law (with the virtual target
-            below the surface during transitions), each shape (m,).
+        target: Position and its first k time derivatives tracked by the law (k = the
+            machine's ``order``; with the virtual target below the surface during
+            transitions), each shape (m,).
         reference: Position and velocity on which V is built: the target with the gaps of
             transiting contacts clipped at the surface (0, at rest), each shape (m,).
         force: Desired contact force :math:`\lambda_d` of each declared contact in [N],
             shape (n,) (0 outside the constrained phase).
         constrained: Whether each declared contact is in its constrained phase, shape (n,).
+        force_derivatives: The first k - 2 time derivatives of ``force`` [N/s^i], each
+            shape (n,): the law's force term has as many derivatives as its ``target[2]`` term.
     """
 
-    target: tuple[Vector, Vector, Vector]
+    target: tuple[Vector, ...]
     reference: tuple[Vector, Vector]
     force: Vector
     constrained: NDArray[np.bool_]
+    force_derivatives: tuple[Vector, ...] = ()
+
+    @classmethod
+    def zeros(cls, m: int, n: int, order: int = 2) -> DesiredState:
+        """Everything 0 for m task coordinates, n contacts and ``order`` derivatives."""
+        return cls(
+            tuple(np.zeros(m) for _ in range(order + 1)),
+            (np.zeros(m), np.zeros(m)),
+            np.zeros(n),
+            np.zeros(n, dtype=bool),
+            tuple(np.zeros(n) for _ in range(order - 2)),
+        )
 
 
 class PhaseMachine:
@@ -71,15 +99,21 @@ class PhaseMachine:
     Args:
         task: The task coordinates (the declared contacts are among its gaps).
         cycle: The designed cycle; checked against ``task``.
+        order: Number of time derivatives of the desired trajectory, >= 2 (2 for a rigid
+            law, 4 for the flexible-joint law); above 2 the pieces join :math:`C^{order}`.
 
     Raises:
+        InvalidParameterError: ``order`` is not an integer >= 2.
         NotFoundError: A contact phase names a contact that is not a task constraint.
         PathThroughSurfaceError: The nominal path crosses an obstacle outside its contact
             phases.
     """
 
-    def __init__(self, task: TaskCoordinates, cycle: DesiredCycle) -> None:
+    def __init__(self, task: TaskCoordinates, cycle: DesiredCycle, *, order: int = 2) -> None:
+        if isinstance(order, bool) or not isinstance(order, int) or order < 2:
+            raise InvalidParameterError("order", order, "an integer >= 2")
         cycle.check(task)
+        self.order = order
         self.task = task
         self.cycle = cycle
         self.contacts = [phase.contact for phase in cycle.contact_phases]
@@ -115,27 +149,31 @@ class PhaseMachine:
 
     def desired(self, t: float) -> DesiredState:
         """The desired trajectory at time ``t`` [s] in the current phases."""
-        p, dp, ddp = self.cycle.path(t)
-        task = self.task
-        nominal = (task.of_point(p), task.of_vector(dp), task.of_vector(ddp))
-        m = task.m
-        target = (np.empty(m), np.empty(m), np.empty(m))
+        order, task = self.order, self.task
+        path = self.cycle.path.derivatives(t, order)
+        nominal = (task.of_point(path[0]), *(task.of_vector(d) for d in path[1:]))
+        target = tuple(np.empty(task.m) for _ in range(order + 1))
         for j, segment in enumerate(self._segments):
-            sample = segment(t, (nominal[0][j], nominal[1][j], nominal[2][j]))
-            target[0][j], target[1][j], target[2][j] = sample
+            sample = segment(t, tuple(float(x[j]) for x in nominal))
+            for x, value in zip(target, sample, strict=True):
+                x[j] = value
         reference = (target[0].copy(), target[1].copy())
-        force = np.zeros(len(self.contacts))
-        constrained = np.zeros(len(self.contacts), dtype=bool)
+        n = len(self.contacts)
+        force = np.zeros(n)
+        force_derivatives = tuple(np.zeros(n) for _ in range(order - 2))
+        constrained = np.zeros(n, dtype=bool)
         for i, phase in enumerate(self.phases):
             j = self.coordinates[i]
             if phase in TRANSITION_PHASES and target[0][j] < 0.0:
                 reference[0][j] = reference[1][j] = 0.0
             elif phase is Phase.CONSTRAINED:
                 constrained[i] = True
-                force[i] = self.cycle.desired_force(
-                    self.cycle.contact_phases[i], t, self.takeoff_time(i)
+                values = self.cycle.desired_force_derivatives(
+                    self.cycle.contact_phases[i], t, self.takeoff_time(i), order - 2
                 )
-        return DesiredState(target, reference, force, constrained)
+                for x, value in zip((force, *force_derivatives), values, strict=True):
+                    x[i] = value
+        return DesiredState(target, reference, force, constrained, force_derivatives)
 
     def update(self, t: float, closed: NDArray[np.bool_], V1: float, now: DesiredState) -> bool:
         r"""Advance the phases to time ``t`` and return whether any event happened.
@@ -144,8 +182,9 @@ class PhaseMachine:
             t: Time in [s] (non-decreasing from call to call).
             closed: Whether each declared contact had a positive impulse over the last step,
                 shape (n,).
-            V1: :math:`V_1 = \tfrac12 s^T \bar M s` at ``t`` in [J] (sets the virtual depth at
-                :math:`\tau_0`).
+            V1: The kinetic part of the law's Lyapunov function at ``t`` in [J] (sets the
+                virtual depth at :math:`\tau_0`): :math:`\tfrac12 s^T \bar M s` for the rigid
+                law, :math:`\tfrac12 s_1^T M s_1 + \tfrac12 s_2^T B s_2` for flexible joints.
             now: :meth:`desired` at ``t`` before the update (segments start from it).
         """
         cycle = self.cycle
@@ -155,9 +194,7 @@ class PhaseMachine:
             event = Event.NONE
             if phase is Phase.FREE and _reached(t, self.approach_time(i)):
                 self.depth[i] = cycle.depth(V1)
-                self._segments[j] = RestCubic(
-                    t, now.target[0][j], now.target[1][j], -self.depth[i], cycle.approach_time
-                )
+                self._segments[j] = self._stop(t, now, j, -self.depth[i])
                 self._frozen[j] = False  # its own transition now drives it
                 self.phases[i] = Phase.APPROACH
                 self._freeze(t, now)
@@ -207,9 +244,14 @@ class PhaseMachine:
         self.phases[i] = Phase.TAKEOFF
         self.depth[i] = 0.0
         self._takeoff_started[i] = t
-        self._segments[self.coordinates[i]] = BlendToNominal(
-            Parabola(t, self.cycle.takeoff_acceleration), t, self.cycle.takeoff_time
-        )
+        cycle = self.cycle
+        if self.order == 2:
+            parabola: TrajectorySegment = Parabola(t, cycle.takeoff_acceleration)
+        else:
+            parabola = SmoothParabola(
+                t, cycle.takeoff_acceleration, cycle.takeoff_ramp_time, self.order - 2
+            )
+        self._segments[self.coordinates[i]] = self._blend(parabola, t, cycle.takeoff_time)
         if was_transiting:
             self._release(t)
 
@@ -225,8 +267,7 @@ class PhaseMachine:
             if j in busy or self._frozen[j]:
                 continue
             p, dp = now.target[0][j], now.target[1][j]
-            T = self.cycle.approach_time
-            self._segments[j] = RestCubic(t, p, dp, p + 0.5 * dp * T, T)
+            self._segments[j] = self._stop(t, now, j, p + 0.5 * dp * self.cycle.approach_time)
             self._frozen[j] = True
 
     def _release(self, t: float) -> None:
@@ -235,8 +276,19 @@ class PhaseMachine:
             return
         for j, frozen in enumerate(self._frozen):
             if frozen:
-                self._segments[j] = BlendToNominal(self._segments[j], t, self.cycle.blend_time)
+                self._segments[j] = self._blend(self._segments[j], t, self.cycle.blend_time)
                 self._frozen[j] = False
+
+    def _stop(self, t: float, now: DesiredState, j: int, p1: float) -> TrajectorySegment:
+        """Coordinate ``j`` from its sample in ``now`` to ``p1`` at rest over the approach time."""
+        T = self.cycle.approach_time
+        if self.order == 2:
+            return RestCubic(t, now.target[0][j], now.target[1][j], p1, T)
+        return RestHermite(t, tuple(float(x[j]) for x in now.target), p1, T)
+
+    def _blend(self, base: TrajectorySegment, t: float, duration: float) -> BlendToNominal:
+        """``base`` into the nominal path from ``t`` over ``duration`` [s], :math:`C^{order}`."""
+        return BlendToNominal(base, t, duration, continuity=self.order)
 
 
 def _reached(t: float, time: float) -> bool:

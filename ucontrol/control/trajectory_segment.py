@@ -1,46 +1,122 @@
 r"""Pieces of a one-coordinate desired trajectory, glued by the phase machine.
 
-Each segment maps a time ``t`` [s] and the nominal value of its coordinate at ``t``
-(position, velocity, acceleration) to the desired (position, velocity, acceleration) of that
-coordinate. Positions are in [m], velocities in [m/s], accelerations in [m/s²]. A segment
-started at ``t0`` from the value and velocity of the previous one keeps the desired
-trajectory :math:`C^1`, so the Lyapunov function built on it does not jump.
+Each segment maps a time ``t`` [s] and the nominal sample of its coordinate at ``t`` (value and
+its first k time derivatives) to the desired sample, of the same length: k = 2 for the rigid
+law, 4 for the flexible-joint law. Positions are in [m], velocities in [m/s], the i-th
+derivative in [m/s^i].
+
+Two families, picked by the phase machine from its ``order`` k:
+
+- for the rigid law (k = 2): :class:`RestCubic`, :class:`Parabola` and :class:`BlendToNominal`
+  with the quintic :func:`smooth_step`. A segment started at ``t0`` from the value and velocity
+  of the previous one keeps the desired trajectory :math:`C^1`, which is all the rigid V needs
+  (it holds the desired position and velocity); the acceleration jumps at some joins (the
+  torque jumps there, not the state);
+- for a law that holds k > 2 derivatives (the flexible-joint law, k = 4: its V holds the third
+  derivative through the motor reference, its input the fourth): :class:`RestHermite`,
+  :class:`SmoothParabola` and :class:`BlendToNominal` with the smooth step of continuity k.
+  Every join is :math:`C^k`, so neither V nor the input jumps there.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import Protocol
 
-#: (position, velocity, acceleration) of one coordinate.
-Sample = tuple[float, float, float]
+from numpy.polynomial import Polynomial
+
+#: A coordinate and its first time derivatives: (position, velocity, acceleration, ...).
+Sample = tuple[float, ...]
 
 
-def smooth_step(sigma: float) -> tuple[float, float, float]:
-    r"""Quintic smooth step :math:`\beta(\sigma) = 10\sigma^3 - 15\sigma^4 + 6\sigma^5` on [0, 1].
+def smooth_step(sigma: float, order: int = 2, continuity: int = 2) -> Sample:
+    r"""Smooth step :math:`\beta_n` from 0 to 1 on [0, 1], :math:`C^n` with n = ``continuity``.
 
-    :math:`\beta = \beta' = \beta'' = 0` at 0 and :math:`\beta = 1`, :math:`\beta' =
-    \beta'' = 0` at 1; constant outside [0, 1].
+    :math:`\beta_n(\sigma) = \sigma^{n+1} \sum_{k=0}^{n} \binom{n+k}{k} (1 - \sigma)^k` is the
+    polynomial of degree 2n + 1 with :math:`\beta_n = \beta_n' = ... = \beta_n^{(n)} = 0` at 0
+    and :math:`\beta_n = 1`, :math:`\beta_n' = ... = \beta_n^{(n)} = 0` at 1; constant outside
+    [0, 1], so its derivative n + 1 jumps at both ends. n = 2 is the quintic
+    :math:`10\sigma^3 - 15\sigma^4 + 6\sigma^5` (:math:`\beta''' = 60` at both ends inside, 0
+    outside), evaluated in that closed form (the rigid law's blends and :math:`\lambda_d`);
+    n = 4 the nonic :math:`126\sigma^5 - 420\sigma^6 + 540\sigma^7 - 315\sigma^8 + 70\sigma^9`.
+    By symmetry, :math:`\beta_n(1 - \sigma) = 1 - \beta_n(\sigma)` and
+    :math:`\int_0^1 \beta_n = 1/2`.
+
+    Args:
+        sigma: The argument.
+        order: Number of derivatives returned, >= 0.
+        continuity: n, >= 0.
 
     Returns:
-        :math:`(\beta, \beta', \beta'')` at ``sigma``.
+        :math:`(\beta_n, \beta_n', ..., \beta_n^{(order)})` at ``sigma``.
     """
     if sigma <= 0.0:
-        return 0.0, 0.0, 0.0
-    if sigma >= 1.0:
-        return 1.0, 0.0, 0.0
-    return (
-        sigma**3 * (10.0 - 15.0 * sigma + 6.0 * sigma**2),
-        30.0 * sigma**2 * (1.0 - sigma) ** 2,
-        60.0 * sigma * (1.0 - sigma) * (1.0 - 2.0 * sigma),
-    )
+        values: Sample = (0.0,)
+    elif sigma >= 1.0:
+        values = (1.0,)
+    elif continuity != 2:
+        values = _polynomial_sample(_smooth_step_coefficients(continuity), sigma, order + 1)
+    else:
+        values = (
+            sigma**3 * (10.0 - 15.0 * sigma + 6.0 * sigma**2),
+            30.0 * sigma**2 * (1.0 - sigma) ** 2,
+            60.0 * sigma * (1.0 - sigma) * (1.0 - 2.0 * sigma),
+            60.0 * (1.0 - 6.0 * sigma + 6.0 * sigma**2),
+            360.0 * (2.0 * sigma - 1.0),
+            720.0,
+        )
+    return _padded(values, order + 1)
+
+
+def _padded(values: Sample, size: int) -> Sample:
+    """``values`` cut or completed with zeros to ``size`` entries."""
+    return values[:size] + (0.0,) * (size - len(values))
+
+
+@functools.cache
+def _smooth_step_coefficients(continuity: int) -> tuple[float, ...]:
+    r"""Coefficients of :math:`\beta_n` (see :func:`smooth_step`), by increasing degree."""
+    n = continuity
+    rest = Polynomial([1.0, -1.0])  # 1 - σ
+    tail = sum((math.comb(n + k, k) * rest**k for k in range(n + 1)), Polynomial([0.0]))
+    return tuple(float(c) for c in (Polynomial([0.0, 1.0]) ** (n + 1) * tail).coef)
+
+
+def _polynomial_sample(
+    coefficients: Sequence[float], sigma: float, size: int, duration: float = 1.0
+) -> Sample:
+    r"""A polynomial P of :math:`\sigma = (t - t_0)/T` and its time derivatives at ``sigma``.
+
+    Args:
+        coefficients: Those of P, by increasing degree.
+        sigma: The argument.
+        size: Number of values returned.
+        duration: T in [s] (1: derivatives with respect to :math:`\sigma`).
+
+    Returns:
+        :math:`P^{(k)}(\sigma) / T^k` for k < ``size`` (0 beyond the degree of P).
+    """
+    values = []
+    c = list(coefficients)
+    scale = 1.0  # T^k [s^k]
+    for _ in range(size):
+        value = 0.0
+        for a in reversed(c):  # Horner
+            value = value * sigma + a
+        values.append(value / scale)
+        c = [i * a for i, a in enumerate(c)][1:]
+        scale *= duration
+    return tuple(values)
 
 
 class TrajectorySegment(Protocol):
     """A desired trajectory of one task coordinate."""
 
     def __call__(self, t: float, nominal: Sample) -> Sample:
-        """Desired (position, velocity, acceleration) at time ``t`` [s]."""
+        """Desired sample at time ``t`` [s], as long as ``nominal``."""
         ...
 
 
@@ -59,8 +135,8 @@ class Constant:
     value: float
 
     def __call__(self, t: float, nominal: Sample) -> Sample:
-        """``(value, 0, 0)``."""
-        return self.value, 0.0, 0.0
+        """``(value, 0, 0, ...)``."""
+        return _padded((self.value,), len(nominal))
 
 
 @dataclass(frozen=True)
@@ -71,6 +147,8 @@ class RestCubic:
 
     With :math:`p_1 = p_0 + v_0 T / 2` it is the constant-deceleration stop of a coordinate
     that is frozen; with :math:`p_1 = -d` it is the approach to a virtual target below a surface.
+    Its third derivative is constant on the cubic and jumps to 0 at its end. It is the
+    :class:`RestHermite` from (p0, v0) (n = 1) in closed form: the rigid law's piece.
 
     Attributes:
         t0: Start time in [s].
@@ -87,11 +165,11 @@ class RestCubic:
     duration: float
 
     def __call__(self, t: float, nominal: Sample) -> Sample:
-        """Hermite cubic sample at ``t``; ``(p1, 0, 0)`` once it has ended."""
+        """Hermite cubic sample at ``t``; ``(p1, 0, 0, ...)`` once it has ended."""
         T = self.duration
         sigma = (t - self.t0) / T
         if sigma >= 1.0:
-            return self.p1, 0.0, 0.0
+            return _padded((self.p1,), len(nominal))
         sigma = max(sigma, 0.0)
         s2, s3 = sigma * sigma, sigma * sigma * sigma
         p0, v0, p1 = self.p0, self.v0, self.p1
@@ -100,7 +178,51 @@ class RestCubic:
         )
         velocity = (6 * s2 - 6 * sigma) * (p0 - p1) / T + (3 * s2 - 4 * sigma + 1) * v0
         acceleration = (12 * sigma - 6) * (p0 - p1) / T**2 + (6 * sigma - 4) * v0 / T
-        return position, velocity, acceleration
+        jerk = 12 * (p0 - p1) / T**3 + 6 * v0 / T**2
+        return _padded((position, velocity, acceleration, jerk), len(nominal))
+
+
+@dataclass(frozen=True)
+class RestHermite:
+    r"""Hermite polynomial from a value and n derivatives to a value at rest, then that value.
+
+    The polynomial P of degree 2n + 1 from :math:`(p_0, \dot p_0, ..., p_0^{(n)})` at
+    :math:`t_0` to :math:`(p_1, 0, ..., 0)` at :math:`t_0 + T`, then :math:`p_1`: both joins are
+    :math:`C^n`. In :math:`\sigma = (t - t_0)/T`, :math:`P = p_1 + (1 - \sigma)^{n+1} R` with R
+    of degree n, the Taylor expansion at 0 of :math:`(P - p_1)(1 - \sigma)^{-(n+1)}`:
+    :math:`R = \big[\sum_k c_k \sigma^k \sum_j \binom{n+j}{j} \sigma^j\big]_{\deg \le n}`,
+    :math:`c_k = T^k p_0^{(k)}/k! - p_1 \delta_{k0}`. With n = 4 (the flexible-joint law) it is
+    the degree-9 approach to a virtual target and stop of a frozen coordinate.
+
+    Attributes:
+        t0: Start time in [s].
+        start: :math:`(p_0, \dot p_0, ..., p_0^{(n)})`, n >= 0 (position, then [1/s^k]).
+        p1: End position.
+        duration: T in [s], > 0.
+    """
+
+    t0: float
+    start: Sample
+    p1: float
+    duration: float
+    _coefficients: tuple[float, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        n, T = len(self.start) - 1, self.duration
+        c = [T**k * p / math.factorial(k) for k, p in enumerate(self.start)]  # [position]
+        c[0] -= self.p1
+        inverse = [float(math.comb(n + j, j)) for j in range(n + 1)]  # (1 - σ)^-(n+1), deg <= n
+        remainder = Polynomial((Polynomial(c) * Polynomial(inverse)).coef[: n + 1])
+        hermite = Polynomial([self.p1]) + Polynomial([1.0, -1.0]) ** (n + 1) * remainder
+        object.__setattr__(self, "_coefficients", tuple(float(a) for a in hermite.coef))
+
+    def __call__(self, t: float, nominal: Sample) -> Sample:
+        """Hermite sample at ``t``; ``(p1, 0, 0, ...)`` once it has ended."""
+        T = self.duration
+        sigma = (t - self.t0) / T
+        if sigma >= 1.0:
+            return _padded((self.p1,), len(nominal))
+        return _polynomial_sample(self._coefficients, max(sigma, 0.0), len(nominal), T)
 
 
 @dataclass(frozen=True)
@@ -119,26 +241,71 @@ class Parabola:
         """Parabola sample at ``t`` (``t >= t0``)."""
         tau = t - self.t0
         a = self.acceleration
-        return 0.5 * a * tau * tau, a * tau, a
+        return _padded((0.5 * a * tau * tau, a * tau, a), len(nominal))
+
+
+@dataclass(frozen=True)
+class SmoothParabola:
+    r"""A takeoff from 0 at rest whose acceleration rises smoothly from 0 to a, then stays a.
+
+    :math:`\ddot x = a\,\beta_n(\sigma)`, :math:`\sigma = (t - t_0)/T_r` (the :func:`smooth_step`
+    of continuity n), from :math:`x = \dot x = 0` at :math:`t_0`: x and its first n + 2
+    derivatives are 0 at :math:`t_0`, and the acceleration reaches a at :math:`t_0 + T_r`, after
+    which :math:`x = a T_r^2 (B(1) + (\sigma - 1)/2 + (\sigma - 1)^2/2)`, with
+    :math:`B = \iint \beta_n` from 0 and :math:`\int_0^1 \beta_n = 1/2`: the :class:`Parabola` of
+    acceleration a, :math:`T_r/2` late. :math:`\ddot x \ge 0` throughout, so x > 0 after
+    :math:`t_0`. With n = k - 2 it leaves a coordinate held at 0 :math:`C^k`.
+
+    Attributes:
+        t0: Start time in [s].
+        acceleration: a, > 0 for a takeoff.
+        ramp_time: :math:`T_r` in [s], > 0.
+        continuity: n, >= 0.
+    """
+
+    t0: float
+    acceleration: float
+    ramp_time: float
+    continuity: int
+    _ramp: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    _parabola: tuple[float, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        scale = self.acceleration * self.ramp_time**2  # a T_r² [position]
+        ramp = Polynomial(_smooth_step_coefficients(self.continuity)).integ(2)  # B
+        # B(1) + (σ - 1)/2 + (σ - 1)²/2 = B(1) - σ/2 + σ²/2
+        parabola = (float(ramp(1.0)), -0.5, 0.5)
+        object.__setattr__(self, "_ramp", tuple(scale * float(a) for a in ramp.coef))
+        object.__setattr__(self, "_parabola", tuple(scale * a for a in parabola))
+
+    def __call__(self, t: float, nominal: Sample) -> Sample:
+        """Takeoff sample at ``t``; 0 at rest before ``t0``."""
+        sigma = max((t - self.t0) / self.ramp_time, 0.0)
+        coefficients = self._ramp if sigma < 1.0 else self._parabola
+        return _polynomial_sample(coefficients, sigma, len(nominal), self.ramp_time)
 
 
 @dataclass(frozen=True)
 class BlendToNominal:
     r"""Moves smoothly from ``base`` to the nominal path over ``duration``.
 
-    :math:`x = b + \beta(\sigma)(n - b)`, :math:`\sigma = (t - t_0)/T`, with the quintic
-    :func:`smooth_step` :math:`\beta`: the result starts as ``base`` to second order and ends
-    on the nominal path to second order.
+    :math:`x = b + \beta(\sigma)(y - b)`, :math:`\sigma = (t - t_0)/T`, b the base and y the
+    nominal sample, with the :func:`smooth_step` :math:`\beta` of continuity c (the quintic,
+    c = 2, by default): the result starts as ``base`` to order c and ends on the nominal path to
+    order c. Its derivatives follow Leibniz's rule,
+    :math:`x^{(k)} = b^{(k)} + \sum_{i=0}^{k} \binom{k}{i} \beta^{(i)} (y - b)^{(k-i)}`.
 
     Attributes:
         base: The segment left.
         t0: Start time in [s].
         duration: T in [s], > 0.
+        continuity: c of the smooth step, >= 0.
     """
 
     base: TrajectorySegment
     t0: float
     duration: float
+    continuity: int = 2
 
     def __call__(self, t: float, nominal: Sample) -> Sample:
         """Blended sample at ``t``; the nominal sample once the blend has ended."""
@@ -146,13 +313,18 @@ class BlendToNominal:
         sigma = (t - self.t0) / T
         if sigma >= 1.0:
             return nominal
-        beta, d_beta, dd_beta = smooth_step(sigma)
-        d_beta /= T  # [1/s]
-        dd_beta /= T * T  # [1/s²]
-        b, db, ddb = self.base(t, nominal)
-        n, dn, ddn = nominal
-        return (
-            b + beta * (n - b),
-            db + beta * (dn - db) + d_beta * (n - b),
-            ddb + beta * (ddn - ddb) + 2.0 * d_beta * (dn - db) + dd_beta * (n - b),
-        )
+        order = len(nominal) - 1
+        beta = list(smooth_step(sigma, order, self.continuity))
+        scale = 1.0
+        for i in range(1, order + 1):
+            scale *= T
+            beta[i] /= scale  # [1/s^i]
+        base = self.base(t, nominal)
+        error = [n - b for n, b in zip(nominal, base, strict=True)]
+        blended = []
+        for k in range(order + 1):
+            value = base[k]
+            for i in range(k + 1):
+                value += math.comb(k, i) * beta[i] * error[k - i]
+            blended.append(value)
+        return tuple(blended)

@@ -17,6 +17,11 @@ The motion :math:`M \dot v = \tau - h + \sum_a J_a^T \lambda_a` is integrated by
 at :math:`g_a = 0` restart the integration where a contact begins or ends (the linear force jumps
 there) and record :math:`\dot\delta^-`. As k grows the motion tends to the rigid one with
 Newton's restitution; the error against k is measured in docs/accuracy.md.
+
+**Flexible joints.** With :class:`~ucontrol.model.FlexibleJoints` the state holds the motor
+coordinates after the link ones (:mod:`~ucontrol.integrators.smooth_dynamics`): the spring
+torque enters the links' generalized force and the contact forces act on the links only, with
+:math:`m_\text{eff}` that of the links. The stiff solver takes the joint springs in its stride.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import IntegrationError, InvalidParameterError
 from ucontrol.integrators.moreau_jean import PlantEvaluation, StepOutcome
 from ucontrol.integrators.smooth_dynamics import SmoothDynamics
+from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 
 Vector = NDArray[np.float64]
@@ -117,6 +123,7 @@ class Compliant:
         atol: Absolute tolerance of solve_ivp, in the units of the state.
         method: ``"Radau"``, ``"BDF"`` or ``"LSODA"``.
         max_events: Events allowed in one step before :class:`IntegrationError`.
+        flexible: Flexible joints of the robot: the state then holds their motor coordinates.
     """
 
     name = "compliant"
@@ -140,6 +147,7 @@ class Compliant:
         atol: float = 1e-10,
         method: str = "Radau",
         max_events: int = 10_000,
+        flexible: FlexibleJoints | None = None,
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
@@ -149,6 +157,7 @@ class Compliant:
             )
         self.robot = robot
         self.constraints = constraints
+        self.flexible = flexible
         self.dt = as_positive("dt", dt)
         self.stiffness = as_positive("stiffness", stiffness)
         self.contact_model = contact_model
@@ -156,7 +165,7 @@ class Compliant:
         self.atol = as_positive("atol", atol)
         self.method = method
         self.max_events = int(as_positive("max_events", max_events))
-        self._dynamics = SmoothDynamics(robot, constraints)
+        self._dynamics = SmoothDynamics(robot, constraints, flexible)
         self._n = constraints.size
         self._zeta = np.array([damping_ratio(e) for e in constraints.restitution])
         self._carry: tuple[Vector, Vector, Mask, Vector] | None = None
@@ -181,7 +190,8 @@ class Compliant:
 
         Args:
             state: The evaluation at the start of the step.
-            tau: Generalized forces (actuation plus external), shape (nv,), in [N m] or [N].
+            tau: Generalized forces (actuation plus external), shape (nv,), in [N m] or [N]
+                (nv + nf with flexible joints: the motor torques last).
 
         Raises:
             IntegrationError: solve_ivp failed, the events stalled, or more than

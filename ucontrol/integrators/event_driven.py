@@ -31,6 +31,14 @@ are of order :math:`m_\text{eff}` ``zeno_velocity`` and may be slightly adhesive
 Each :meth:`EventDriven.step` integrates exactly over :math:`[t_k, t_k + h]` with the torque
 held, so :func:`ucontrol.simulate` runs it like Moreau–Jean; the step ``h`` is only the sampling
 and control period. Its impulse is that of the step: impacts plus :math:`\int \lambda\,dt`.
+
+**Flexible joints.** With :class:`~ucontrol.model.FlexibleJoints` the state holds the motor
+coordinates after the link ones (:mod:`~ucontrol.integrators.smooth_dynamics`): the spring
+torque enters the links' generalized force, and the impact LCP, the acceleration LCP and the
+projection, taken in the metric of the block-diagonal inertia of links and motors, act on the
+links only — an impact never changes the motor velocities. Stiff springs make the explicit
+Runge–Kutta pairs take steps of about :math:`1/\omega = \sqrt{B/K}`: slow but exact (use
+compliant's Radau, or Moreau–Jean, for very stiff ones).
 """
 
 from __future__ import annotations
@@ -48,6 +56,7 @@ from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import IntegrationError, InvalidParameterError, SolverError
 from ucontrol.integrators.moreau_jean import PlantEvaluation, StepOutcome
 from ucontrol.integrators.smooth_dynamics import ConstraintTerms, SmoothDynamics
+from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
@@ -108,6 +117,7 @@ class EventDriven:
         impact_solver: Velocity-level LCP solver; default a :class:`ProxsuiteLCPSolver`.
         acceleration_solver: Acceleration-level LCP solver; default a second one.
         max_events: Events allowed in one step before :class:`IntegrationError`.
+        flexible: Flexible joints of the robot: the state then holds their motor coordinates.
     """
 
     name = "event_driven"
@@ -136,11 +146,13 @@ class EventDriven:
         impact_solver: ProxsuiteLCPSolver | None = None,
         acceleration_solver: ProxsuiteLCPSolver | None = None,
         max_events: int = 10_000,
+        flexible: FlexibleJoints | None = None,
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
         self.robot = robot
         self.constraints = constraints
+        self.flexible = flexible
         self.dt = as_positive("dt", dt)
         self.rtol = as_positive("rtol", rtol)
         self.atol = as_positive("atol", atol)
@@ -151,7 +163,7 @@ class EventDriven:
         self.acceleration_solver = (
             acceleration_solver if acceleration_solver is not None else ProxsuiteLCPSolver()
         )
-        self._dynamics = SmoothDynamics(robot, constraints)
+        self._dynamics = SmoothDynamics(robot, constraints, flexible)
         self._n = constraints.size
         self._carry: tuple[Vector, Vector, Mask] | None = None
 
@@ -164,7 +176,8 @@ class EventDriven:
 
         Args:
             state: The evaluation at the start of the step.
-            tau: Generalized forces (actuation plus external), shape (nv,), in [N m] or [N].
+            tau: Generalized forces (actuation plus external), shape (nv,), in [N m] or [N]
+                (nv + nf with flexible joints: the motor torques last).
 
         Raises:
             IntegrationError: solve_ivp failed, the events stalled, or more than

@@ -48,6 +48,12 @@ the kinetic part and the work of the step's smooth forces over the displacement 
 cause (for θ = 1/2, :math:`\tfrac12 P^T (u_k + u^+)`); a step with :math:`G > 0` is redone with
 the plastic law (e = 0), flagged in :attr:`StepOutcome.plastic`. (The kinetic part alone misses
 the beads' case: it is measured from :math:`v_\text{free}`, which holds a step of gravity.)
+The guard checks steps with restitution only: with θ < 1 a contact in the active set while
+separating at :math:`t_k` (:math:`u_k > 0`, it penetrates) that the impulse holds at
+:math:`u^+ = 0` gains :math:`(1-\theta) P u_k`. On rigid robots :math:`u_k` is then at the
+level of the active-set flicker and the gain negligible; with very stiff joint springs
+(:math:`\omega h \gg 1`) the tip's velocity can reverse within the step and the gain become
+visible (docs/flexible.md): θ = 1 has none.
 
 **Friction.** Active contacts with a friction coefficient add their tangential rows
 (:meth:`~ucontrol.contact.ConstraintSet.tangent_rows`) below the normal ones; step 3 is then
@@ -123,7 +129,7 @@ class StepOutcome(NamedTuple):
         active: Which constraints were in the active set, shape (n,).
         solution: The contact solve, or None when the active set was empty.
         plastic: Whether Newton's law was replaced by a plastic one (e = 0) in this step,
-            because the restitution impulses would have added kinetic energy.
+            because the restitution impulses would have added energy.
         events: Events located within the step (impacts, contact closures and releases) by
             event-driven integrators; 0 for time-stepping, which locates none.
         friction_impulse: Friction impulse of each constraint over the step in world
@@ -229,9 +235,9 @@ class MoreauJean:
         gap, normal_velocity = self.constraints.evaluate(data, q1, v1)
         kinetic, potential = data.kinetic_energy, data.potential_energy
         if flexible is not None:
-            _, _, q2, v2 = flexible.split(q, v)
-            kinetic += flexible.motor_kinetic_energy(v2)
-            potential += flexible.spring_energy(q1, q2)
+            motors, springs = flexible.energies(q, v)
+            kinetic += motors
+            potential += springs
         return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential)
 
     def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
@@ -333,10 +339,7 @@ class MoreauJean:
         if flexible is None:
             W = M
         else:
-            _, _, q2, v2 = flexible.split(state.q, state.v)
-            transmission = flexible.spring_torque(q1, v1, q2, v2)  # on the motors [N m]
-            force[flexible.v_index] -= transmission
-            force[nv:] += transmission
+            force += flexible.transmission_forces(state.q, state.v)
             force -= (h * self.theta) * (self._stiffness @ state.v)
             W = self._implicit_forces.copy()
             W[:nv, :nv] += M

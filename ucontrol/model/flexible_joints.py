@@ -132,6 +132,17 @@ class FlexibleJoints:
         coordinates[self.input_index] = self.nv + np.arange(self.nf)
         return coordinates
 
+    def rigid_limit(self, robot: RobotModel) -> RobotModel:
+        """The robot these joints tend to as K grows: each motor's inertia added to its link's.
+
+        Without impacts the flexible trajectories approach those of this rigid robot at the
+        rate 1/K; an impact acts on the link inertia alone and leaves a fast spring oscillation
+        whose energy does not vanish with 1/K (docs/flexible.md).
+        """
+        armature = np.zeros(robot.nv)
+        armature[self.v_index] = self.motor_inertia
+        return robot.with_armature(armature)
+
     def link_positions(self, q: Vector) -> Vector:
         """The flexible joints' link coordinates in a link configuration (nq,), shape (nf,)."""
         return q[self.q_index]
@@ -162,6 +173,24 @@ class FlexibleJoints:
         In [N m] (or [N]), shape (nf,); the links receive its opposite.
         """
         return self.stiffness * self.deflection(q1, q2) + self.damping * (dq1[self.v_index] - dq2)
+
+    def transmission_forces(self, q: Vector, v: Vector) -> Vector:
+        r"""Generalized forces of the springs and dampers on the extended state.
+
+        :math:`(-S^T f, f)` with f the :meth:`spring_torque`, in [N m] (or [N]), shape
+        (nv + nf,), for the extended (q (nq + nf,), v (nv + nf,)).
+        """
+        q1, v1, q2, v2 = self.split(q, v)
+        transmission = self.spring_torque(q1, v1, q2, v2)  # on the motors
+        forces = np.zeros(self.nv + self.nf)
+        forces[self.v_index] = -transmission
+        forces[self.nv :] = transmission
+        return forces
+
+    def energies(self, q: Vector, v: Vector) -> tuple[float, float]:
+        """Motors' kinetic and springs' elastic energy in [J] at the extended (q, v)."""
+        q1, _, q2, v2 = self.split(q, v)
+        return self.motor_kinetic_energy(v2), self.spring_energy(q1, q2)
 
     def spring_energy(self, q1: Vector, q2: Vector) -> float:
         """Elastic energy of the springs in [J]."""

@@ -9,7 +9,12 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
-from ucontrol.exceptions import FrameNotFoundError, JointNotFoundError, URDFError
+from ucontrol.exceptions import (
+    FrameNotFoundError,
+    InvalidParameterError,
+    JointNotFoundError,
+    URDFError,
+)
 
 Vector = NDArray[np.float64]
 
@@ -99,6 +104,22 @@ class RobotModel:
             model.inertias[i] = pin.Inertia(
                 inertia.mass * factor, inertia.lever, inertia.inertia * factor
             )
+        return RobotModel(model, floating_base=self.floating_base, urdf_path=self.urdf_path)
+
+    def with_armature(self, armature: Vector) -> RobotModel:
+        """A copy with rotor inertias added to the diagonal of M(q).
+
+        The rigid limit of flexible joints (:class:`~ucontrol.model.FlexibleJoints`): each motor
+        rigidly attached to its link adds its inertia B to the joint's diagonal entry.
+
+        Args:
+            armature: Inertia per velocity coordinate in [kg m²] (or [kg]), shape (nv,), >= 0.
+        """
+        armature = as_vector("armature", armature, self.nv)
+        if np.any(armature < 0.0):
+            raise InvalidParameterError("armature", armature.tolist(), ">= 0")
+        model = self.model.copy()
+        model.armature = model.armature + armature
         return RobotModel(model, floating_base=self.floating_base, urdf_path=self.urdf_path)
 
     @property

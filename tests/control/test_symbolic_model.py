@@ -1,0 +1,128 @@
+"""The casadi model of a robot against Pinocchio: M, C, g, frame positions and Jacobians."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ucontrol.exceptions import FrameNotFoundError, InvalidParameterError, URDFError
+from ucontrol.model import RobotModel, SymbolicModel, example_robot_data_dir, resolve_urdf
+
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
+RNG = np.random.default_rng(20240612)
+_LWA = pin.LOCAL_WORLD_ALIGNED
+#: Agreement with Pinocchio, relative to the size of the compared quantity.
+TOLERANCE = 1e-12
+
+
+def _two_link() -> RobotModel:
+    return RobotModel.from_urdf(ROBOTS / "two_link.urdf", gravity=[0.0, -9.81, 0.0])
+
+
+def _panda() -> RobotModel:
+    try:
+        example_robot_data_dir()
+    except URDFError:
+        pytest.skip("example-robot-data is not installed (extra `robots`)")
+    return RobotModel.from_urdf(
+        resolve_urdf("example-robot-data:panda_description/urdf/panda.urdf", ROBOTS)
+    )
+
+
+def _every_joint_type() -> RobotModel:
+    """A random tree with every supported joint type, random placements and inertias."""
+    model = pin.Model()
+    joints = [
+        pin.JointModelRX(),
+        pin.JointModelRY(),
+        pin.JointModelRZ(),
+        pin.JointModelRevoluteUnaligned(*RNG.standard_normal(3)),
+        pin.JointModelPX(),
+        pin.JointModelPY(),
+        pin.JointModelPZ(),
+        pin.JointModelPrismaticUnaligned(*RNG.standard_normal(3)),
+    ]
+    parents = [0, 1, 2, 3, 2, 5, 1, 7]  # a tree in depth-first order: 3 branches
+    for k, (joint, parent) in enumerate(zip(joints, parents, strict=True)):
+        joint_id = model.addJoint(parent, joint, pin.SE3.Random(), f"joint{k}")
+        model.appendBodyToJoint(joint_id, pin.Inertia.Random(), pin.SE3.Identity())
+        model.addFrame(pin.Frame(f"tip{k}", joint_id, 0, pin.SE3.Random(), pin.FrameType.OP_FRAME))
+    model.gravity.linear = RNG.standard_normal(3)
+    return RobotModel(model)
+
+
+ROBOTS_UNDER_TEST = {"two_link": _two_link, "panda": _panda, "every_joint_type": _every_joint_type}
+
+
+def _state(robot: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+    low = np.maximum(robot.model.lowerPositionLimit, -3.0)
+    high = np.minimum(robot.model.upperPositionLimit, 3.0)
+    return RNG.uniform(low, high), RNG.standard_normal(robot.nv)
+
+
+def _close(actual: ca.DM | np.ndarray, expected: np.ndarray) -> None:
+    actual = np.asarray(actual).reshape(expected.shape)
+    scale = max(1.0, float(np.max(np.abs(expected))))
+    np.testing.assert_allclose(actual, expected, rtol=0.0, atol=TOLERANCE * scale)
+
+
+@pytest.mark.parametrize("name", list(ROBOTS_UNDER_TEST))
+def test_dynamics_match_pinocchio(name: str) -> None:
+    robot = ROBOTS_UNDER_TEST[name]()
+    model, data = robot.model, robot.data
+    symbolic = SymbolicModel(robot)
+    for _ in range(5):
+        q, v = _state(robot)
+        _close(symbolic.mass_matrix(q), robot.mass_matrix(q))
+        _close(symbolic.gravity(q), pin.computeGeneralizedGravity(model, data, q))
+        C = np.asarray(symbolic.coriolis_matrix(q, v))
+        _close(C @ v + np.asarray(symbolic.gravity(q)).ravel(), robot.nonlinear_effects(q, v))
+        # Both are the Christoffel matrix C_kj = Σ_i Γ_ijk v_i.
+        _close(C, pin.computeCoriolisMatrix(model, data, q, v))
+
+
+@pytest.mark.parametrize("name", list(ROBOTS_UNDER_TEST))
+def test_mass_matrix_rate_minus_twice_coriolis_is_skew_symmetric(name: str) -> None:
+    robot = ROBOTS_UNDER_TEST[name]()
+    symbolic = SymbolicModel(robot)
+    q, v = _state(robot)
+    h = 1e-6
+    M_dot = (
+        robot.mass_matrix(pin.integrate(robot.model, q, h * v))
+        - robot.mass_matrix(pin.integrate(robot.model, q, -h * v))
+    ) / (2 * h)  # central difference of Pinocchio's M along v
+    N = M_dot - 2.0 * np.asarray(symbolic.coriolis_matrix(q, v))
+    scale = float(np.max(np.abs(M_dot)))
+    np.testing.assert_allclose(N + N.T, 0.0, atol=1e-8 * scale)
+
+
+@pytest.mark.parametrize("name", list(ROBOTS_UNDER_TEST))
+def test_frame_positions_and_jacobians_match_pinocchio(name: str) -> None:
+    robot = ROBOTS_UNDER_TEST[name]()
+    symbolic = SymbolicModel(robot)
+    q_sym = ca.SX.sym("q", robot.nv)
+    frames = [frame.name for frame in robot.model.frames][1:]
+    for frame in frames:
+        position = symbolic.frame_position(frame)
+        jacobian = ca.Function("J", [q_sym], [ca.jacobian(position(q_sym), q_sym)])
+        q, _ = _state(robot)
+        _close(position(q), robot.frame_position(q, frame))
+        _close(jacobian(q), robot.frame_jacobian(q, frame)[:3])
+
+
+def test_unsupported_joint_is_named() -> None:
+    robot = RobotModel.from_urdf(ROBOTS / "two_link.urdf", floating_base=True)
+    with pytest.raises(InvalidParameterError, match=r"`joint 'root_joint'` must be one of") as info:
+        SymbolicModel(robot)
+    assert info.value.value == "JointModelFreeFlyer"
+
+
+def test_missing_frame_lists_the_frames() -> None:
+    symbolic = SymbolicModel(_two_link())
+    with pytest.raises(FrameNotFoundError, match="unknown frame 'tool'") as info:
+        symbolic.frame_position("tool")
+    assert "end_effector" in info.value.available

@@ -1,0 +1,405 @@
+r"""Brogliato–Ortega–Lozano passivity-based tracking of flexible-joint robots, in the phase machine.
+
+Plant (Spong, :class:`ucontrol.model.FlexibleJoints`, no damper), link coordinates
+:math:`q_1`, motor coordinates :math:`q_2`, S the selection of the flexible joints:
+
+.. math::
+
+    M(q_1)\ddot q_1 + C(q_1, \dot q_1)\dot q_1 + g(q_1) = S^T K (q_2 - S q_1) + S_r^T u_r
+        + J_c^T \lambda, \qquad B \ddot q_2 + K (q_2 - S q_1) = u_f,
+
+with :math:`u_r` the torques of the rigid actuated joints (selection :math:`S_r`,
+:math:`S^T S + S_r^T S_r = I`). Link reference :math:`q_{1d}(t)`:
+:math:`\tilde q_1 = q_1 - q_{1d}`, :math:`s_1 = \dot{\tilde q}_1 + \gamma_2 \tilde q_1`,
+:math:`\dot q_{1r} = \dot q_{1d} - \gamma_2 \tilde q_1`. The rigid law of the current phase is
+
+.. math::
+
+    U_R = M \ddot q_{1r} + C \dot q_{1r} + g - \gamma_1 s_1
+          + J_c^T\big(-\lambda_d + K_f (\lambda - \lambda_d)\big)
+
+(force term on the contacts held in their constrained phase, as in
+:class:`BrogliatoController`). The motor reference
+:math:`q_{2d} = S q_{1d} + K^{-1} S U_R` gives :math:`\tilde q_2 = q_2 - q_{2d}`,
+:math:`s_2 = \dot{\tilde q}_2 + \gamma_2 \tilde q_2`, and the inputs are
+
+.. math::
+
+    u_f = B \ddot q_{2r} + K (q_{2d} - S q_{1d}) - \gamma_1 s_2, \qquad u_r = S_r U_R.
+
+Closed loop (free motion): the link receives :math:`S^T K(q_2 - S q_1) + S_r^T S_r U_R
+= U_R + S^T K (\tilde q_2 - S \tilde q_1)`, so with :math:`e = S \tilde q_1 - \tilde q_2`
+
+.. math::
+
+    M \dot s_1 + C s_1 + \gamma_1 s_1 = -S^T K e, \qquad B \dot s_2 + \gamma_1 s_2 = K e.
+
+With :math:`V = \tfrac12 s_1^T M s_1 + \tfrac12 s_2^T B s_2
++ \gamma_1\gamma_2 (\tilde q_1^T \tilde q_1 + \tilde q_2^T \tilde q_2) + \tfrac12 e^T K e`,
+:math:`\dot M - 2C` skew-symmetric and :math:`S s_1 - s_2 = \dot e + \gamma_2 e`:
+:math:`\dot V = -\gamma_1 (|s_1|^2 + |s_2|^2) - (\dot e + \gamma_2 e)^T K e
++ 2\gamma_1\gamma_2(\tilde q_1^T \dot{\tilde q}_1 + \tilde q_2^T \dot{\tilde q}_2)
++ e^T K \dot e`, and since :math:`|s|^2 = |\dot{\tilde q}|^2 + \gamma_2^2 |\tilde q|^2
++ 2\gamma_2 \tilde q^T \dot{\tilde q}`,
+
+.. math::
+
+    \dot V = -\gamma_1 \big(|\dot{\tilde q}_1|^2 + \gamma_2^2 |\tilde q_1|^2
+             + |\dot{\tilde q}_2|^2 + \gamma_2^2 |\tilde q_2|^2\big) - \gamma_2\, e^T K e \le 0.
+
+With every actuated joint flexible (S a permutation) this is the law of Brogliato, Ortega and
+Lozano; a rigid actuated joint simply receives its :math:`U_R` entry.
+
+Exact derivatives. :math:`\dot q_{2d}` and :math:`\ddot q_{2d}` need :math:`\dot U_R` and
+:math:`\ddot U_R`, hence :math:`q_{1d}` up to order 4, :math:`\lambda_d` up to order 2 and the
+link's :math:`\ddot q_1` and :math:`\dddot q_1`, which are not measured: they come from the
+model above, :math:`\ddot q_1 = M^{-1}(S^T K(q_2 - S q_1) + S_r^T S_r U_R - C\dot q_1 - g
++ J_c^T \lambda)`, and its time derivative (which holds :math:`\dot q_2`). Everything is one
+casadi expression differentiated by automatic differentiation (the total time derivative is
+:math:`\sum_y \partial_y(\cdot)\,\dot y` over the state, the references and the forces). The
+measured force λ cannot be differentiated: its value is used and its derivatives are taken as
+those of :math:`\lambda_d`, which the force loop tracks (so the force term
+:math:`-\lambda_d + K_f(\lambda - \lambda_d)` has the derivatives of :math:`-\lambda_d`).
+Holding λ constant instead leaves the link jerk of the model short of
+:math:`M^{-1} J_c^T \dot\lambda_d` while :math:`\lambda_d` falls, and V rises by a model error
+that does not vanish with the step (7.6e-7 and 6.8e-7 J in the flexible one-constraint case
+at h = 1 and 2 ms, against 1.6e-8 and 6.2e-8 J, O(h²), this way). Where it is not a valid
+measurement (the contact is held but was not closed without impact over the last step)
+:math:`\lambda_d` replaces it; the forces of contacts outside their constrained phase are not
+in the model (0).
+
+Link reference (square task, m = nv): :math:`q_{1d} = \phi^{-1}(X_d^*)` by Newton's method
+from the previous :math:`q_{1d}` (first call: the measured :math:`q_1`), and its derivatives
+from :math:`\frac{d^k}{dt^k}\phi(q_{1d}(t)) = X_d^{*(k)}`, linear in :math:`q_{1d}^{(k)}`
+with matrix :math:`J_X`: :math:`q_{1d}^{(k)} = J_X^{-1}(X_d^{*(k)} - R_k)`, the remainder
+:math:`R_k` by automatic differentiation. The phase machine of order 4 joins the segments of
+the desired task trajectory :math:`C^4` (:mod:`ucontrol.control.trajectory_segment`), so
+:math:`q_{1d}` is :math:`C^4` and neither V (which holds :math:`q_{1d}'''` through
+:math:`\dot q_{2d}`) nor the motor torque (:math:`q_{1d}''''` through :math:`\ddot q_{2d}`)
+jumps at the switches; only the gap target steps, from the virtual target to the surface at
+:math:`t_f`, and the force term switches on there.
+
+V and V1 are built on the tracked target :math:`X_d^*` (the virtual target during
+transitions), unlike the rigid controller which clips the reference at the surface: a motor
+reference of the clipped trajectory would need derivatives it does not have. V1 is the
+kinetic-like part :math:`\tfrac12 s_1^T M s_1 + \tfrac12 s_2^T B s_2`, which scales the
+virtual depth at :math:`\tau_0`.
+
+Joint dampers D are refused: the link would receive :math:`D(\dot q_2 - S\dot q_1)`, and
+keeping the closed loop above would need :math:`K(q_{2d} - S q_{1d}) + D(\dot q_{2d} - S
+\dot q_{1d}) = S U_R`, a differential equation in :math:`q_{2d}` (a controller state), or the
+motor acceleration, which holds the input itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+from ucontrol.control.controller import ContactState, Vector
+from ucontrol.control.desired_cycle import DesiredCycle
+from ucontrol.control.phase_machine import DesiredState
+from ucontrol.control.task_coordinates import TaskCoordinates
+from ucontrol.exceptions import InvalidParameterError, SolverError
+from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.robot_model import RobotModel
+from ucontrol.model.symbolic_model import SymbolicModel
+
+if TYPE_CHECKING:
+    from ucontrol.log import Log
+
+#: Newton's method for :math:`q_{1d}` stops once its step is below this, in [rad] (or [m]).
+NEWTON_TOLERANCE = 1e-10
+#: ... or fails after this many iterations.
+NEWTON_ITERATIONS = 30
+
+#: Per-sample fields written to the log besides those of the rigid controller
+#: (:data:`ucontrol.control.brogliato_controller.LOG_FIELDS`), with nv links and nf motors.
+FLEXIBLE_LOG_FIELDS = {
+    "motor_desired": "(nf,)",
+    "link_desired": "(nv,)",
+}
+
+
+class FlexibleBrogliatoController(BrogliatoController):
+    r"""Phase-machine tracking controller for a robot with flexible joints.
+
+    Called like :class:`BrogliatoController` with the extended state of the plant:
+    ``controller(t, q, v, contacts)`` with q = (q1, q2) of shape (nq + nf,) and
+    v = (dq1, dq2) of shape (nv + nf,); it returns u of shape (nu,), the motor torque on a
+    flexible joint. Phases, events and log fields are those of :class:`BrogliatoController`
+    (V and V1 are the flexible ones), plus :data:`FLEXIBLE_LOG_FIELDS`.
+
+    Args:
+        robot: The controller's model of the links (rigid robot); fully actuated, fixed base,
+            revolute and prismatic joints only.
+        flexible: Which joints are flexible, K and B (no damper).
+        task: Square task coordinates (m = nv).
+        cycle: The desired cycle.
+        gains: γ1, γ2 and K_f (the null-space gains are unused).
+        posture: As for :class:`BrogliatoController`; unused (the task is square).
+
+    Attributes:
+        link_desired: :math:`q_{1d}` and its first 4 time derivatives at the last call,
+            each shape (nv,).
+        motor_desired: :math:`q_{2d}, \dot q_{2d}, \ddot q_{2d}` at the last call, each (nf,).
+
+    Raises:
+        InvalidParameterError: The task is redundant, ``flexible`` belongs to another robot
+            or has dampers, a joint is not revolute or prismatic, or the robot is not fully
+            actuated.
+        FrameNotFoundError: The task frame is not in the robot.
+    """
+
+    _order = 4
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        flexible: FlexibleJoints,
+        task: TaskCoordinates,
+        cycle: DesiredCycle,
+        gains: BrogliatoGains,
+        *,
+        posture: Vector | None = None,
+    ) -> None:
+        if (flexible.nq, flexible.nv) != (robot.nq, robot.nv):
+            raise InvalidParameterError(
+                "flexible",
+                flexible.joints,
+                f"flexible joints of a robot with nq = {robot.nq} and nv = {robot.nv}, "
+                f"not {flexible.nq} and {flexible.nv}",
+            )
+        if task.m != robot.nv:
+            raise InvalidParameterError(
+                "task",
+                task.names,
+                f"a square task of m = nv = {robot.nv} coordinates (the flexible law inverts "
+                "the task map; redundant tasks are not supported)",
+            )
+        if np.any(flexible.damping != 0.0):
+            raise InvalidParameterError(
+                "damping",
+                flexible.damping.tolist(),
+                "0 on every flexible joint (the law cannot cancel a transmission damper)",
+            )
+        model = SymbolicModel(robot)
+        self.flexible = flexible
+        super().__init__(robot, task, cycle, gains, posture=posture)
+        position = model.frame_position(task.frame)
+        q, X_d = ca.SX.sym("q", robot.nv), ca.SX.sym("X_d", task.m)
+        X = ca.DM(task.A) @ position(q) - ca.DM(task.b)
+        error = X - X_d  # [m]
+        self._newton_step = ca.Function(
+            "newton_step",
+            [ca.vertcat(q, X_d)],
+            [ca.vertcat(ca.solve(ca.jacobian(X, q), error), error)],
+        )
+        self._reference_derivatives = _reference_derivatives(q, X)
+        self._law = _law_function(model, flexible, self.machine.coordinates, gains, X, q)
+
+    def reset(self) -> None:
+        """Forget the run, including the last link reference (Newton's starting point)."""
+        super().reset()
+        nv, nf = self.robot.nv, self.flexible.nf
+        self._reference_time: float | None = None
+        self.link_desired = tuple(np.zeros(nv) for _ in range(5))
+        self.motor_desired = tuple(np.zeros(nf) for _ in range(3))
+
+    def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
+        """Actuator torques, shape (nu,), in [N m] (or [N]): motor torques on flexible joints."""
+        q1, dq1, q2, dq2 = self.flexible.split(q, v)
+        closed = self._measure(t, contacts)
+        state = np.concatenate([q1, dq1, q2, dq2])
+        law: list[_LawValues] = []
+
+        def lyapunov(desired: DesiredState) -> float:
+            law.append(self._evaluate(t, state, desired))
+            return law[-1].V1
+
+        self._advance(t, closed, lyapunov)
+        values = law[-1]
+        self.V, self.V1, self.X = values.V, values.V1, values.X
+        self.link_desired, self.motor_desired = values.link_desired, values.motor_desired
+        self._reference_time = t
+        return values.u
+
+    def prepare_log(self, log: Log) -> None:
+        """Declare the rigid controller's fields and :data:`FLEXIBLE_LOG_FIELDS`."""
+        super().prepare_log(log)
+        shapes = {"(nf,)": (self.flexible.nf,), "(nv,)": (self.robot.nv,)}
+        for name, shape in FLEXIBLE_LOG_FIELDS.items():
+            log.add_field(name, shapes[shape])
+        log.metadata["controller"] = "flexible_brogliato"
+
+    def record(self, log: Log) -> None:
+        """Write the values of the last call into the current row (events only once)."""
+        super().record(log)
+        log.record_extra("motor_desired", self.motor_desired[0])
+        log.record_extra("link_desired", self.link_desired[0])
+
+    def _evaluate(self, t: float, state: Vector, desired: DesiredState) -> _LawValues:
+        """The law at time ``t`` [s] and measured ``state`` = (q1, dq1, q2, dq2)."""
+        nv = self.robot.nv
+        q1d = self._link_reference(t, desired.target[0], state[:nv])
+        derivatives = self._reference_derivatives(np.concatenate([q1d, *desired.target[1:]]))
+        derivatives = np.asarray(derivatives).ravel()
+        # λ_d and its derivatives, (3, n): 0 unless held; the force λ used and its derivatives:
+        # the measured value with the derivatives of λ_d, or λ_d where there is no valid
+        # measurement.
+        lambda_d = np.array([desired.force, *desired.force_derivatives])  # [N], [N/s], [N/s²]
+        lambda_m = lambda_d.copy()
+        measured = desired.constrained & self._persistent
+        lambda_m[0, measured] = self.contact_force[measured]
+        force_term = -lambda_d + self.gains.force_gain * (lambda_m - lambda_d)
+        out = self._law(
+            np.concatenate([state, q1d, derivatives, force_term.ravel(), lambda_m[:2].ravel()])
+        )
+        out = np.asarray(out).ravel()
+        nf = self.flexible.nf
+        return _LawValues(
+            u=out[:nv],
+            X=out[nv : 2 * nv],
+            V=float(out[2 * nv]),
+            V1=float(out[2 * nv + 1]),
+            link_desired=(q1d, *derivatives.reshape(4, nv)),
+            motor_desired=tuple(out[2 * nv + 2 :].reshape(3, nf)),
+        )
+
+    def _link_reference(self, t: float, X_d: Vector, q1: Vector) -> Vector:
+        r""":math:`q_{1d} = \phi^{-1}(X_d)` at ``t`` [s] by Newton's method, shape (nv,).
+
+        Newton starts from the Taylor expansion of the last call's :math:`q_{1d}` (first call:
+        the measured link configuration ``q1``).
+
+        Raises:
+            SolverError: Newton's method does not converge (target out of reach, singular
+                task Jacobian).
+        """
+        if self._reference_time is None:
+            q = q1.copy()
+        else:
+            dt = t - self._reference_time  # [s]
+            d = self.link_desired
+            q = d[0] + dt * (d[1] + dt / 2 * (d[2] + dt / 3 * (d[3] + dt / 4 * d[4])))
+        nv = q.size
+        for _ in range(NEWTON_ITERATIONS):
+            out = np.asarray(self._newton_step(np.concatenate([q, X_d]))).ravel()
+            step = out[:nv]
+            if not np.all(np.isfinite(step)):  # singular task Jacobian
+                break
+            q -= step
+            if np.max(np.abs(step)) <= NEWTON_TOLERANCE:
+                return q
+        raise SolverError(
+            "Newton's method for the link reference q1d = φ⁻¹(X_d)",
+            f"no convergence to X_d = {X_d.tolist()} from q = {q.tolist()}",
+            float(np.max(np.abs(out[nv:]))),
+        )
+
+
+@dataclass(frozen=True)
+class _LawValues:
+    """What one evaluation of the law gives (see :class:`FlexibleBrogliatoController`)."""
+
+    u: Vector
+    X: Vector
+    V: float
+    V1: float
+    link_desired: tuple[Vector, ...]
+    motor_desired: tuple[Vector, ...]
+
+
+def _time_derivative(expression: ca.SX, variables: list[ca.SX], rates: list[ca.SX]) -> ca.SX:
+    r"""Total time derivative :math:`\sum_i \partial_{y_i} e\, \dot y_i` by casadi's AD."""
+    return ca.jtimes(expression, ca.vertcat(*variables), ca.vertcat(*rates))
+
+
+def _reference_derivatives(q: ca.SX, X: ca.SX) -> ca.Function:
+    r"""Derivatives q', q'', q''', q'''' of the link reference as one casadi Function.
+
+    Input (q, X', X'', X''', X'''') stacked, output the derivatives stacked, each (nv,), along
+    :math:`\phi(q(t)) = X(t)` (m = nv): :math:`q^{(k)} = J^{-1}(X^{(k)} - R_k)`, :math:`R_k` the
+    k-th derivative of :math:`\phi(q(t))` with :math:`q^{(k)} = 0`.
+    """
+    nv = q.shape[0]
+    rates = [q] + [ca.SX.sym(f"q_{k}", nv) for k in range(1, 5)]
+    targets = [ca.SX.sym(f"X_{k}", nv) for k in range(1, 5)]
+    J = ca.jacobian(X, q)
+    derivative = X
+    solved: list[ca.SX] = []
+    for k in range(1, 5):
+        derivative = _time_derivative(derivative, rates[:k], rates[1 : k + 1])
+        remainder = ca.substitute(
+            derivative, ca.vertcat(*rates[1 : k + 1]), ca.vertcat(*solved, ca.SX.zeros(nv))
+        )
+        solved.append(ca.solve(J, targets[k - 1] - remainder))
+    return ca.Function("reference_derivatives", [ca.vertcat(q, *targets)], [ca.vertcat(*solved)])
+
+
+def _law_function(
+    model: SymbolicModel,
+    flexible: FlexibleJoints,
+    coordinates: NDArray[np.int64],
+    gains: BrogliatoGains,
+    X: ca.SX,
+    q: ca.SX,
+) -> ca.Function:
+    r"""The law as one casadi Function of one input vector (see :meth:`_evaluate`).
+
+    ``X`` is the task map of the symbol ``q``; ``coordinates`` are the task rows of the declared
+    contacts. Input: q1, dq1 (nv,), q2, dq2 (nf,), q1d and its 4 derivatives (nv,), the force term
+    :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and its 2 derivatives, the model's contact
+    force and its derivative (each (n,), n declared contacts). Output, stacked: u (nu,), the
+    task coordinates of the links X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
+    """
+    nv, nf, n = model.nv, flexible.nf, len(coordinates)
+    gamma1, gamma2 = gains.gamma1, gains.gamma2
+    K, B = ca.DM(flexible.stiffness), ca.DM(flexible.motor_inertia)
+    motors = [int(i) for i in flexible.v_index]
+    rigid = [i for i in range(nv) if i not in motors]
+    q1, dq1 = ca.SX.sym("q1", nv), ca.SX.sym("dq1", nv)
+    q2, dq2 = ca.SX.sym("q2", nf), ca.SX.sym("dq2", nf)
+    r = [ca.SX.sym(f"q1d_{k}", nv) for k in range(5)]
+    f = [ca.SX.sym(f"f_{k}", n) for k in range(3)]
+    lam = [ca.SX.sym(f"lambda_{k}", n) for k in range(2)]
+    link_X = ca.substitute(X, q, q1)
+    J_c = ca.jacobian(link_X, q1)[[int(c) for c in coordinates], :]
+    M, C, g = model.mass_matrix(q1), model.coriolis_matrix(q1, dq1), model.gravity(q1)
+    q1_error, dq1_error = q1 - r[0], dq1 - r[1]
+    s1 = dq1_error + gamma2 * q1_error
+    dq1_r = r[1] - gamma2 * q1_error
+    ddq1_r = r[2] - gamma2 * dq1_error
+    U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ f[0]  # [N m]
+    link_input = ca.SX.zeros(nv)
+    link_input[motors] = K * (q2 - q1[motors])  # spring torque on the links
+    link_input[rigid] = U_R[rigid]
+    ddq1 = ca.solve(M, link_input - C @ dq1 - g + J_c.T @ lam[0])  # [rad/s²]
+    variables = [q1, dq1, q2, *r[:4], f[0], f[1], lam[0]]
+    rates = [dq1, ddq1, dq2, *r[1:], f[1], f[2], lam[1]]
+    dU_R = _time_derivative(U_R, variables, rates)
+    ddU_R = _time_derivative(dU_R, variables, rates)
+    q2d = r[0][motors] + U_R[motors] / K
+    dq2d = r[1][motors] + dU_R[motors] / K
+    ddq2d = r[2][motors] + ddU_R[motors] / K
+    q2_error, dq2_error = q2 - q2d, dq2 - dq2d
+    s2 = dq2_error + gamma2 * q2_error
+    ddq2_r = ddq2d - gamma2 * dq2_error
+    u = ca.SX.zeros(nv)
+    u[[int(i) for i in flexible.input_index]] = B * ddq2_r + K * (q2d - r[0][motors]) - gamma1 * s2
+    u[rigid] = U_R[rigid]  # fixed base, fully actuated: input index = velocity index
+    deflection_error = q1_error[motors] - q2_error
+    V1 = 0.5 * ca.dot(s1, M @ s1) + 0.5 * ca.dot(s2, B * s2)  # [J]
+    V = (
+        V1
+        + gamma1 * gamma2 * (ca.dot(q1_error, q1_error) + ca.dot(q2_error, q2_error))
+        + 0.5 * ca.dot(deflection_error, K * deflection_error)
+    )
+    inputs = ca.vertcat(q1, dq1, q2, dq2, *r, *f, *lam)
+    outputs = ca.vertcat(u, link_X, V, V1, q2d, dq2d, ddq2d)
+    return ca.Function("flexible_brogliato_law", [inputs], [outputs])
