@@ -107,6 +107,7 @@ _CYCLE_KEYS = (
     "takeoff_acceleration",
     "takeoff_time",
     "blend_time",
+    "takeoff_ramp_time",
 )
 _BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
 _CONTROLLER_KEYS = {

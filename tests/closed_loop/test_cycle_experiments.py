@@ -12,7 +12,14 @@ from ucontrol.model import example_robot_data_dir
 
 
 @pytest.mark.parametrize(
-    "name", ["two_link_one_constraint", "two_link_two_constraints", "panda_table"]
+    "name",
+    [
+        "two_link_one_constraint",
+        "two_link_two_constraints",
+        "panda_table",
+        "two_link_flexible_one_constraint",
+        "two_link_flexible_two_constraints",
+    ],
 )
 def test_experiment_runs_one_cycle(
     name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
