@@ -30,13 +30,13 @@ Run: ``python experiments/bench_step.py --steps 2000 --repeats 7``.
 from __future__ import annotations
 
 import argparse
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.bench import Forces, Step, integrator_step, stepper_step, time_loop, trajectory
 from ucontrol.contact import ConstraintSet, Plane, PointContact
 from ucontrol.integrators import MoreauJean
 from ucontrol.model import RobotModel, example_robot_data_dir
@@ -59,7 +59,6 @@ TARGET_RATIO = 0.7  # ucontrol / pin PGS with one contact
 LOOPS = ("ucontrol", "ucontrol, QP always", "pin ADMM", "pin PGS", "pin PGS, solved")
 
 Vector = NDArray[np.float64]
-Step = Callable[[Vector, Vector, Vector], tuple[Vector, Vector, bool]]
 Control = Callable[[Vector, Vector], Vector]
 
 
@@ -115,29 +114,21 @@ def make_loops(
 
     def ucontrol(exact_single: bool) -> Step:
         solver = ProxsuiteLCPSolver(exact_single=exact_single)
-        integrator = MoreauJean(robot, ConstraintSet(robot, contacts), dt=dt, solver=solver)
-
-        def step(q: Vector, v: Vector, tau: Vector) -> tuple[Vector, Vector, bool]:
-            outcome = integrator.step(integrator.evaluate(q, v), tau)
-            return outcome.q, outcome.v, bool(outcome.active.any())
-
-        return step
-
-    def pinocchio(method: str, until_solved: bool) -> Step:
-        stepper = PinocchioStepper(
-            robot.model,
-            contacts,
-            dt=dt,
-            method=method,
-            tolerance=tolerance,
-            pgs_until_solved=until_solved,
+        return integrator_step(
+            MoreauJean(robot, ConstraintSet(robot, contacts), dt=dt, solver=solver)
         )
 
-        def step(q: Vector, v: Vector, tau: Vector) -> tuple[Vector, Vector, bool]:
-            outcome = stepper.step(q, v, tau)
-            return outcome.q, outcome.v, bool(outcome.active.any())
-
-        return step
+    def pinocchio(method: str, until_solved: bool) -> Step:
+        return stepper_step(
+            PinocchioStepper(
+                robot.model,
+                contacts,
+                dt=dt,
+                method=method,
+                tolerance=tolerance,
+                pgs_until_solved=until_solved,
+            )
+        )
 
     return {
         "ucontrol": ucontrol(exact_single=True),
@@ -148,31 +139,13 @@ def make_loops(
     }
 
 
-def _time_loop(step: Step, control: Control, steps: int, repeats: int, warmup: int) -> float:
-    """Best-of-``repeats`` wall time of ``steps`` closed-loop steps from (Q0, 0), [µs/step]."""
-    q, v = Q0.copy(), np.zeros(Q0.size)
-    for _ in range(warmup):
-        q, v, _ = step(q, v, control(q, v))
-    best = np.inf
-    for _ in range(repeats):
-        q, v = Q0.copy(), np.zeros(Q0.size)
-        start = time.perf_counter()
-        for _ in range(steps):
-            q, v, _ = step(q, v, control(q, v))
-        best = min(best, time.perf_counter() - start)
-    return 1e6 * best / steps
+def _closed_loop(control: Control) -> Forces:
+    """``control`` as the forces of :func:`ucontrol.bench.time_loop`: ``tau(k, q, v)``."""
 
+    def forces(k: int, q: Vector, v: Vector) -> Vector:
+        return control(q, v)
 
-def _trajectory(step: Step, control: Control, steps: int) -> tuple[Vector, float]:
-    """Velocities (steps, nv) from (Q0, 0) and the fraction of steps with an active contact."""
-    q, v = Q0.copy(), np.zeros(Q0.size)
-    velocities = np.empty((steps, Q0.size))
-    active = 0
-    for k in range(steps):
-        q, v, is_active = step(q, v, control(q, v))
-        velocities[k] = v
-        active += is_active
-    return velocities, active / steps
+    return forces
 
 
 def run(
@@ -181,12 +154,14 @@ def run(
     """Time every loop for ``n_contacts`` contacts; see the module docstring."""
     robot, contacts, control = panda_setup(n_contacts)
     loops = make_loops(robot, contacts, dt, tolerance)
+    forces, v0 = _closed_loop(control), np.zeros(Q0.size)
     time_us = {
-        name: _time_loop(step, control, steps, repeats, warmup) for name, step in loops.items()
+        name: time_loop(step, forces, Q0, v0, steps=steps, repeats=repeats, warmup=warmup)
+        for name, step in loops.items()
     }
-    reference, active_fraction = _trajectory(loops["ucontrol"], control, steps)
+    reference, active_fraction = trajectory(loops["ucontrol"], forces, Q0, v0, steps)
     max_dv = {
-        name: float(np.max(np.abs(_trajectory(step, control, steps)[0] - reference)))
+        name: float(np.max(np.abs(trajectory(step, forces, Q0, v0, steps)[0] - reference)))
         for name, step in loops.items()
     }
     return BenchRow(n_contacts, time_us, max_dv, active_fraction)

@@ -1,10 +1,12 @@
-"""Command line: ``ucontrol run``, ``convergence``, ``view`` and ``plot``.
+"""Command line: ``ucontrol run``, ``convergence``, ``bench``, ``view`` and ``plot``.
 
-``run`` simulates a scene, ``convergence`` measures error against run time, ``view`` replays a
-saved run in meshcat (or exports it as HTML) and ``plot`` draws its figures:
+``run`` simulates a scene, ``convergence`` measures error against run time, ``bench`` times its
+step against Pinocchio's ADMM and PGS loops, ``view`` replays a saved run in meshcat (or exports
+it as HTML) and ``plot`` draws its figures:
 
 ``ucontrol run [SCENE] --out DIR [--dt H] [--duration T] [--integrator NAME] [--view]``;
 ``ucontrol convergence [SCENE] --out DIR [--duration T] [--dts H ...] [--tolerances ...]``;
+``ucontrol bench [SCENE] [--steps N] [--repeats R] [--warmup W] [--dt H] [--out FILE]``;
 ``ucontrol view DIR [--scene FILE] [--html FILE]``; ``ucontrol plot DIR [--out FIGURES]``.
 """
 
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ucontrol.analysis import convergence
+from ucontrol.bench import bench_scene
 from ucontrol.exceptions import OptionalDependencyError, UControlError
 from ucontrol.saved_run import SavedRun
 from ucontrol.scene import INTEGRATORS, Scene, load_scene
@@ -111,6 +114,20 @@ def _parser() -> argparse.ArgumentParser:
         type=float,
         default=None,
         help="controller period of every run in [s] (closed loops); default every step",
+    )
+    bench = commands.add_parser(
+        "bench",
+        help="time a scene's step against Pinocchio's ADMM and PGS loops (markdown table)",
+    )
+    bench.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in scene)")
+    bench.add_argument("--steps", type=int, default=2000, help="steps per timed run")
+    bench.add_argument("--repeats", type=int, default=5, help="timed runs, the fastest kept")
+    bench.add_argument("--warmup", type=int, default=100, help="untimed steps before them")
+    bench.add_argument(
+        "--dt", type=float, default=None, help="time step in [s] (default: the scene's)"
+    )
+    bench.add_argument(
+        "--out", type=Path, default=None, help="also write the table to this markdown file"
     )
     view = commands.add_parser(
         "view", help="replay a saved run in meshcat, or export it as a standalone HTML page"
@@ -242,11 +259,31 @@ def _convergence(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bench(args: argparse.Namespace) -> int:
+    scene = load_scene(args.scene)
+    report = bench_scene(
+        scene, steps=args.steps, repeats=args.repeats, warmup=args.warmup, dt=args.dt
+    )
+    table = report.markdown()
+    print(table)
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(table + "\n")
+        print(f"wrote {args.out}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``ucontrol`` command; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        commands = {"run": _run, "convergence": _convergence, "view": _view, "plot": _plot}
+        commands = {
+            "run": _run,
+            "convergence": _convergence,
+            "bench": _bench,
+            "view": _view,
+            "plot": _plot,
+        }
         return commands[args.command](args)
     except UControlError as error:
         print(f"ucontrol: error: {error}", file=sys.stderr)

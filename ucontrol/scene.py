@@ -34,7 +34,7 @@ from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError
 from ucontrol.integrators import compliant, event_driven
 from ucontrol.integrators.compliant import Compliant
 from ucontrol.integrators.event_driven import EventDriven
-from ucontrol.integrators.moreau_jean import ON_UNSOLVED, MoreauJean
+from ucontrol.integrators.moreau_jean import ON_UNSOLVED, PERSISTENCE_TOLERANCE, MoreauJean
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.model.urdf_path import resolve_urdf
@@ -93,6 +93,7 @@ _INTEGRATOR_KEYS = {
     "friction_max_iter",
     "on_unsolved",
     "midpoint",
+    "persistence_tolerance",
 }
 _METHODS = {"event_driven": event_driven.METHODS, "compliant": compliant.METHODS}
 _REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
@@ -163,6 +164,8 @@ class IntegratorSettings:
         on_unsolved: ``"raise"`` or ``"warn"`` when a contact solve ends above its tolerance.
         midpoint: Moreau–Jean evaluates inertia, gravity and Coriolis forces at the step's
             midpoint: second order between impacts (see :class:`MoreauJean`).
+        persistence_tolerance: Predicted gap in [m] up to which Moreau–Jean keeps a constraint
+            that carried an impulse in the previous step active; 0 turns it off.
 
     Keys that do not concern the chosen integrator are checked and ignored, so one scene can
     be run with every integrator.
@@ -185,6 +188,7 @@ class IntegratorSettings:
     friction_max_iter: int = 100
     on_unsolved: str = "raise"
     midpoint: bool = False
+    persistence_tolerance: float = PERSISTENCE_TOLERANCE
 
     def __post_init__(self) -> None:
         check_contact_solver(self.contact_solver)
@@ -367,6 +371,7 @@ class Scene:
             on_unsolved=settings.on_unsolved,
             flexible=self.flexible,
             midpoint=settings.midpoint,
+            persistence_tolerance=settings.persistence_tolerance,
         )
 
     def build_controller(self) -> Controller:

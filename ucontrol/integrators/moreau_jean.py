@@ -4,7 +4,8 @@ One step from :math:`(q_k, v_k)` with step :math:`h` and :math:`\theta \in [1/2,
 
 1. free velocity :math:`v_\text{free} = v_k + h M^{-1}(\tau - h(q_k, v_k))`;
 2. active set by prediction: :math:`a \in I` iff :math:`g_a + \gamma h u_a \le 0`
-   (:math:`\gamma = 1/2`);
+   (:math:`\gamma = 1/2`), or :math:`\le \varepsilon_p` for a constraint that carried an
+   impulse in the previous step (persistence, below);
 3. Signorini–Newton at velocity level on :math:`I`:
    :math:`0 \le u_a(v_{k+1}) + e_a u_a(v_k) \perp P_a \ge 0`, solved as a QP in the impulses,
    :math:`v_{k+1} = v_\text{free} + M^{-1} J_I^T P`;
@@ -12,6 +13,17 @@ One step from :math:`(q_k, v_k)` with step :math:`h` and :math:`\theta \in [1/2,
 
 Every matrix is evaluated at step k. The scheme is of order one, captures impacts without
 locating them, and enforces Newton's law exactly at every impact.
+
+**Persistent contacts.** A contact held while sliding (a tip pressed along a wall) drifts off
+its surface by O(h²) per step: the velocity is constrained with :math:`J(q_k)`, the position
+advanced with :math:`\theta`-averaged velocities. With the rule of step 2 alone the contact
+then leaves the active set every other step, and its impulse alternates between 0 and twice
+the force it carries. A constraint with an impulse in the previous step therefore stays active
+while its predicted gap is at most :math:`\varepsilon_p` (``persistence_tolerance``, 1 µm by
+default), and with a positive gap :math:`g_a` its condition is
+:math:`0 \le u_a^+ + g_a/h \perp P_a`: it may approach its surface at the speed that closes
+the gap in one step, not faster, and never adheres. The integrator keeps that memory between
+steps (:meth:`MoreauJean.reset` forgets it).
 
 **Flexible joints.** With :class:`~ucontrol.model.FlexibleJoints` the state holds the motor
 coordinates after the link ones and the joint springs (stiffness matrix :math:`K_q`) and
@@ -95,6 +107,8 @@ Vector = NDArray[np.float64]
 #: Energy the restitution impulses of a step may add, relative to 1 + the kinetic energy in
 #: [J], before the step is redone with a plastic law (e = 0).
 ENERGY_GAIN_TOLERANCE = 1e-12
+#: Default predicted gap up to which a held constraint stays active, in [m] (or [rad]).
+PERSISTENCE_TOLERANCE = 1e-6
 #: What a step does with a contact problem left above its residual tolerance.
 ON_UNSOLVED = ("raise", "warn")
 
@@ -171,6 +185,9 @@ class MoreauJean:
         flexible: Flexible joints of the robot: the state then holds their motor coordinates.
         midpoint: Evaluate the inertia, gravity and Coriolis forces at the midpoint (module
             docstring): second order between impacts, at about three more RNEA per step.
+        persistence_tolerance: Predicted gap in [m] (or [rad]) up to which a constraint that
+            carried an impulse in the previous step stays in the active set (module
+            docstring); 0 turns persistence off.
 
     Attributes:
         friction_solver: The friction solver, or None for constraints without friction.
@@ -192,6 +209,7 @@ class MoreauJean:
         on_unsolved: str = "raise",
         flexible: FlexibleJoints | None = None,
         midpoint: bool = False,
+        persistence_tolerance: float = PERSISTENCE_TOLERANCE,
     ) -> None:
         self.robot = robot
         self.flexible = flexible
@@ -217,6 +235,11 @@ class MoreauJean:
         self._data = robot.model.createData()
         self._has_contacts = constraints.n_contacts > 0
         self._friction = constraints.has_friction
+        self.persistence_tolerance = as_float("persistence_tolerance", persistence_tolerance)
+        if self.persistence_tolerance < 0.0:
+            raise InvalidParameterError("persistence_tolerance", persistence_tolerance, ">= 0")
+        self._held = np.zeros(constraints.size, dtype=bool)
+        self._activation = np.zeros(constraints.size)  # largest predicted gap of the active set
         if flexible is not None:
             ht = self.dt * self.theta
             self._stiffness = flexible.coupling_matrix(flexible.stiffness)  # K_q
@@ -224,6 +247,11 @@ class MoreauJean:
                 self._stiffness
             )  # hθ C_v + h²θ² K_q
             self._motor_inertia = np.diag(flexible.motor_inertia)
+
+    def reset(self) -> None:
+        """Forget which constraints carried an impulse in the last step (a new run)."""
+        self._held[:] = False
+        self._activation[:] = 0.0
 
     def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
         """Dynamics, kinematics and constraint gaps at (q, v); prepares :meth:`step`."""
@@ -255,7 +283,8 @@ class MoreauJean:
             inverse_inertia = self._rigid_inverse_inertia
         else:
             v_free, inverse_inertia = self._free_velocity(state, tau)
-        active = state.gap + (self.gamma * h) * state.normal_velocity <= 0.0
+        # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
+        active = state.gap + (self.gamma * h) * state.normal_velocity <= self._activation
         indices = active.nonzero()[0]
         impulse = np.zeros(self.constraints.size)
         friction_impulse = np.zeros((self.constraints.size, 3)) if self._friction else None
@@ -274,19 +303,18 @@ class MoreauJean:
             Minv_Jt = inverse_inertia(J)
             D = J.dot(Minv_Jt)
             u_free = J.dot(v_free)
-            u_minus = state.normal_velocity[indices]
-            restitution = self.constraints.restitution[indices]
-            rebound = np.where(u_minus < -self.restitution_threshold, restitution * u_minus, 0.0)
+            rebound, closure = self._offsets(indices, state)
+            b = u_free if closure is None else u_free + _pad(closure, u_free.size)
             if tangents is not None:  # no restitution on the tangential rows
                 rebound = np.concatenate((rebound, np.zeros(T.shape[0])))
-            solution = self._solve(D, u_free + rebound, indices, tangents)
-            if rebound.any():
+            solution = self._solve(D, b + rebound, indices, tangents)
+            if np.count_nonzero(rebound):
                 # Energy the impulses add to T + V over the step [J] (module docstring).
-                u_plus = solution.velocity - rebound
+                u_plus = solution.velocity - rebound - (b - u_free)
                 u_k = J.dot(state.v)
                 gain = solution.impulses.dot(0.5 * (u_free + u_plus) - self.theta * (u_free - u_k))
                 if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
-                    solution = self._solve(D, u_free, indices, tangents)
+                    solution = self._solve(D, b, indices, tangents)
                     plastic = True
             impulse[indices] = solution.impulses[: indices.size]
             if tangents is not None and friction_impulse is not None:
@@ -297,6 +325,8 @@ class MoreauJean:
         else:
             v_next = v_free
         q_next = self._advance(state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next))
+        self._held = impulse > 0.0
+        np.multiply(self._held, self.persistence_tolerance, out=self._activation)
         return StepOutcome(
             q_next,
             v_next,
@@ -306,6 +336,33 @@ class MoreauJean:
             plastic=plastic,
             friction_impulse=friction_impulse,
         )
+
+    def _offsets(
+        self, indices: NDArray[np.intp], state: PlantEvaluation
+    ) -> tuple[Vector, Vector | None]:
+        """Offsets of the normal rows ``indices`` in the contact problem, in [m/s] or [rad/s].
+
+        Returns:
+            The restitution terms :math:`e_a u_a^-` of the closing constraints (0 elsewhere),
+            and the closure :math:`g_a / h` of the held constraints with a positive gap (which
+            get no restitution), or None when there is none; each of shape (m,).
+        """
+        h, u_minus = self.dt, state.normal_velocity[indices]
+        closing = u_minus < -self.restitution_threshold
+        gap = state.gap[indices]
+        if indices.size == 1:  # the common single contact, without array temporaries
+            i = indices[0]
+            if self._held[i] and gap[0] > 0.0:
+                return np.zeros(1), gap / h
+            return (
+                self.constraints.restitution[indices] * u_minus if closing[0] else np.zeros(1)
+            ), None
+        rebound = np.where(closing, self.constraints.restitution[indices] * u_minus, 0.0)
+        held_open = self._held[indices] & (gap > 0.0)
+        if not held_open.any():
+            return rebound, None
+        rebound[held_open] = 0.0
+        return rebound, np.where(held_open, gap / h, 0.0)
 
     def _rigid_inverse_inertia(self, J: Vector) -> Vector:
         """:math:`M^{-1} J^T` for rows J (m, nv), with M factorized in the data buffer."""
@@ -403,6 +460,11 @@ class MoreauJean:
                 stacklevel=3,
             )
         return solution
+
+
+def _pad(rows: Vector, size: int) -> Vector:
+    """``rows`` (normal rows) followed by zeros (tangential rows), shape (size,)."""
+    return rows if rows.size == size else np.concatenate((rows, np.zeros(size - rows.size)))
 
 
 def _default_friction_solver() -> CoulombSolver:

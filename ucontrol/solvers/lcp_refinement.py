@@ -117,7 +117,7 @@ def single_constraint_solution(D: Vector, b: Vector, start: float) -> ContactSol
 def _solve_on_active_set(D: Vector, b: Vector, active: NDArray[np.bool_]) -> Vector | None:
     """Impulses with ``D_AA P_A = -b_A`` on ``active`` and 0 elsewhere; None if some P_A < 0."""
     candidate = np.zeros(b.size)
-    if not active.any():
+    if not np.count_nonzero(active):
         return candidate
     if active.all():
         D_active, b_active = D, b

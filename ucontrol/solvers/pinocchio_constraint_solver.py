@@ -520,7 +520,10 @@ class PinocchioStepper:
                     constraint_model.calc(model, data, constraint_data)
                 cholesky.compute(model, data, models, datas, self.compliance)
                 delassus = cholesky.getDelassusOperatorCholeskyExpression()
-                J = pin.getConstraintsJacobian(model, data, models, datas)
+                # (3m, nv): pin returns a vector when nv = 1
+                J = np.reshape(
+                    pin.getConstraintsJacobian(model, data, models, datas), (-1, model.nv)
+                )
             except (RuntimeError, ValueError, ArithmeticError) as error:
                 raise SolverError(self.name, f"raised {error!r}") from error
             drift = J @ v_free

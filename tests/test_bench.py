@@ -1,0 +1,139 @@
+"""``ucontrol bench``: the loops, their ratios, the reference check and the command.
+
+Timings are never asserted: only what the report must hold whatever the machine.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import ROBOTS
+
+from ucontrol.bench import (
+    REFERENCES,
+    UCONTROL,
+    BenchReport,
+    bench_scene,
+    integrator_step,
+    recorded_forces,
+    trajectory,
+)
+from ucontrol.cli import main
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.scene import load_scene
+
+#: 0.6 s at dt = 1 ms: the ball falls for 0.45 s and hits the ground once.
+STEPS = 600
+#: Largest velocity difference between loops doing the same physics, in [m/s] or [rad/s].
+SAME_PHYSICS = 1e-6
+#: Replaying the recorded forces must reproduce the closed loop to round-off, in [m/s].
+REPLAY_TOLERANCE = 1e-12
+
+
+@pytest.fixture(scope="module")
+def free_ball_report() -> BenchReport:
+    return bench_scene(load_scene(ROBOTS / "free_ball.toml"), steps=STEPS, repeats=2, warmup=10)
+
+
+def test_a_qualifying_scene_has_the_reference_loops(free_ball_report: BenchReport) -> None:
+    assert [loop.name for loop in free_ball_report.loops] == [UCONTROL, *REFERENCES]
+    assert free_ball_report.no_reference is None
+    assert free_ball_report.steps == STEPS and free_ball_report.dt == 1e-3
+
+
+def test_ratios_are_ucontrol_time_over_loop_time(free_ball_report: BenchReport) -> None:
+    ucontrol = free_ball_report.loop(UCONTROL).time_us
+    assert set(free_ball_report.ratios) == set(REFERENCES)
+    for name, ratio in free_ball_report.ratios.items():
+        assert ratio == pytest.approx(ucontrol / free_ball_report.loop(name).time_us, rel=1e-15)
+
+
+def test_reference_loops_do_the_same_physics(free_ball_report: BenchReport) -> None:
+    ucontrol = free_ball_report.loop(UCONTROL)
+    assert ucontrol.max_dv == 0.0 and ucontrol.active_fraction > 0.0  # the impact is in
+    for name in REFERENCES:
+        loop = free_ball_report.loop(name)
+        assert loop.max_dv / SAME_PHYSICS <= 1.0, name
+        assert loop.active_fraction == ucontrol.active_fraction, name
+
+
+def test_memory_figures_are_positive(free_ball_report: BenchReport) -> None:
+    assert all(loop.peak_allocation_kb > 0.0 for loop in free_ball_report.loops)
+    assert free_ball_report.peak_rss_mb > 0.0
+
+
+def test_markdown_holds_every_loop_and_the_memory(free_ball_report: BenchReport) -> None:
+    table = free_ball_report.markdown()
+    assert table.count("\n| ") == 1 + len(free_ball_report.loops)  # header + one row per loop
+    assert "| pin PGS |" in table and "Peak resident set size" in table
+    assert "No Pinocchio reference" not in table
+
+
+def test_joint_stops_leave_ucontrol_alone() -> None:
+    report = bench_scene(load_scene(ROBOTS / "two_link_drop.toml"), steps=50, repeats=1, warmup=5)
+    assert [loop.name for loop in report.loops] == [UCONTROL] and report.ratios == {}
+    assert (
+        report.no_reference is not None and "joint stops (shoulder, elbow)" in report.no_reference
+    )
+    assert f"No Pinocchio reference: {report.no_reference}." in report.markdown()
+
+
+def test_one_velocity_coordinate_ball_is_compared_with_pinocchio() -> None:
+    report = bench_scene(load_scene(ROBOTS / "ball.toml"), steps=600, repeats=1, warmup=0)
+    assert [loop.name for loop in report.loops] == [UCONTROL, "pin ADMM", "pin PGS"]
+    for loop in report.loops[1:]:
+        assert loop.max_dv < 1e-6  # [m/s]: the ball's first impact, the same physics
+
+
+@pytest.mark.parametrize(
+    "scene_file", ["two_link_one_constraint.toml", "two_link_flexible_one_constraint.toml"]
+)
+def test_replayed_forces_reproduce_the_closed_loop(scene_file: str) -> None:
+    """The open-loop replay of the recorded forces retraces the run of the scene's controller."""
+    from ucontrol.simulate import simulate
+
+    scene, steps = load_scene(ROBOTS / scene_file), 200
+    tau = recorded_forces(scene, steps)
+    assert np.abs(tau).max() > 0.0  # the controller acts (on the motors with flexible joints)
+    log = simulate(scene, duration=steps * scene.integrator.dt, progress=False).log
+    expected = log.v[1:]
+    if scene.flexible is not None:
+        expected = np.hstack((expected, log.motor_v[1:]))
+    q0, v0 = scene.initial_state()
+    velocities, _ = trajectory(
+        integrator_step(scene.build_integrator()), lambda k, q, v: tau[k], q0, v0, steps
+    )
+    assert np.max(np.abs(velocities - expected)) / REPLAY_TOLERANCE <= 1.0
+
+
+@pytest.mark.parametrize(
+    ("argument", "value"),
+    [("steps", 0), ("steps", 1.5), ("repeats", 0), ("warmup", -1), ("warmup", True), ("dt", -1.0)],
+)
+def test_bad_arguments_raise_a_typed_error(argument: str, value: object) -> None:
+    scene = load_scene(ROBOTS / "ball.toml")
+    with pytest.raises(InvalidParameterError) as caught:
+        bench_scene(scene, **{argument: value})
+    assert caught.value.name == argument and caught.value.value == value
+
+
+def test_command_prints_the_table_and_writes_it(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "bench" / "free_ball.md"
+    flags = ["--steps", "50", "--repeats", "1", "--warmup", "5", "--out", str(out)]
+    assert main(["bench", str(ROBOTS / "free_ball.toml"), *flags]) == 0
+    printed = capsys.readouterr().out
+    assert "| loop | time [µs/step] |" in printed and "| pin ADMM |" in printed
+    assert out.read_text().strip() in printed
+
+
+def test_command_without_a_scene_benches_the_default(capsys) -> None:
+    assert main(["bench", "--steps", "20", "--repeats", "1", "--warmup", "0"]) == 0
+    assert capsys.readouterr().out.startswith("two_link_drop: dt = 0.001 s, 20 steps")
+
+
+def test_command_reports_a_bad_argument_in_one_line(capsys) -> None:
+    assert main(["bench", str(ROBOTS / "ball.toml"), "--steps", "0"]) == 2
+    error = capsys.readouterr().err
+    assert error == "ucontrol: error: `steps` must be an integer >= 1, got 0\n"

@@ -1,0 +1,383 @@
+r"""Cost of a scene's step, in the same run as Pinocchio's own ADMM and PGS loops.
+
+:func:`bench_scene` (the command ``ucontrol bench [SCENE]``) first runs the scene once in
+closed loop with its own controller (:func:`ucontrol.simulate`) and records the generalized
+forces it applied (the log's inputs ``u`` on the actuated coordinates, on the motors for
+flexible joints). Every loop then replays that force sequence open loop from the scene's
+initial state, so that all loops do the same work and none pays for the controller:
+
+- ``ucontrol``: the scene's integrator (:meth:`ucontrol.scene.Scene.build_integrator`),
+  ``evaluate`` then ``step``;
+- ``pin ADMM`` and ``pin PGS``: :class:`~ucontrol.solvers.PinocchioStepper`, the frictionless
+  Moreau–Jean step written with Pinocchio's ``ADMMConstraintSolver`` /
+  ``PGSConstraintSolver`` (same dt, θ, tolerance and iteration cap as the scene's
+  integrator), only for scenes it models: point contacts against planes without friction,
+  a rigid robot, the ``moreau_jean`` integrator without ``midpoint`` or
+  ``restitution_threshold``. Otherwise the report names what the scene has that the
+  reference lacks and times ucontrol alone.
+
+Per loop: wall time in [µs/step] (``time.perf_counter``, best of ``repeats`` runs after
+``warmup`` steps), the ratio of the ucontrol time to it, the largest velocity difference to
+the ucontrol trajectory over an untimed run (the loops do the same physics when it is at
+round-off), the fraction of steps with an active contact, and the peak of Python allocations
+(``tracemalloc``, numpy arrays included) over another untimed run. The report ends with the
+process's peak resident set size.
+
+The timing helpers (:func:`time_loop`, :func:`trajectory`, :func:`integrator_step`,
+:func:`stepper_step`) are shared with ``experiments/bench_step.py``.
+"""
+
+from __future__ import annotations
+
+import operator
+import resource
+import time
+import tracemalloc
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_positive
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.integrators import Compliant, EventDriven, MoreauJean
+from ucontrol.scene import Scene
+from ucontrol.simulate import simulate
+from ucontrol.solvers.pinocchio_constraint_solver import PinocchioStepper
+
+Vector = NDArray[np.float64]
+#: One step ``(q, v, tau) -> (q_next, v_next, any_active)`` of a loop.
+Step = Callable[[Vector, Vector, Vector], tuple[Vector, Vector, bool]]
+#: Generalized forces ``tau`` (shape (nv,)) of step k at (q_k, v_k): ``forces(k, q, v)``.
+Forces = Callable[[int, Vector, Vector], Vector]
+
+#: The loop every other is compared with.
+UCONTROL = "ucontrol"
+#: Reference loops and their :class:`PinocchioStepper` method.
+REFERENCES = {"pin ADMM": "admm", "pin PGS": "pgs"}
+
+
+def integrator_step(integrator: MoreauJean | EventDriven | Compliant) -> Step:
+    """The :data:`Step` of an integrator: ``evaluate`` at (q, v), then ``step``."""
+
+    def step(q: Vector, v: Vector, tau: Vector) -> tuple[Vector, Vector, bool]:
+        outcome = integrator.step(integrator.evaluate(q, v), tau)
+        return outcome.q, outcome.v, bool(outcome.active.any())
+
+    return step
+
+
+def stepper_step(stepper: PinocchioStepper) -> Step:
+    """The :data:`Step` of a :class:`PinocchioStepper`."""
+
+    def step(q: Vector, v: Vector, tau: Vector) -> tuple[Vector, Vector, bool]:
+        outcome = stepper.step(q, v, tau)
+        return outcome.q, outcome.v, bool(outcome.active.any())
+
+    return step
+
+
+def time_loop(
+    step: Step, forces: Forces, q0: Vector, v0: Vector, *, steps: int, repeats: int, warmup: int
+) -> float:
+    """Best-of-``repeats`` wall time of ``steps`` steps from (q0, v0), in [µs/step].
+
+    Args:
+        step: The loop's step.
+        forces: The generalized forces of each step.
+        q0: Initial configuration, shape (nq,).
+        v0: Initial velocity, shape (nv,).
+        steps: Steps per timed run.
+        repeats: Timed runs; the fastest is kept.
+        warmup: Untimed steps from (q0, v0) first (caches, warm starts).
+    """
+    _advance(step, forces, q0, v0, warmup)
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        _advance(step, forces, q0, v0, steps)
+        best = min(best, time.perf_counter() - start)
+    return 1e6 * best / steps
+
+
+def trajectory(
+    step: Step, forces: Forces, q0: Vector, v0: Vector, steps: int
+) -> tuple[Vector, float]:
+    """Velocities after each of ``steps`` steps from (q0, v0), and the active fraction.
+
+    Returns:
+        The velocities, shape (steps, nv), and the fraction of steps with an active contact.
+    """
+    q, v = q0.copy(), v0.copy()
+    velocities = np.empty((steps, v0.size))
+    active = 0
+    for k in range(steps):
+        q, v, is_active = step(q, v, forces(k, q, v))
+        velocities[k] = v
+        active += is_active
+    return velocities, active / steps
+
+
+def peak_allocation_kb(step: Step, forces: Forces, q0: Vector, v0: Vector, steps: int) -> float:
+    """Peak of the Python allocations over ``steps`` steps from (q0, v0), in [kB] (1024 B).
+
+    Measured by ``tracemalloc`` (numpy arrays included, Pinocchio's C++ buffers not) above
+    what is allocated when the run starts.
+    """
+    started = not tracemalloc.is_tracing()
+    if started:
+        tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        baseline = tracemalloc.get_traced_memory()[0]  # [B]
+        _advance(step, forces, q0, v0, steps)
+        peak = tracemalloc.get_traced_memory()[1]  # [B]
+    finally:
+        if started:
+            tracemalloc.stop()
+    return (peak - baseline) / 1024.0
+
+
+def _advance(step: Step, forces: Forces, q0: Vector, v0: Vector, steps: int) -> None:
+    """Run ``steps`` steps from (q0, v0), keeping nothing."""
+    q, v = q0.copy(), v0.copy()
+    for k in range(steps):
+        q, v, _ = step(q, v, forces(k, q, v))
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoopResult:
+    """What one loop cost and did.
+
+    Attributes:
+        name: The loop: ``"ucontrol"``, ``"pin ADMM"`` or ``"pin PGS"``.
+        time_us: Wall time in [µs/step], best of the timed runs.
+        max_dv: Largest difference between its velocities and ucontrol's over the untimed
+            run, in [m/s] or [rad/s] (0 for ucontrol itself).
+        active_fraction: Fraction of the steps with an active contact, in [0, 1].
+        peak_allocation_kb: Peak of the Python allocations over one run, in [kB] (1024 B).
+    """
+
+    name: str
+    time_us: float
+    max_dv: float
+    active_fraction: float
+    peak_allocation_kb: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class BenchReport:
+    """The loops of :func:`bench_scene`, ucontrol first.
+
+    Attributes:
+        scene: The scene's name.
+        dt: Time step in [s].
+        steps: Steps per timed run.
+        repeats: Timed runs per loop (the fastest is kept).
+        warmup: Untimed steps before the timed runs.
+        loops: One result per loop, ucontrol first.
+        no_reference: Why the scene has no Pinocchio reference (the features it lacks), or
+            None when the reference loops ran.
+        peak_rss_mb: Peak resident set size of the process at the end, in [MB]
+            (``ru_maxrss`` / 1024, Linux units).
+    """
+
+    scene: str
+    dt: float
+    steps: int
+    repeats: int
+    warmup: int
+    loops: tuple[LoopResult, ...]
+    no_reference: str | None
+    peak_rss_mb: float
+
+    def loop(self, name: str) -> LoopResult:
+        """The result of the loop ``name``."""
+        return next(loop for loop in self.loops if loop.name == name)
+
+    @property
+    def ratios(self) -> dict[str, float]:
+        """Ratio of the ucontrol time to each reference loop's time (< 1: ucontrol faster)."""
+        ucontrol = self.loops[0].time_us
+        return {loop.name: ucontrol / loop.time_us for loop in self.loops[1:]}
+
+    def markdown(self) -> str:
+        """A title line, the table of the loops and the memory line, as markdown."""
+        header = (
+            "| loop | time [µs/step] | ucontrol / loop | max Δv [m/s, rad/s] | active steps "
+            "| peak Python allocations [kB] |"
+        )
+        lines = [
+            f"{self.scene}: dt = {self.dt:g} s, {self.steps} steps of the scene's own forces "
+            f"replayed open loop, best of {self.repeats} after {self.warmup} warm-up steps",
+            "",
+            header,
+            "|:---|---:|---:|---:|---:|---:|",
+        ]
+        ucontrol = self.loops[0].time_us
+        for loop in self.loops:
+            max_dv = "—" if loop.name == UCONTROL else f"{loop.max_dv:.1e}"
+            lines.append(
+                f"| {loop.name} | {loop.time_us:.1f} | {ucontrol / loop.time_us:.2f} | {max_dv} "
+                f"| {100.0 * loop.active_fraction:.1f} % | {loop.peak_allocation_kb:.1f} |"
+            )
+        lines.append("")
+        if self.no_reference is not None:
+            lines.append(f"No Pinocchio reference: {self.no_reference}.")
+        lines.append(f"Peak resident set size of the process: {self.peak_rss_mb:.0f} MB.")
+        return "\n".join(lines)
+
+
+def reference_obstacles(scene: Scene) -> list[str]:
+    """What ``scene`` has that :class:`PinocchioStepper` does not model; empty if nothing.
+
+    The stepper advances a rigid robot with frictionless point contacts against planes by the
+    ``moreau_jean`` rule, restitution on every active contact, matrices at step k.
+    """
+    settings = scene.integrator
+    obstacles = []
+    if scene.stops:
+        joints = ", ".join(stop.joint for stop in scene.stops)
+        obstacles.append(f"the scene has joint stops ({joints})")
+    if scene.sphere_contacts:
+        obstacles.append("the scene has sphere–sphere contacts")
+    if scene.constraints.has_friction:
+        obstacles.append("the scene has friction (PinocchioStepper's step is frictionless)")
+    if scene.flexible is not None:
+        obstacles.append(f"the scene has flexible joints ({', '.join(scene.flexible.joints)})")
+    if settings.name != "moreau_jean":
+        obstacles.append(f"the scene's integrator is {settings.name}, not moreau_jean")
+    if settings.midpoint:
+        obstacles.append("the scene's integrator evaluates at the midpoint (midpoint = true)")
+    if settings.restitution_threshold > 0.0:
+        obstacles.append(
+            f"the scene's integrator has restitution_threshold = "
+            f"{settings.restitution_threshold:g} m/s"
+        )
+    return obstacles
+
+
+def recorded_forces(scene: Scene, steps: int, dt: float | None = None) -> Vector:
+    """Generalized forces of ``steps`` steps of the scene's closed loop, shape (steps, nv).
+
+    Runs :func:`ucontrol.simulate` with the scene's controller and maps the log's inputs ``u``
+    to the actuated coordinates as it does (the motors' for flexible joints, whose coordinates
+    then follow the links': shape (steps, nv + nf)).
+
+    Args:
+        scene: The scene.
+        steps: Number of steps.
+        dt: Time step in [s]; default the scene's.
+    """
+    h = scene.integrator.dt if dt is None else dt
+    log = simulate(scene, duration=steps * h, dt=h, progress=False).log
+    robot, flexible = scene.robot, scene.flexible
+    actuated = robot.actuated if flexible is None else flexible.input_coordinates(robot.actuated)
+    tau = np.zeros((steps, scene.initial_state()[1].size))
+    tau[:, actuated] = log.u[:steps]
+    return tau
+
+
+def bench_scene(
+    scene: Scene,
+    *,
+    steps: int = 2000,
+    repeats: int = 5,
+    warmup: int = 100,
+    dt: float | None = None,
+) -> BenchReport:
+    """Time the scene's step against Pinocchio's ADMM and PGS loops (module docstring).
+
+    Args:
+        scene: The scene; its controller is run once to record the forces.
+        steps: Steps per timed run, >= 1.
+        repeats: Timed runs per loop, the fastest kept, >= 1.
+        warmup: Untimed steps before the timed runs, >= 0.
+        dt: Time step in [s]; default the scene's.
+
+    Raises:
+        InvalidParameterError: ``steps``, ``repeats`` or ``warmup`` is not an integer in its
+            range, or ``dt`` is not > 0.
+        SimulationError: The recording run failed.
+    """
+    steps = _as_count("steps", steps, 1)
+    repeats = _as_count("repeats", repeats, 1)
+    warmup = _as_count("warmup", warmup, 0)
+    h = scene.integrator.dt if dt is None else as_positive("dt", dt)
+    tau = recorded_forces(scene, max(steps, warmup), h)
+    rows = list(tau)
+
+    def forces(k: int, q: Vector, v: Vector) -> Vector:
+        return rows[k]
+
+    q0, v0 = scene.initial_state()
+    obstacles = reference_obstacles(scene)
+    loops = _loops(scene, h, references=not obstacles)
+    times = {
+        name: time_loop(build(), forces, q0, v0, steps=steps, repeats=repeats, warmup=warmup)
+        for name, build in loops.items()
+    }
+    # Untimed runs on fresh loops: integrators keep state between steps (warm starts).
+    runs = {name: trajectory(build(), forces, q0, v0, steps) for name, build in loops.items()}
+    reference = runs[UCONTROL][0]
+    results = tuple(
+        LoopResult(
+            name=name,
+            time_us=times[name],
+            max_dv=float(np.max(np.abs(runs[name][0] - reference))),
+            active_fraction=runs[name][1],
+            peak_allocation_kb=peak_allocation_kb(build(), forces, q0, v0, steps),
+        )
+        for name, build in loops.items()
+    )
+    return BenchReport(
+        scene=scene.name,
+        dt=h,
+        steps=steps,
+        repeats=repeats,
+        warmup=warmup,
+        loops=results,
+        no_reference="; ".join(obstacles) if obstacles else None,
+        peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+    )
+
+
+def _loops(scene: Scene, dt: float, *, references: bool) -> dict[str, Callable[[], Step]]:
+    """A builder of each loop's :data:`Step`: ucontrol, then the references if asked."""
+    loops = {UCONTROL: lambda: integrator_step(scene.build_integrator(dt))}
+    if not references:
+        return loops
+    settings = scene.integrator
+    for name, method in REFERENCES.items():
+        loops[name] = partial(
+            _stepper_loop,
+            scene,
+            dt=dt,
+            theta=settings.theta,
+            method=method,
+            tolerance=settings.contact_tolerance,
+            max_iter=settings.max_iter,
+        )
+    return loops
+
+
+def _stepper_loop(scene: Scene, **options: Any) -> Step:
+    """The :data:`Step` of a :class:`PinocchioStepper` of the scene's contacts."""
+    return stepper_step(PinocchioStepper(scene.robot.model, scene.contacts, **options))
+
+
+def _as_count(name: str, value: Any, minimum: int) -> int:
+    """``value`` as an integer >= ``minimum``, or :class:`InvalidParameterError`."""
+    expected = f"an integer >= {minimum}"
+    if isinstance(value, bool):
+        raise InvalidParameterError(name, value, expected)
+    try:
+        count = operator.index(value)
+    except TypeError as error:
+        raise InvalidParameterError(name, value, expected) from error
+    if count < minimum:
+        raise InvalidParameterError(name, value, expected)
+    return count
