@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from conftest import ROBOTS, ball_scene
 
+from ucontrol import cli
 from ucontrol.analysis import BouncingBall
 from ucontrol.contact import PointContact
 from ucontrol.control import ContactState, JointPD
@@ -75,6 +76,31 @@ def test_failure_mid_run_keeps_the_log(tmp_path: Path) -> None:
     reference = BouncingBall(height=1.0, restitution=0.9)
     height = reference.state(saved.t[flight])[0]
     np.testing.assert_allclose(saved.q[flight, 0] - 0.1, height, atol=1e-12)
+
+
+def test_interrupted_run_keeps_the_log(tmp_path: Path) -> None:
+    def interrupted(t, q, v, contacts):
+        if t >= 0.3:
+            raise KeyboardInterrupt  # the user's Ctrl-C, seen where Python checks signals
+        return np.zeros(1)
+
+    with pytest.raises(KeyboardInterrupt):
+        simulate(ball_scene(0.9), interrupted, duration=1.0, dt=1e-3, out=tmp_path)
+    saved = Log.load(tmp_path / "log.npz")
+    assert len(saved) == 301 and saved.t[-1] == pytest.approx(0.3)
+    reference = BouncingBall(height=1.0, restitution=0.9)
+    np.testing.assert_allclose(saved.q[:, 0] - 0.1, reference.state(saved.t)[0], atol=1e-12)
+
+
+def test_cli_reports_an_interrupt_in_one_line(monkeypatch, capsys) -> None:
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "simulate", interrupted)
+    assert cli.main(["run", str(ROBOTS / "ball.toml"), "--out", "unused"]) == 130
+    assert capsys.readouterr().err.strip() == (
+        "ucontrol: interrupted (a run keeps its log up to here)"
+    )
 
 
 def test_non_finite_controller_output_stops_the_run_with_its_time() -> None:

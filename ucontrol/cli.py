@@ -288,6 +288,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UControlError as error:
         print(f"ucontrol: error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: one line, the conventional status of SIGINT
+        print("ucontrol: interrupted (a run keeps its log up to here)", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

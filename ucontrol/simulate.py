@@ -72,7 +72,7 @@ def simulate(
         control_period: Controller period in [s] (zero-order hold); default every step.
             Rounded to a whole number of steps.
         out: Directory for ``log.npz`` and ``summary.json``; the log is also checkpointed there
-            during long runs and saved when a run fails.
+            during long runs and saved when a run fails or is interrupted (Ctrl-C).
         progress: Show a progress bar; default for runs of at least 20 000 steps.
         observer: Called with the log each time a row is complete (after every step and
             at the end), e.g. a live viewer (:class:`ucontrol.viz.live_viewer.LiveViewer`);
@@ -219,6 +219,12 @@ def simulate(
         log.record_step(u, contacts_zero, inactive, 0, 0.0)
         if observer is not None:
             observer(log)
+    except KeyboardInterrupt:  # the user's Ctrl-C: keep what ran, then stop as asked
+        if row_open:
+            log.record_step(u, contacts_zero, inactive, 0, 0.0)
+        if out_dir is not None:
+            log.save(out_dir / "log.npz")
+        raise
     except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
         if row_open:  # the state at t_k is stored, its step is not: close the row
             log.record_step(u, contacts_zero, inactive, 0, 0.0)
