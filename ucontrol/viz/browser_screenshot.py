@@ -28,7 +28,7 @@ TIMEOUT = 60.0
 #: real time instead (``--timeout``), which Chromium always ends.
 ATTEMPTS = 3
 #: Real time a real-time launch gives the page beyond the virtual time asked, in [ms].
-REAL_TIME_MARGIN_MS = 1000
+REAL_TIME_MARGIN_MS = 3000
 #: Last bytes of every complete PNG file (the IEND chunk with its CRC).
 PNG_END = b"IEND\xaeB`\x82"
 
