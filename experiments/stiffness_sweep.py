@@ -25,7 +25,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 from tqdm import tqdm
 
 from ucontrol.control import ContactState, Controller, Phase
@@ -37,18 +36,7 @@ from ucontrol.simulate import simulate
 ROOT = Path(__file__).resolve().parents[1]
 STIFFNESSES = (1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8)  # [N m/rad]
 MOTOR_INERTIA = 0.1  # [kg m²]
-
-
-def end_effector_path(scene: Scene, q: np.ndarray, frame: str = "end_effector") -> np.ndarray:
-    """World positions of ``frame`` along the link configurations ``q`` (N, nq), shape (N, 3)."""
-    model = scene.robot.model
-    data = model.createData()
-    frame_id = model.getFrameId(frame)
-    path = np.empty((len(q), 3))
-    for k, configuration in enumerate(q):
-        pin.framesForwardKinematics(model, data, configuration)
-        path[k] = data.oMf[frame_id].translation
-    return path
+TIP = "end_effector"  # the frame whose paths are compared
 
 
 def flexible(scene: Scene, stiffness: float) -> Scene:
@@ -71,11 +59,12 @@ def open_loop_distances(scene: Scene, duration: float, dt: float, theta: float) 
     """Largest end-effector distance [m] to the rigid limit, per stiffness, zero torque."""
     settings = IntegratorSettings(dt=dt, theta=theta)
     scene = dataclasses.replace(scene, integrator=settings)
-    reference = end_effector_path(scene, simulate(rigid_limit(scene), duration=duration).log.q)
+    rigid_q = simulate(rigid_limit(scene), duration=duration).log.q
+    reference = scene.robot.frame_path(rigid_q, TIP)
     distances = []
     for stiffness in STIFFNESSES:
         log = simulate(flexible(scene, stiffness), duration=duration).log
-        path = end_effector_path(scene, log.q)
+        path = scene.robot.frame_path(log.q, TIP)
         distances.append(float(np.max(np.linalg.norm(path - reference, axis=1))))
     return distances
 
@@ -125,7 +114,7 @@ def closed_loop_distances(dt: float, cycles: int) -> dict[str, list[float]]:
     for stiffness in STIFFNESSES:
         flexible_log, rigid_log, scene = closed_loop_runs(stiffness, dt, cycles * 10.0 + 0.5)
         distance = np.linalg.norm(
-            end_effector_path(scene, flexible_log.q) - end_effector_path(scene, rigid_log.q),
+            scene.robot.frame_path(flexible_log.q, TIP) - scene.robot.frame_path(rigid_log.q, TIP),
             axis=1,
         )  # [m]
         first_approach = np.argmax(flexible_log.phase != Phase.FREE)

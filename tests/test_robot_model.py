@@ -90,3 +90,17 @@ def test_constraint_gaps_velocities_and_jacobians_agree(robot_factory) -> None:
         plus = constraints.gaps(robot.integrate(q, FD_STEP * direction))
         minus = constraints.gaps(robot.integrate(q, -FD_STEP * direction))
         np.testing.assert_allclose((plus - minus) / (2 * FD_STEP), J @ direction, atol=1e-6)
+
+
+def test_frame_path_is_the_tip_of_the_two_link_arm() -> None:
+    robot = RobotModel.from_urdf(ROBOTS / "two_link.urdf")
+    q = np.array([[0.9, -1.6], [0.0, 0.0], [1.5, -0.9]])
+    expected = np.stack(  # l1 = l2 = 0.5 m, joints about z
+        [
+            0.5 * np.cos(q[:, 0]) + 0.5 * np.cos(q[:, 0] + q[:, 1]),
+            0.5 * np.sin(q[:, 0]) + 0.5 * np.sin(q[:, 0] + q[:, 1]),
+            np.zeros(3),
+        ],
+        axis=1,
+    )
+    np.testing.assert_allclose(robot.frame_path(q, "end_effector"), expected, atol=1e-14)

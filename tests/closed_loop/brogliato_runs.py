@@ -7,7 +7,11 @@ import functools
 from pathlib import Path
 from typing import Any
 
-from ucontrol.control import BrogliatoController
+import pytest
+
+from ucontrol.analysis.cycles import cycle_events
+from ucontrol.control import BrogliatoController, Phase
+from ucontrol.log import Log
 from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import SimulationResult, simulate
 
@@ -48,3 +52,32 @@ def run(
     assert isinstance(controller, BrogliatoController)
     duration = cycles * controller.cycle.period + 0.5  # [s]
     return controller, simulate(variant, controller, duration=duration, dt=dt, progress=False)
+
+
+def assert_ground_and_wall_every_cycle(
+    controller: BrogliatoController, log: Log, cycles: int
+) -> None:
+    """Each of ``cycles`` cycles completes, reaching the ground (contact 0) and the wall (1).
+
+    Every contact goes through τ0 < first impact < end of accumulation < takeoff with over 2 s
+    of constrained motion, both are held at once in the corner for over 1 s, and the cycle
+    runs ground first, wall once on the ground, ground left first, wall left at the period.
+    """
+    ground, wall = 0, 1
+    events = cycle_events(log)
+    assert len(events) == cycles
+    for cycle in events:
+        assert cycle.complete, cycle
+        rows = slice(cycle.start, cycle.stop)
+        for contact in (ground, wall):
+            held = log.contact_phase[rows, contact] == Phase.CONSTRAINED
+            assert held.sum() * DT > 2.0  # [s] of constrained motion on each surface
+            assert cycle.tau0[contact] < cycle.first_impact[contact]
+            assert cycle.first_impact[contact] < cycle.accumulation_end[contact]
+            assert cycle.accumulation_end[contact] < cycle.takeoff[contact]
+        corner = (log.contact_phase[rows] == Phase.CONSTRAINED).all(axis=1)
+        assert corner.sum() * DT > 1.0  # [s] with both contacts held, with their forces
+        assert cycle.accumulation_end[ground] < cycle.tau0[wall]
+        assert cycle.takeoff[ground] < cycle.takeoff[wall]
+        period = controller.cycle.period
+        assert cycle.takeoff[wall] == pytest.approx(period * (cycle.index + 1))

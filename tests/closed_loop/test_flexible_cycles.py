@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from brogliato_runs import DT, run
+from brogliato_runs import DT, assert_ground_and_wall_every_cycle, run
 
 from ucontrol.analysis import impact_mask
 from ucontrol.analysis.cycles import cycle_events
@@ -166,19 +166,4 @@ def test_motor_and_link_states_stay_finite(one_constraint, two_constraints) -> N
 
 def test_two_constraints_reach_the_ground_and_the_wall_every_cycle(two_constraints) -> None:
     controller, log = two_constraints
-    cycles = cycle_events(log)
-    assert len(cycles) == CYCLES
-    for cycle in cycles:
-        assert cycle.complete, cycle
-        rows = slice(cycle.start, cycle.stop)
-        for contact in (GROUND, WALL):
-            held = log.contact_phase[rows, contact] == Phase.CONSTRAINED
-            assert held.sum() * DT > 2.0  # [s] of constrained motion on each surface
-            assert cycle.tau0[contact] < cycle.first_impact[contact]
-            assert cycle.first_impact[contact] < cycle.accumulation_end[contact]
-            assert cycle.accumulation_end[contact] < cycle.takeoff[contact]
-        corner = (log.contact_phase[rows] == Phase.CONSTRAINED).all(axis=1)
-        assert corner.sum() * DT > 1.0  # [s] with both contacts held
-        assert cycle.accumulation_end[GROUND] < cycle.tau0[WALL]
-        assert cycle.takeoff[GROUND] < cycle.takeoff[WALL]
-        assert cycle.takeoff[WALL] == pytest.approx(controller.cycle.period * (cycle.index + 1))
+    assert_ground_and_wall_every_cycle(controller, log, CYCLES)

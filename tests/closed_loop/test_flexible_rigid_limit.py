@@ -29,7 +29,8 @@ def distances() -> dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     for stiffness in (1e5, 1e6):
         flexible, rigid, scene = sweep.closed_loop_runs(stiffness, DT, 10.5)  # one cycle
         distance = np.linalg.norm(
-            sweep.end_effector_path(scene, flexible.q) - sweep.end_effector_path(scene, rigid.q),
+            scene.robot.frame_path(flexible.q, sweep.TIP)
+            - scene.robot.frame_path(rigid.q, sweep.TIP),
             axis=1,
         )
         deflection = np.abs(flexible.q - flexible.motor_q).sum(axis=1)

@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from brogliato_runs import DT, run, scene
+from brogliato_runs import DT, assert_ground_and_wall_every_cycle, run, scene
 
 from ucontrol.analysis.cycles import cycle_events
 from ucontrol.control import BrogliatoController, Event, Phase
@@ -26,24 +26,7 @@ def two_constraints() -> tuple[BrogliatoController, Log]:
 
 def test_three_complete_cycles_each_reach_the_ground_and_the_wall(two_constraints) -> None:
     controller, log = two_constraints
-    cycles = cycle_events(log)
-    assert len(cycles) == CYCLES
-    for cycle in cycles:
-        assert cycle.complete, cycle
-        rows = slice(cycle.start, cycle.stop)
-        for contact in (GROUND, WALL):
-            held = log.contact_phase[rows, contact] == Phase.CONSTRAINED
-            assert held.sum() * DT > 2.0  # [s] of constrained motion on each surface
-            assert cycle.tau0[contact] < cycle.first_impact[contact]
-            assert cycle.first_impact[contact] < cycle.accumulation_end[contact]
-            assert cycle.accumulation_end[contact] < cycle.takeoff[contact]
-        # In the corner both contacts are held at once, with their desired forces.
-        corner = (log.contact_phase[rows] == Phase.CONSTRAINED).all(axis=1)
-        assert corner.sum() * DT > 1.0
-        # Order of the cycle: ground first, wall once on the ground, ground left first.
-        assert cycle.accumulation_end[GROUND] < cycle.tau0[WALL]
-        assert cycle.takeoff[GROUND] < cycle.takeoff[WALL]
-        assert cycle.takeoff[WALL] == pytest.approx(controller.cycle.period * (cycle.index + 1))
+    assert_ground_and_wall_every_cycle(controller, log, CYCLES)
 
 
 def test_every_cycle_starts_its_transitions_from_the_current_desired_value(

@@ -133,6 +133,35 @@ class PlantEvaluation(NamedTuple):
     potential_energy: float
 
 
+def evaluate_plant(
+    data: pin.Data,
+    constraints: ConstraintSet,
+    flexible: FlexibleJoints | None,
+    q: Vector,
+    v: Vector,
+    *,
+    frames: bool = True,
+) -> PlantEvaluation:
+    """All dynamics terms, constraint gaps, normal velocities and energies at (q, v).
+
+    Runs ``pin.computeAllTerms`` (and the frame placements when ``frames``) on ``data`` at the
+    links' state; with flexible joints (q, v) are the extended state and the energies include
+    the motors and the springs.
+    """
+    model = constraints.robot.model
+    q1, v1 = (q, v) if flexible is None else flexible.split(q, v)[:2]
+    pin.computeAllTerms(model, data, q1, v1)
+    if frames:
+        pin.updateFramePlacements(model, data)
+    gap, normal_velocity = constraints.evaluate(data, q1, v1)
+    kinetic, potential = data.kinetic_energy, data.potential_energy
+    if flexible is not None:
+        motors, springs = flexible.energies(q, v)
+        kinetic += motors
+        potential += springs
+    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential)
+
+
 class StepOutcome(NamedTuple):
     """The result of one step from a :class:`PlantEvaluation`.
 
@@ -238,8 +267,9 @@ class MoreauJean:
         self.persistence_tolerance = as_float("persistence_tolerance", persistence_tolerance)
         if self.persistence_tolerance < 0.0:
             raise InvalidParameterError("persistence_tolerance", persistence_tolerance, ">= 0")
-        self._held = np.zeros(constraints.size, dtype=bool)
-        self._activation = np.zeros(constraints.size)  # largest predicted gap of the active set
+        # Largest predicted gap of each constraint in the active set: the persistence
+        # tolerance for those held in the last step (positive only for them), else 0.
+        self._activation = np.zeros(constraints.size)
         if flexible is not None:
             ht = self.dt * self.theta
             self._stiffness = flexible.coupling_matrix(flexible.stiffness)  # K_q
@@ -250,23 +280,13 @@ class MoreauJean:
 
     def reset(self) -> None:
         """Forget which constraints carried an impulse in the last step (a new run)."""
-        self._held[:] = False
         self._activation[:] = 0.0
 
     def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
         """Dynamics, kinematics and constraint gaps at (q, v); prepares :meth:`step`."""
-        model, data, flexible = self._model, self._data, self.flexible
-        q1, v1 = (q, v) if flexible is None else flexible.split(q, v)[:2]
-        pin.computeAllTerms(model, data, q1, v1)
-        if self._has_contacts:
-            pin.updateFramePlacements(model, data)
-        gap, normal_velocity = self.constraints.evaluate(data, q1, v1)
-        kinetic, potential = data.kinetic_energy, data.potential_energy
-        if flexible is not None:
-            motors, springs = flexible.energies(q, v)
-            kinetic += motors
-            potential += springs
-        return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential)
+        return evaluate_plant(
+            self._data, self.constraints, self.flexible, q, v, frames=self._has_contacts
+        )
 
     def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
         """Advance one step from ``state`` (the last :meth:`evaluate`) under forces ``tau``.
@@ -325,8 +345,7 @@ class MoreauJean:
         else:
             v_next = v_free
         q_next = self._advance(state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next))
-        self._held = impulse > 0.0
-        np.multiply(self._held, self.persistence_tolerance, out=self._activation)
+        np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
         return StepOutcome(
             q_next,
             v_next,
@@ -352,13 +371,13 @@ class MoreauJean:
         gap = state.gap[indices]
         if indices.size == 1:  # the common single contact, without array temporaries
             i = indices[0]
-            if self._held[i] and gap[0] > 0.0:
+            if self._activation[i] > 0.0 and gap[0] > 0.0:
                 return np.zeros(1), gap / h
             return (
                 self.constraints.restitution[indices] * u_minus if closing[0] else np.zeros(1)
             ), None
         rebound = np.where(closing, self.constraints.restitution[indices] * u_minus, 0.0)
-        held_open = self._held[indices] & (gap > 0.0)
+        held_open = (self._activation[indices] > 0.0) & (gap > 0.0)
         if not held_open.any():
             return rebound, None
         rebound[held_open] = 0.0

@@ -36,7 +36,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol.contact.constraint_set import ConstraintSet
-from ucontrol.integrators.moreau_jean import PlantEvaluation
+from ucontrol.integrators.moreau_jean import PlantEvaluation, evaluate_plant
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 
@@ -116,17 +116,7 @@ class SmoothDynamics:
 
         The energies include the motors' kinetic and the springs' elastic energy.
         """
-        model, data, flexible = self.model, self.data, self.flexible
-        q1, v1 = q[: self._link_nq], v[: self._link_nv]
-        pin.computeAllTerms(model, data, q1, v1)
-        pin.updateFramePlacements(model, data)
-        gap, normal_velocity = self.constraints.evaluate(data, q1, v1)
-        kinetic, potential = data.kinetic_energy, data.potential_energy
-        if flexible is not None:
-            motors, springs = flexible.energies(q, v)
-            kinetic += motors
-            potential += springs
-        return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential)
+        return evaluate_plant(self.data, self.constraints, self.flexible, q, v)
 
     def configuration(self, q0: Vector, dq: Vector) -> Vector:
         """The configuration ``q0 ⊕ dq``, shape (nq,), for a chart offset ``dq`` (nv,)."""

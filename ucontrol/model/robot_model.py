@@ -184,6 +184,20 @@ class RobotModel:
         pin.framesForwardKinematics(self.model, self.data, q)
         return self.data.oMf[frame_id].translation.copy()
 
+    def frame_path(self, configurations: Vector, frame: str) -> Vector:
+        """Positions of frame ``frame`` in the world along ``configurations`` (N, nq), in [m].
+
+        Returns:
+            Shape (N, 3). Uses a data buffer of its own.
+        """
+        frame_id = self.frame_id(frame)
+        data = self.model.createData()
+        path = np.empty((len(configurations), 3))
+        for k, q in enumerate(configurations):
+            pin.framesForwardKinematics(self.model, data, q)
+            path[k] = data.oMf[frame_id].translation
+        return path
+
     def frame_jacobian(self, q: Vector, frame: str) -> Vector:
         """Jacobian of frame ``frame`` in LOCAL_WORLD_ALIGNED, shape (6, nv).
 

@@ -13,7 +13,6 @@ dependent constraints, where iterative QP methods stall) are solved again by Lem
 from __future__ import annotations
 
 import time
-from typing import NamedTuple
 
 import numpy as np
 import scipy.optimize
@@ -37,25 +36,17 @@ LEMKE_FALLBACK_SIZE = 50
 Vector = NDArray[np.float64]
 
 
-class RefinedSolution(NamedTuple):
-    """Impulses after refinement.
-
-    Attributes:
-        impulses: Normal impulses P >= 0 in [N s], shape (m,).
-        velocity: ``D P + b`` in [m/s], shape (m,).
-        residual: Complementarity residual in [m/s].
-        polished: Whether the polish or Lemke's method replaced the QP's impulses.
-    """
-
-    impulses: Vector
-    velocity: Vector
-    residual: float
-    polished: bool
-
-
 def refine_lcp_solution(
-    D: Vector, b: Vector, x: Vector, *, polish: bool, residual_tolerance: float
-) -> RefinedSolution:
+    D: Vector,
+    b: Vector,
+    x: Vector,
+    *,
+    polish: bool,
+    residual_tolerance: float,
+    iterations: int,
+    unsolved_status: str,
+    start: float,
+) -> ContactSolution:
     """Polish the QP solution ``x`` (m,) of ``(D, b)``; Lemke for small stalled problems.
 
     Args:
@@ -63,7 +54,14 @@ def refine_lcp_solution(
         b: Free constraint velocity plus restitution term in [m/s], shape (m,).
         x: Impulses returned by the QP backend in [N s], shape (m,).
         polish: Refine on the active set when the residual exceeds :data:`POLISH_THRESHOLD`.
-        residual_tolerance: Residual in [m/s] above which Lemke's method is tried.
+        residual_tolerance: Residual in [m/s] above which Lemke's method is tried, and up to
+            which the solve is ``"solved"``.
+        iterations: The backend's iteration count.
+        unsolved_status: Status of a solve left above ``residual_tolerance`` (the backend's).
+        start: ``time.perf_counter()`` at the start of the solve, for its timing.
+
+    Returns:
+        The solve; ``polished`` when the polish or Lemke's method replaced the QP's impulses.
     """
     scale = velocity_scale(D)
     impulses = np.maximum(x, 0.0)
@@ -88,7 +86,15 @@ def refine_lcp_solution(
         if pivoted is not None and pivoted.residual < residual:
             impulses, velocity, residual = pivoted.impulses, pivoted.velocity, pivoted.residual
             polished = True
-    return RefinedSolution(impulses, velocity, residual, polished)
+    return ContactSolution(
+        impulses,
+        velocity,
+        "solved" if residual <= residual_tolerance else unsolved_status,
+        iterations,
+        residual,
+        time.perf_counter() - start,
+        polished,
+    )
 
 
 def single_constraint_solution(D: Vector, b: Vector, start: float) -> ContactSolution:

@@ -82,15 +82,13 @@ class ProxsuiteLCPSolver:
         if bounds is None:  # P >= 0 as the inequalities I P >= 0
             bounds = self._bounds[m] = (np.eye(m), np.zeros(m), np.full(m, INFINITY))
         results = self._qp.solve(D, b, *bounds)
-        refined = refine_lcp_solution(
-            D, b, results.x, polish=self.polish, residual_tolerance=self.residual_tolerance
-        )
-        return ContactSolution(
-            refined.impulses,
-            refined.velocity,
-            "solved" if refined.residual <= self.residual_tolerance else str(results.info.status),
-            int(results.info.iter),
-            refined.residual,
-            time.perf_counter() - start,
-            refined.polished,
+        return refine_lcp_solution(
+            D,
+            b,
+            results.x,
+            polish=self.polish,
+            residual_tolerance=self.residual_tolerance,
+            iterations=int(results.info.iter),
+            unsolved_status=str(results.info.status),
+            start=start,
         )

@@ -81,17 +81,15 @@ class QpsolversLCPSolver:
             return self._failure(m, b, f"{type(error).__name__}: {error}", start)
         if not solution.found or solution.x is None:
             return self._failure(m, b, "not_found", start)
-        refined = refine_lcp_solution(
-            D, b, solution.x, polish=self.polish, residual_tolerance=self.residual_tolerance
-        )
-        return ContactSolution(
-            refined.impulses,
-            refined.velocity,
-            "solved" if refined.residual <= self.residual_tolerance else "inaccurate",
-            _iterations(solution),
-            refined.residual,
-            time.perf_counter() - start,
-            refined.polished,
+        return refine_lcp_solution(
+            D,
+            b,
+            solution.x,
+            polish=self.polish,
+            residual_tolerance=self.residual_tolerance,
+            iterations=_iterations(solution),
+            unsolved_status="inaccurate",
+            start=start,
         )
 
     @staticmethod

@@ -8,7 +8,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
@@ -51,14 +50,7 @@ def cycle_figures(
 
 def frame_positions(log: Log, controller: BrogliatoController) -> np.ndarray:
     """World positions of the controller's task frame at every sample in [m], shape (N, 3)."""
-    model = controller.robot.model
-    data = model.createData()
-    frame = controller.task.frame_id
-    positions = np.empty((len(log), 3))
-    for k, q in enumerate(log.q):
-        pin.framesForwardKinematics(model, data, q)
-        positions[k] = data.oMf[frame].translation
-    return positions
+    return controller.robot.frame_path(log.q, controller.task.frame)
 
 
 def _path_figure(log: Log, controller: BrogliatoController, plane: tuple[int, int]) -> Figure:
