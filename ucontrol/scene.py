@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol._validation import as_in_interval, as_positive, as_vector
+from ucontrol._validation import as_float, as_in_interval, as_positive, as_vector
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
@@ -192,6 +192,12 @@ class IntegratorSettings:
 
     def __post_init__(self) -> None:
         check_contact_solver(self.contact_solver)
+        if not isinstance(self.midpoint, bool):
+            raise InvalidParameterError("midpoint", self.midpoint, "true or false")
+        tolerance = as_float("persistence_tolerance", self.persistence_tolerance)
+        if not tolerance >= 0.0:  # also rejects NaN
+            raise InvalidParameterError("persistence_tolerance", tolerance, "a length >= 0 in [m]")
+        object.__setattr__(self, "persistence_tolerance", tolerance)
         object.__setattr__(
             self, "friction_tolerance", as_positive("friction_tolerance", self.friction_tolerance)
         )

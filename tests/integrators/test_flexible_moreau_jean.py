@@ -18,6 +18,7 @@ from ucontrol.exceptions import (
     ShapeError,
     UnknownKeyError,
 )
+from ucontrol.integrators import MoreauJean
 from ucontrol.model import FlexibleJoints, RobotModel
 from ucontrol.scene import IntegratorSettings, Scene, load_scene
 from ucontrol.simulate import simulate
@@ -271,3 +272,15 @@ def test_collocated_pd_holds_the_links_at_the_target_against_gravity() -> None:
     np.testing.assert_allclose(log.q[-1], target, atol=1e-6)  # Tomei: exact at rest
     g = scene.robot.gravity_torque(target)
     np.testing.assert_allclose(log.motor_q[-1], target + g / 2000.0, atol=1e-6)
+
+
+def test_bad_integrator_settings_raise() -> None:
+    with pytest.raises(InvalidParameterError, match="`midpoint` must be true or false, got 'yes'"):
+        IntegratorSettings(midpoint="yes")  # type: ignore[arg-type]
+    with pytest.raises(InvalidParameterError, match=r"`persistence_tolerance`.*-1e-06"):
+        IntegratorSettings(persistence_tolerance=-1e-6)
+    with pytest.raises(InvalidParameterError, match=r"`persistence_tolerance`.*'far'"):
+        IntegratorSettings(persistence_tolerance="far")  # type: ignore[arg-type]
+    scene = _arm(2000.0)
+    with pytest.raises(InvalidParameterError, match="`persistence_tolerance`"):
+        MoreauJean(scene.robot, scene.constraints, dt=1e-3, persistence_tolerance=-1.0)
