@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol.exceptions import InvalidParameterError, NonFiniteValueError, ShapeError
+from ucontrol.exceptions import (
+    InvalidParameterError,
+    NonFiniteValueError,
+    SceneError,
+    ShapeError,
+    UnknownKeyError,
+)
 
 
 def as_vector(name: str, value: Any, size: int | None = None) -> NDArray[np.float64]:
@@ -62,3 +69,33 @@ def as_in_interval(name: str, value: Any, low: float, high: float) -> float:
     if not low <= number <= high:
         raise InvalidParameterError(name, value, f"in [{low:g}, {high:g}]")
     return number
+
+
+def check_keys(section: str, table: Any, allowed: set[str]) -> None:
+    """Check that ``table`` is a mapping whose keys all belong to ``allowed``.
+
+    Args:
+        section: The table's name in messages, e.g. ``"[robot]"``.
+        table: The parsed TOML table.
+        allowed: The keys the table accepts.
+
+    Raises:
+        SceneError: ``table`` is not a table.
+        UnknownKeyError: ``table`` holds keys outside ``allowed``.
+    """
+    if not isinstance(table, Mapping):
+        raise SceneError(f"{section} must be a table, got {table!r}")
+    unknown = set(table) - allowed
+    if unknown:
+        raise UnknownKeyError(section, unknown, allowed)
+
+
+def require_key(table: Mapping[str, Any], section: str, key: str) -> Any:
+    """The value of a key the table must hold.
+
+    Raises:
+        SceneError: ``key`` is missing from ``section``.
+    """
+    if key not in table:
+        raise SceneError(f"{section} needs the key {key!r}")
+    return table[key]

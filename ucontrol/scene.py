@@ -16,7 +16,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol._validation import as_float, as_in_interval, as_positive, as_vector
+from ucontrol._validation import (
+    as_float,
+    as_in_interval,
+    as_positive,
+    as_vector,
+    check_keys,
+    require_key,
+)
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
@@ -30,7 +37,7 @@ from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoCont
 from ucontrol.control.joint_pd import JointPD
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
-from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError, UnknownKeyError
+from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError
 from ucontrol.integrators import compliant, event_driven
 from ucontrol.integrators.compliant import Compliant
 from ucontrol.integrators.event_driven import EventDriven
@@ -386,13 +393,13 @@ class Scene:
         kind = table.get("type", "zero")
         if kind not in _CONTROLLER_KEYS:
             raise NotFoundError("controller type", kind, CONTROLLERS)
-        _check_keys("[controller]", table, _CONTROLLER_KEYS[kind])
+        check_keys("[controller]", table, _CONTROLLER_KEYS[kind])
         if kind == "joint_pd":
             return JointPD(
                 self.robot,
                 q_ref=table.get("q_ref", self.q0),
-                kp=_require(table, "[controller]", "kp"),
-                kd=_require(table, "[controller]", "kd"),
+                kp=require_key(table, "[controller]", "kp"),
+                kd=require_key(table, "[controller]", "kd"),
                 gravity_compensation=bool(table.get("gravity_compensation", True)),
                 flexible=self.flexible,
             )
@@ -423,12 +430,12 @@ class Scene:
         cls, table: Mapping[str, Any], *, base_dir: Path, default_name: str = "scene"
     ) -> Scene:
         """Build a scene from its parsed TOML table (see :meth:`from_toml`)."""
-        _check_keys("the scene", table, _TOP_KEYS)
-        robot_table = _require(table, "the scene", "robot")
-        _check_keys("[robot]", robot_table, _ROBOT_KEYS)
+        check_keys("the scene", table, _TOP_KEYS)
+        robot_table = require_key(table, "the scene", "robot")
+        check_keys("[robot]", robot_table, _ROBOT_KEYS)
         gravity = robot_table.get("gravity", [0.0, 0.0, -9.81])
         robot = RobotModel.from_urdf(
-            resolve_urdf(str(_require(robot_table, "[robot]", "urdf")), base_dir),
+            resolve_urdf(str(require_key(robot_table, "[robot]", "urdf")), base_dir),
             floating_base=bool(robot_table.get("floating_base", False)),
             gravity=as_vector("gravity", gravity, 3),
         )
@@ -447,7 +454,7 @@ class Scene:
         planar_axis = robot_table.get("planar_axis")
         stops = [_stop(spec, robot) for spec in table.get("stops", [])]
         integrator_table = dict(table.get("integrator", {}))
-        _check_keys("[integrator]", integrator_table, _INTEGRATOR_KEYS)
+        check_keys("[integrator]", integrator_table, _INTEGRATOR_KEYS)
         scene = cls(
             name=str(table.get("name", default_name)),
             robot=robot,
@@ -483,20 +490,6 @@ def load_scene(path: str | Path | None = None) -> Scene:
     return Scene.from_toml(builtin_scene() if path is None else path)
 
 
-def _check_keys(section: str, table: Mapping[str, Any], allowed: set[str]) -> None:
-    if not isinstance(table, Mapping):
-        raise SceneError(f"{section} must be a table, got {table!r}")
-    unknown = set(table) - allowed
-    if unknown:
-        raise UnknownKeyError(section, unknown, allowed)
-
-
-def _require(table: Mapping[str, Any], section: str, key: str) -> Any:
-    if key not in table:
-        raise SceneError(f"{section} needs the key {key!r}")
-    return table[key]
-
-
 def _reference(table: Mapping[str, Any], contacts: Sequence[PointContact]) -> dict[str, Any]:
     """A checked ``[reference]`` table, with ``contact`` resolved to a contact name.
 
@@ -505,10 +498,10 @@ def _reference(table: Mapping[str, Any], contacts: Sequence[PointContact]) -> di
     """
     if not isinstance(table, Mapping):
         raise SceneError(f"[reference] must be a table, got {table!r}")
-    kind = _require(table, "[reference]", "type")
+    kind = require_key(table, "[reference]", "type")
     if kind not in _REFERENCE_KEYS:
         raise NotFoundError("reference type", str(kind), REFERENCES)
-    _check_keys("[reference]", table, _REFERENCE_KEYS[kind])
+    check_keys("[reference]", table, _REFERENCE_KEYS[kind])
     names = [contact.name for contact in contacts]
     if not names:
         raise SceneError("[reference] type 'bouncing_ball' needs a [[contacts]] entry")
@@ -519,20 +512,20 @@ def _reference(table: Mapping[str, Any], contacts: Sequence[PointContact]) -> di
 
 
 def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
-    _check_keys(section, spec, _SURFACE_KEYS)
+    check_keys(section, spec, _SURFACE_KEYS)
     kind = spec.get("type", "plane")
     if kind != "plane":
         raise InvalidParameterError(f"{section} type", kind, "'plane'")
     return Plane(
         point=spec.get("point", [0.0, 0.0, 0.0]),
-        normal=_require(spec, section, "normal"),
+        normal=require_key(spec, section, "normal"),
         name=name,
     )
 
 
 def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointContact:
-    _check_keys("[[contacts]]", spec, _CONTACT_KEYS)
-    surface = _require(spec, "[[contacts]]", "surface")
+    check_keys("[[contacts]]", spec, _CONTACT_KEYS)
+    surface = require_key(spec, "[[contacts]]", "surface")
     if isinstance(surface, Mapping):
         plane = _plane("[[contacts]] surface", "plane", surface)
     elif surface in surfaces:
@@ -540,7 +533,7 @@ def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointCon
     else:
         raise NotFoundError("surface", str(surface), surfaces)
     return PointContact(
-        frame=str(_require(spec, "[[contacts]]", "frame")),
+        frame=str(require_key(spec, "[[contacts]]", "frame")),
         surface=plane,
         radius=spec.get("radius", 0.0),
         restitution=spec.get("restitution", 0.0),
@@ -550,10 +543,10 @@ def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointCon
 
 
 def _sphere_contact(spec: Mapping[str, Any]) -> SphereSphereContact:
-    _check_keys("[[sphere_contacts]]", spec, _SPHERE_CONTACT_KEYS)
+    check_keys("[[sphere_contacts]]", spec, _SPHERE_CONTACT_KEYS)
     return SphereSphereContact(
-        frame=str(_require(spec, "[[sphere_contacts]]", "frame")),
-        other_frame=str(_require(spec, "[[sphere_contacts]]", "other_frame")),
+        frame=str(require_key(spec, "[[sphere_contacts]]", "frame")),
+        other_frame=str(require_key(spec, "[[sphere_contacts]]", "other_frame")),
         **{
             key: spec[key]
             for key in ("radius", "other_radius", "restitution", "friction")
@@ -568,7 +561,7 @@ def _flexible(
 ) -> tuple[FlexibleJoints, Any | None, Any | None]:
     """The ``[robot.flexible]`` table: joints (default every actuated one), K, B, D, motor q0/v0."""
     section = "[robot.flexible]"
-    _check_keys(section, spec, _FLEXIBLE_KEYS)
+    check_keys(section, spec, _FLEXIBLE_KEYS)
     joints = spec.get("joints")
     if joints is None:  # every actuated joint
         joints = [
@@ -579,8 +572,8 @@ def _flexible(
     flexible = FlexibleJoints.from_robot(
         robot,
         joints,
-        stiffness=_require(spec, section, "stiffness"),
-        motor_inertia=_require(spec, section, "motor_inertia"),
+        stiffness=require_key(spec, section, "stiffness"),
+        motor_inertia=require_key(spec, section, "motor_inertia"),
         damping=spec.get("damping", 0.0),
     )
     return flexible, spec.get("q0"), spec.get("v0")
@@ -588,8 +581,8 @@ def _flexible(
 
 def _stop(spec: Mapping[str, Any], robot: RobotModel) -> JointStop:
     """A joint stop; without ``lower``/``upper`` it takes the URDF's position limits."""
-    _check_keys("[[stops]]", spec, _STOP_KEYS)
-    joint = str(_require(spec, "[[stops]]", "joint"))
+    check_keys("[[stops]]", spec, _STOP_KEYS)
+    joint = str(require_key(spec, "[[stops]]", "joint"))
     lower, upper = spec.get("lower"), spec.get("upper")
     if lower is None and upper is None:
         joint_model = robot.model.joints[robot.joint_id(joint)]
@@ -603,7 +596,7 @@ def _stop(spec: Mapping[str, Any], robot: RobotModel) -> JointStop:
 def _brogliato(scene: Scene, table: Mapping[str, Any]) -> BrogliatoController:
     """The ``type = "brogliato"`` controller of a scene (keys in docs/scene_format.md)."""
     section = "[controller]"
-    frame = str(_require(table, section, "frame"))
+    frame = str(require_key(table, section, "frame"))
     contacts = {contact.name: contact for contact in scene.contacts}
     names = table.get("contacts", [c.name for c in scene.contacts if c.frame == frame])
     for name in names:
@@ -612,22 +605,22 @@ def _brogliato(scene: Scene, table: Mapping[str, Any]) -> BrogliatoController:
     task = TaskCoordinates(
         scene.robot, frame, [contacts[name] for name in names], table.get("tangents", ())
     )
-    path_table = _require(table, section, "path")
-    _check_keys("[controller.path]", path_table, _PATH_KEYS)
+    path_table = require_key(table, section, "path")
+    check_keys("[controller.path]", path_table, _PATH_KEYS)
     if path_table.get("type", "circle") != "circle":
         raise InvalidParameterError("[controller.path] type", path_table["type"], "'circle'")
     path = CirclePath(
-        centre=_require(path_table, "[controller.path]", "centre"),
-        radius=_require(path_table, "[controller.path]", "radius"),
-        period=_require(path_table, "[controller.path]", "period"),
+        centre=require_key(path_table, "[controller.path]", "centre"),
+        radius=require_key(path_table, "[controller.path]", "radius"),
+        period=require_key(path_table, "[controller.path]", "period"),
         **{key: path_table[key] for key in ("axes", "start_angle") if key in path_table},
     )
     phases = []
-    for spec in _require(table, section, "contact_phases"):
+    for spec in require_key(table, section, "contact_phases"):
         entry = "[[controller.contact_phases]]"
-        _check_keys(entry, spec, _CONTACT_PHASE_KEYS)
+        check_keys(entry, spec, _CONTACT_PHASE_KEYS)
         phases.append(
-            ContactPhase(**{key: _require(spec, entry, key) for key in _CONTACT_PHASE_KEYS})
+            ContactPhase(**{key: require_key(spec, entry, key) for key in _CONTACT_PHASE_KEYS})
         )
     cycle = DesiredCycle(
         path=path,
@@ -635,8 +628,8 @@ def _brogliato(scene: Scene, table: Mapping[str, Any]) -> BrogliatoController:
         **{key: table[key] for key in _CYCLE_KEYS if key in table},
     )
     gains = BrogliatoGains(
-        gamma1=_require(table, section, "gamma1"),
-        gamma2=_require(table, section, "gamma2"),
+        gamma1=require_key(table, section, "gamma1"),
+        gamma2=require_key(table, section, "gamma2"),
         **{key: table[key] for key in _BROGLIATO_GAIN_KEYS if key in table},
     )
     robot = scene.robot.with_scaled_inertia(table.get("mass_scale", 1.0))
