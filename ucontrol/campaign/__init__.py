@@ -1,0 +1,1 @@
+"""Campaigns: sweeps and Monte Carlo over scenes on dask.distributed."""

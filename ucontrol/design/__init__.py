@@ -1,0 +1,1 @@
+"""Desired cycles by optimal control (casadi Opti/IPOPT on the symbolic model)."""
