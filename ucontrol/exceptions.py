@@ -327,3 +327,33 @@ class ContactSolveWarning(UserWarning):
             f"{solver} stopped with status {status}: residual {residual:.3g} m/s above the "
             f"tolerance {tolerance:.3g} m/s; the step goes on with these impulses"
         )
+
+
+class PathOutOfReachError(InvalidParameterError):
+    """A desired path holds a point the robot's frame cannot reach (inverse kinematics fails).
+
+    Attributes:
+        frame: Name of the frame that must follow the path.
+        time: Time within the period of the first unreachable sample, in [s].
+        point: That point of the path in the world frame, in [m], as a list of 3 floats.
+        residual: Smallest distance in [m] between the frame and the point that inverse
+            kinematics reached (from the previous sample's solution and several restarts
+            within the joint limits).
+    """
+
+    def __init__(self, frame: str, time: float, point: Sequence[float], residual: float) -> None:
+        self.frame = frame
+        self.time = time
+        self.point = [float(x) for x in point]
+        self.residual = residual
+        UControlError.__init__(
+            self,
+            f"the desired path leaves the workspace of frame {frame!r}: the point "
+            f"{self.point} at t = {time:.4g} s of the period stays {residual:.3g} m away from "
+            "every configuration inverse kinematics found within the joint limits; move or "
+            "shrink the path",
+        )
+        self.name = "path"
+        self.value = self.point
+        self.expected = f"points that frame {frame!r} can reach"
+
