@@ -1,6 +1,6 @@
 r"""Error against run time of each integrator: the figures and tables of docs/accuracy.md.
 
-Cases (:func:`ucontrol.analysis.convergence.run_convergence` on each):
+Cases (:func:`ucontrol.convergence.run_convergence` on each):
 
 - ``ball_e09``: robots/ball.toml, e = 0.9, against the analytic :class:`BouncingBall`;
 - ``ball_e05``: the same ball with e = 0.5, through its accumulation point (t∞ = 1.35 s) and the
@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ucontrol.analysis import BouncingBall
-from ucontrol.analysis.convergence import ConvergenceStudy, plot_work_precision, run_convergence
+from ucontrol.convergence import ConvergenceStudy, plot_work_precision, run_convergence
 from ucontrol.scene import Scene, builtin_scene, load_scene
 from ucontrol.simulate import simulate
 

@@ -148,9 +148,8 @@ def test_unknown_names_list_the_known_ones(tmp_path: Path) -> None:
         _scene_from_text(tmp_path, BALL_TOML.replace('name = "moreau_jean"', 'name = "rk4"'))
     with pytest.raises(NotFoundError, match=r"surface 'table'.*ground"):
         _scene_from_text(tmp_path, BALL_TOML.replace('surface = "ground"', 'surface = "table"'))
-    scene = _scene_from_text(tmp_path, BALL_TOML + '\n[controller]\ntype = "mpc"\n')
-    with pytest.raises(NotFoundError, match=r"controller type 'mpc'"):
-        scene.build_controller()
+    with pytest.raises(NotFoundError, match=r"controller type 'mpc'"):  # when the file is read
+        _scene_from_text(tmp_path, BALL_TOML + '\n[controller]\ntype = "mpc"\n')
 
 
 def test_bad_geometry_parameters() -> None:

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ucontrol.analysis import convergence
+from ucontrol import convergence
 from ucontrol.bench import bench_scene
 from ucontrol.exceptions import OptionalDependencyError, UControlError
 from ucontrol.saved_run import SavedRun

@@ -8,9 +8,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
 from ucontrol.analysis.summary import summarize
@@ -24,6 +25,10 @@ from ucontrol.exceptions import (
 )
 from ucontrol.log import SOLVED, UNSOLVED, Log
 from ucontrol.scene import Scene
+
+if TYPE_CHECKING:
+    from ucontrol.contact.constraint_set import ConstraintSet
+    from ucontrol.plant import Integrator, PlantEvaluation, StepOutcome
 
 #: Largest initial penetration accepted, in [m] (or [rad] for stops).
 PENETRATION_TOLERANCE = 1e-9
@@ -85,149 +90,34 @@ def simulate(
     integrator = scene.build_integrator(dt=dt)
     h = integrator.dt
     duration = as_positive("duration", scene.duration if duration is None else duration)
-    hold = (
-        1
-        if control_period is None
-        else max(1, round(as_positive("control_period", control_period) / h))
-    )
+    hold = 1 if control_period is None else _hold_steps(control_period, h)
     controller = scene.build_controller() if controller is None else controller
-    robot, constraints, flexible = scene.robot, integrator.constraints, scene.flexible
-    q, v = scene.initial_state()  # motors after the links with flexible joints
-    gap0 = constraints.gaps(scene.q0)
-    if gap0.size and gap0.min() < -PENETRATION_TOLERANCE:
-        worst = int(np.argmin(gap0))
-        raise InitialPenetrationError(
-            constraints.names[worst], float(gap0[worst]), PENETRATION_TOLERANCE
-        )
-
+    _check_initial_penetration(integrator.constraints, scene.q0)
     n_steps = max(1, math.ceil(duration / h - 1e-9))
-    log = Log(
-        n_steps + 1,
-        nq=robot.nq,
-        nv=robot.nv,
-        nu=robot.nu,
-        constraint_names=constraints.names,
-        metadata={
-            "scene": scene.name,
-            "integrator": integrator.name,
-            "dt": h,
-            "theta": integrator.theta,
-            "control_period": hold * h,
-            "actuated": robot.actuated.tolist(),
-        },
-    )
-    if scene.source is not None:
-        log.metadata["scene_path"] = str(scene.source)
-    recorder = controller if isinstance(controller, LoggingController) else None
-    if recorder is not None:
-        recorder.prepare_log(log)
-    if constraints.has_friction:  # world friction impulse of each constraint [N s]
-        log.add_field("friction_impulse", (constraints.size, 3))
-    actuated = robot.actuated
-    if flexible is not None:  # motor states, beside the links' q and v
-        log.add_field("motor_q", (flexible.nf,))
-        log.add_field("motor_v", (flexible.nf,))
-        log.metadata["flexible_joints"] = list(flexible.joints)
-        log.metadata["motor_inputs"] = flexible.input_index.tolist()
-        actuated = flexible.input_coordinates(actuated)
+    loop = _ClosedLoop(scene, integrator, controller, n_steps + 1, hold, observer)
+    log = loop.log
     out_dir = Path(out) if out is not None else None
     bar = _progress_bar(n_steps, progress)
-    contacts_zero = np.zeros(constraints.size)
-    inactive = np.zeros(constraints.size, dtype=bool)
-    impulse, active = contacts_zero, inactive
-    period_impulse, period_active, period_steps = np.zeros(constraints.size), inactive.copy(), 0
-    tau = np.zeros(v.size)
-    u = np.zeros(robot.nu)
     start = last_checkpoint = time.perf_counter()
-    k, row_open, n_events, n_plastic = 0, False, 0, 0
+    k = 0
     try:
         for k in range(n_steps + 1):
-            t = k * h
-            state = integrator.evaluate(q, v)
-            log.record_state(
-                t,
-                q[: robot.nq],
-                v[: robot.nv],
-                state.gap,
-                state.normal_velocity,
-                state.kinetic_energy + state.potential_energy,
-            )
-            if flexible is not None:
-                log.record_extra("motor_q", q[robot.nq :])
-                log.record_extra("motor_v", v[robot.nv :])
-            row_open = True
+            state = loop.sample(k * h)
             if k == n_steps:
                 break
             if k % hold == 0:
-                if hold > 1:  # what happened over the control period that ends now
-                    impulse, active = period_impulse.copy(), period_active.copy()
-                    span = max(period_steps, 1) * h
-                    period_impulse[:], period_active[:], period_steps = 0.0, False, 0
-                else:
-                    span = h
-                contacts = ContactState(
-                    constraints.names, state.gap, state.normal_velocity, impulse, active, span
-                )
-                output = _as_array(controller(t, q, v, contacts))
-                if output.shape != (robot.nu,):
-                    raise ShapeError("controller output u", (robot.nu,), output.shape)
-                u = output
-                tau[actuated] = u
-            if recorder is not None:
-                recorder.record(log)
-            outcome = integrator.step(state, tau)
-            solution = outcome.solution
-            if outcome.friction_impulse is not None:
-                log.record_extra("friction_impulse", outcome.friction_impulse)
-            if solution is None:
-                log.record_step(u, outcome.impulse, outcome.active, 0, 0.0)
-            else:
-                log.record_step(
-                    u,
-                    outcome.impulse,
-                    outcome.active,
-                    solution.iterations,
-                    solution.residual,
-                    solution.solve_time_s,
-                    SOLVED if solution.status == "solved" else UNSOLVED,
-                    solution.outer_iterations,
-                )
-            row_open = False
-            if observer is not None:
-                observer(log)
-            q, v, impulse, active = outcome.q, outcome.v, outcome.impulse, outcome.active
-            if hold > 1:
-                period_impulse += impulse
-                period_active |= active
-                period_steps += 1
-            n_events += outcome.events
-            n_plastic += outcome.plastic
-            if not math.isfinite(float(q.sum() + v.sum() + u.sum())):
-                as_vector("controller output u", u)  # names the culprit if it is the controller
-                raise _NonFiniteState(f"the state became non-finite at t = {t + h:.6g} s")
+                loop.control(k * h, state)
+            loop.advance(state)
             if k % 1000 == 0:
-                if bar is not None:
-                    bar.update(min(1000, n_steps - bar.n))
-                if (
-                    out_dir is not None
-                    and time.perf_counter() - last_checkpoint > CHECKPOINT_PERIOD_S
-                ):
-                    log.save(out_dir / "log.npz")
-                    last_checkpoint = time.perf_counter()
-        if recorder is not None:
-            recorder.record(log)
-        log.record_step(u, contacts_zero, inactive, 0, 0.0)
-        if observer is not None:
-            observer(log)
+                last_checkpoint = _report_progress(bar, n_steps, log, out_dir, last_checkpoint)
+        loop.finish()
     except KeyboardInterrupt:  # the user's Ctrl-C: keep what ran, then stop as asked
-        if row_open:
-            log.record_step(u, contacts_zero, inactive, 0, 0.0)
+        loop.close_row()
         if out_dir is not None:
             log.save(out_dir / "log.npz")
         raise
     except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
-        if row_open:  # the state at t_k is stored, its step is not: close the row
-            log.record_step(u, contacts_zero, inactive, 0, 0.0)
+        loop.close_row()  # the state at t_k is stored, its step is not: close the row
         failure = SimulationError(float(log.t[-1]) if len(log) else 0.0, k, str(error), log)
         if out_dir is not None:
             failure.log_path = str(log.save(out_dir / "log.npz"))
@@ -237,12 +127,232 @@ def simulate(
             bar.close()
     wall_time = time.perf_counter() - start
     summary = summarize(log, wall_time_s=wall_time, theta=integrator.theta)
-    summary["n_events"] = n_events  # located by event-driven integrators; 0 otherwise
-    summary["n_plastic_steps"] = n_plastic  # Moreau–Jean steps whose restitution added energy
+    summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
+    summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
     if out_dir is not None:
         log.save(out_dir / "log.npz")
         (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return SimulationResult(log, summary, out_dir)
+
+
+class _ClosedLoop:
+    """What a run carries from step to step, and the stages of one step.
+
+    A step k samples the plant at t_k (:meth:`sample`, which opens the log row), lets the
+    controller choose the input at the start of each control period (:meth:`control`), then
+    advances the plant under the held input (:meth:`advance`, which closes the row).
+
+    Args:
+        scene: The scene run (its initial state, robot and flexible joints).
+        integrator: The scene's integrator.
+        controller: The controller in the loop.
+        capacity: Rows of the log, in samples.
+        hold: Steps per control period.
+        observer: Called with the log each time a row is complete, or None.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        integrator: Integrator,
+        controller: Controller,
+        capacity: int,
+        hold: int,
+        observer: Callable[[Log], None] | None,
+    ) -> None:
+        self.integrator, self.controller, self.hold, self.observer = (
+            integrator,
+            controller,
+            hold,
+            observer,
+        )
+        robot, flexible, size = scene.robot, scene.flexible, integrator.constraints.size
+        self.nq, self.nv, self.nu, self.flexible = robot.nq, robot.nv, robot.nu, flexible
+        self.recorder = controller if isinstance(controller, LoggingController) else None
+        self.log = _new_log(scene, integrator, self.recorder, capacity, hold)
+        self.actuated = (
+            robot.actuated if flexible is None else flexible.input_coordinates(robot.actuated)
+        )
+        self.q, self.v = scene.initial_state()  # motors after the links with flexible joints
+        self.u = np.zeros(robot.nu)
+        self.tau = np.zeros(self.v.size)
+        self.no_impulse = np.zeros(size)
+        self.none_active = np.zeros(size, dtype=bool)
+        # The last step's impulses and active set, and their sums over the control period.
+        self.impulse, self.active = self.no_impulse, self.none_active
+        self.period_impulse, self.period_active, self.period_steps = (
+            np.zeros(size),
+            self.none_active.copy(),
+            0,
+        )
+        self.row_open = False
+        self.n_events = 0
+        self.n_plastic = 0
+
+    def sample(self, t: float) -> PlantEvaluation:
+        """Evaluate the plant at t [s] and open the log row of that sample."""
+        state = self.integrator.evaluate(self.q, self.v)
+        log, q, v = self.log, self.q, self.v
+        log.record_state(
+            t,
+            q[: self.nq],
+            v[: self.nv],
+            state.gap,
+            state.normal_velocity,
+            state.kinetic_energy + state.potential_energy,
+        )
+        if self.flexible is not None:
+            log.record_extra("motor_q", q[self.nq :])
+            log.record_extra("motor_v", v[self.nv :])
+        self.row_open = True
+        return state
+
+    def control(self, t: float, state: PlantEvaluation) -> None:
+        """The controller's input at t [s], held until the next control period."""
+        if self.hold > 1:  # what happened over the control period that ends now
+            impulse, active = self.period_impulse.copy(), self.period_active.copy()
+            span = max(self.period_steps, 1) * self.integrator.dt
+            self.period_impulse[:], self.period_active[:], self.period_steps = 0.0, False, 0
+        else:
+            impulse, active, span = self.impulse, self.active, self.integrator.dt
+        constraints = self.integrator.constraints
+        contacts = ContactState(
+            constraints.names, state.gap, state.normal_velocity, impulse, active, span
+        )
+        output = _as_array(self.controller(t, self.q, self.v, contacts))
+        if output.shape != (self.nu,):
+            raise ShapeError("controller output u", (self.nu,), output.shape)
+        self.u = output
+        self.tau[self.actuated] = output
+
+    def advance(self, state: PlantEvaluation) -> None:
+        """One plant step from ``state`` under the held input; closes the log row."""
+        log = self.log
+        if self.recorder is not None:
+            self.recorder.record(log)
+        outcome = self.integrator.step(state, self.tau)
+        _record_step(log, self.u, outcome)
+        self.row_open = False
+        if self.observer is not None:
+            self.observer(log)
+        self.q, self.v, self.impulse, self.active = (
+            outcome.q,
+            outcome.v,
+            outcome.impulse,
+            outcome.active,
+        )
+        if self.hold > 1:
+            self.period_impulse += outcome.impulse
+            self.period_active |= outcome.active
+            self.period_steps += 1
+        self.n_events += outcome.events
+        self.n_plastic += outcome.plastic
+        if not math.isfinite(float(self.q.sum() + self.v.sum() + self.u.sum())):
+            as_vector("controller output u", self.u)  # names the culprit if it is the controller
+            t = float(log.t[len(log) - 1]) + self.integrator.dt
+            raise _NonFiniteState(f"the state became non-finite at t = {t:.6g} s")
+
+    def close_row(self) -> None:
+        """Close an open log row as a step without impulses (the end, or a failure)."""
+        if self.row_open:
+            self.log.record_step(self.u, self.no_impulse, self.none_active, 0, 0.0)
+            self.row_open = False
+
+    def finish(self) -> None:
+        """Complete the last row: the controller's fields, no step after it."""
+        if self.recorder is not None:
+            self.recorder.record(self.log)
+        self.close_row()
+        if self.observer is not None:
+            self.observer(self.log)
+
+
+def _report_progress(
+    bar: Any, n_steps: int, log: Log, out_dir: Path | None, last_checkpoint: float
+) -> float:
+    """Advance the progress bar by 1000 steps and checkpoint the log when one is due.
+
+    Returns:
+        The wall time [s] (``time.perf_counter``) of the last checkpoint.
+    """
+    if bar is not None:
+        bar.update(min(1000, n_steps - bar.n))
+    if out_dir is None or time.perf_counter() - last_checkpoint <= CHECKPOINT_PERIOD_S:
+        return last_checkpoint
+    log.save(out_dir / "log.npz")
+    return time.perf_counter()
+
+
+def _hold_steps(control_period: float, h: float) -> int:
+    """Steps per control period of ``control_period`` [s] with step ``h`` [s], at least 1."""
+    return max(1, round(as_positive("control_period", control_period) / h))
+
+
+def _check_initial_penetration(constraints: ConstraintSet, q0: NDArray[np.float64]) -> None:
+    gap0 = constraints.gaps(q0)
+    if gap0.size and gap0.min() < -PENETRATION_TOLERANCE:
+        worst = int(np.argmin(gap0))
+        raise InitialPenetrationError(
+            constraints.names[worst], float(gap0[worst]), PENETRATION_TOLERANCE
+        )
+
+
+def _new_log(
+    scene: Scene,
+    integrator: Integrator,
+    recorder: LoggingController | None,
+    capacity: int,
+    hold: int,
+) -> Log:
+    """An empty log with the fields this run records."""
+    robot, constraints, flexible = scene.robot, integrator.constraints, scene.flexible
+    log = Log(
+        capacity,
+        nq=robot.nq,
+        nv=robot.nv,
+        nu=robot.nu,
+        constraint_names=constraints.names,
+        metadata={
+            "scene": scene.name,
+            "integrator": integrator.name,
+            "dt": integrator.dt,
+            "theta": integrator.theta,
+            "control_period": hold * integrator.dt,
+            "actuated": robot.actuated.tolist(),
+        },
+    )
+    if scene.source is not None:
+        log.metadata["scene_path"] = str(scene.source)
+    if recorder is not None:
+        recorder.prepare_log(log)
+    if constraints.has_friction:  # world friction impulse of each constraint [N s]
+        log.add_field("friction_impulse", (constraints.size, 3))
+    if flexible is not None:  # motor states, beside the links' q and v
+        log.add_field("motor_q", (flexible.nf,))
+        log.add_field("motor_v", (flexible.nf,))
+        log.metadata["flexible_joints"] = list(flexible.joints)
+        log.metadata["motor_inputs"] = flexible.input_index.tolist()
+    return log
+
+
+def _record_step(log: Log, u: NDArray[np.float64], outcome: StepOutcome) -> None:
+    """The input, impulses and contact solve of a step, in the open row of ``log``."""
+    solution = outcome.solution
+    if outcome.friction_impulse is not None:
+        log.record_extra("friction_impulse", outcome.friction_impulse)
+    if solution is None:
+        log.record_step(u, outcome.impulse, outcome.active, 0, 0.0)
+        return
+    log.record_step(
+        u,
+        outcome.impulse,
+        outcome.active,
+        solution.iterations,
+        solution.residual,
+        solution.solve_time_s,
+        SOLVED if solution.status == "solved" else UNSOLVED,
+        solution.outer_iterations,
+    )
 
 
 class _NonFiniteState(ArithmeticError):

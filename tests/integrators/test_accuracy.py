@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from conftest import ball_scene
 
-from ucontrol.analysis.convergence import run_convergence
+from ucontrol.convergence import run_convergence
 
 
 def test_moreau_jean_is_first_order_on_the_ball() -> None:

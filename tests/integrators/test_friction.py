@@ -25,9 +25,10 @@ from ucontrol.exceptions import (
     UnknownKeyError,
     URDFError,
 )
-from ucontrol.integrators import MoreauJean, StepOutcome
+from ucontrol.integrators import MoreauJean
 from ucontrol.log import UNSOLVED
 from ucontrol.model import example_robot_data_dir
+from ucontrol.plant import StepOutcome
 from ucontrol.scene import IntegratorSettings, Scene, load_scene
 from ucontrol.simulate import simulate
 from ucontrol.solvers import ProxsuiteCoulombSolver

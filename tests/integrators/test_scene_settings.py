@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from conftest import ROBOTS
 
-from ucontrol.analysis.convergence import run_convergence
+from ucontrol.convergence import run_convergence
 from ucontrol.cli import main
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError, UnknownKeyError
 from ucontrol.integrators import Compliant, EventDriven, MoreauJean

@@ -26,8 +26,9 @@ from ucontrol.exceptions import (
     SolverError,
     URDFError,
 )
-from ucontrol.integrators import MoreauJean, PlantEvaluation
+from ucontrol.integrators import MoreauJean
 from ucontrol.model import RobotModel, example_robot_data_dir
+from ucontrol.plant import PlantEvaluation
 from ucontrol.scene import Scene
 from ucontrol.solvers import (
     PinocchioContactSolver,

@@ -37,18 +37,17 @@ from scipy.optimize import brentq
 from ucontrol._validation import as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import IntegrationError, InvalidParameterError
-from ucontrol.integrators.moreau_jean import PlantEvaluation, StepOutcome
+from ucontrol.integrators.methods import CONTACT_MODELS, IVP_METHODS
 from ucontrol.integrators.smooth_dynamics import SmoothDynamics
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
+from ucontrol.plant import PlantEvaluation, StepOutcome
 
 Vector = NDArray[np.float64]
 Mask = NDArray[np.bool_]
 
 #: The stiff methods of solve_ivp the integrator accepts.
-METHODS = ("Radau", "BDF", "LSODA")
-#: The contact force laws.
-CONTACT_MODELS = ("linear", "hunt_crossley")
+METHODS = IVP_METHODS["compliant"]
 
 #: Largest damping ratio of the linear law: its restitution is then 2.4e-3, and a resting
 #: contact settles with time constant 2 ζ sqrt(m_eff / k) (0.02 s for 1 kg at 1e6 N/m).

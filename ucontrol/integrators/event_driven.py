@@ -54,10 +54,11 @@ from scipy.integrate import solve_ivp
 from ucontrol._validation import as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import IntegrationError, InvalidParameterError, SolverError
-from ucontrol.integrators.moreau_jean import PlantEvaluation, StepOutcome
+from ucontrol.integrators.methods import IVP_METHODS
 from ucontrol.integrators.smooth_dynamics import ConstraintTerms, SmoothDynamics
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
+from ucontrol.plant import PlantEvaluation, StepOutcome
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 
@@ -65,7 +66,7 @@ Vector = NDArray[np.float64]
 Mask = NDArray[np.bool_]
 
 #: The explicit Runge–Kutta methods of solve_ivp the integrator accepts.
-METHODS = ("DOP853", "RK45")
+METHODS = IVP_METHODS["event_driven"]
 
 #: Consecutive events closer than this to their predecessor, in [s], count as a stall.
 _STALL_TIME = 1e-14

@@ -85,7 +85,6 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
-from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -97,6 +96,7 @@ from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidParameterError
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
+from ucontrol.plant import PlantEvaluation, StepOutcome, evaluate_plant
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
 from ucontrol.solvers.coulomb_problem import CoulombProblem
@@ -111,84 +111,6 @@ ENERGY_GAIN_TOLERANCE = 1e-12
 PERSISTENCE_TOLERANCE = 1e-6
 #: What a step does with a contact problem left above its residual tolerance.
 ON_UNSOLVED = ("raise", "warn")
-
-
-class PlantEvaluation(NamedTuple):
-    """Everything the plant knows at the start of a step, at (q_k, v_k).
-
-    Attributes:
-        q: Configuration, shape (nq,) (nq + nf with flexible joints: motors last).
-        v: Velocity, shape (nv,) (nv + nf with flexible joints).
-        gap: Constraint gaps, shape (n,).
-        normal_velocity: Constraint velocities ``J v``, shape (n,).
-        kinetic_energy: In [J], motors included.
-        potential_energy: Gravitational plus the joint springs' elastic energy, in [J].
-    """
-
-    q: Vector
-    v: Vector
-    gap: Vector
-    normal_velocity: Vector
-    kinetic_energy: float
-    potential_energy: float
-
-
-def evaluate_plant(
-    data: pin.Data,
-    constraints: ConstraintSet,
-    flexible: FlexibleJoints | None,
-    q: Vector,
-    v: Vector,
-    *,
-    frames: bool = True,
-) -> PlantEvaluation:
-    """All dynamics terms, constraint gaps, normal velocities and energies at (q, v).
-
-    Runs ``pin.computeAllTerms`` (and the frame placements when ``frames``) on ``data`` at the
-    links' state; with flexible joints (q, v) are the extended state and the energies include
-    the motors and the springs.
-    """
-    model = constraints.robot.model
-    q1, v1 = (q, v) if flexible is None else flexible.split(q, v)[:2]
-    pin.computeAllTerms(model, data, q1, v1)
-    if frames:
-        pin.updateFramePlacements(model, data)
-    gap, normal_velocity = constraints.evaluate(data, q1, v1)
-    kinetic, potential = data.kinetic_energy, data.potential_energy
-    if flexible is not None:
-        motors, springs = flexible.energies(q, v)
-        kinetic += motors
-        potential += springs
-    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential)
-
-
-class StepOutcome(NamedTuple):
-    """The result of one step from a :class:`PlantEvaluation`.
-
-    Attributes:
-        q: Configuration at the end of the step, shape (nq,) (nq + nf with flexible joints).
-        v: Velocity at the end of the step, shape (nv,) (nv + nf with flexible joints).
-        impulse: Normal impulse of each constraint over the step in [N s], shape (n,).
-        active: Which constraints were in the active set, shape (n,).
-        solution: The contact solve, or None when the active set was empty.
-        plastic: Whether Newton's law was replaced by a plastic one (e = 0) in this step,
-            because the restitution impulses would have added energy.
-        events: Events located within the step (impacts, contact closures and releases) by
-            event-driven integrators; 0 for time-stepping, which locates none.
-        friction_impulse: Friction impulse of each constraint over the step in world
-            coordinates, in [N s], shape (n, 3) (on the first sphere of a sphere–sphere
-            contact, the opposite on the second), or None when the constraints have no
-            friction.
-    """
-
-    q: Vector
-    v: Vector
-    impulse: Vector
-    active: NDArray[np.bool_]
-    solution: ContactSolution | None
-    events: int = 0
-    plastic: bool = False
-    friction_impulse: Vector | None = None
 
 
 class MoreauJean:
@@ -243,7 +165,8 @@ class MoreauJean:
         self.robot = robot
         self.flexible = flexible
         self.midpoint = bool(midpoint)
-        self._midpoint_data = robot.model.createData()
+        # A second Pinocchio buffer for the midpoint's terms, only when asked for.
+        self._midpoint_data = robot.model.createData() if self.midpoint else None
         self._zero_acceleration = np.zeros(robot.nv)
         self.constraints = constraints
         self.dt = as_positive("dt", dt)
@@ -405,6 +328,7 @@ class MoreauJean:
         force = tau.copy()
         if self.midpoint:
             data = self._midpoint_data
+            assert data is not None
             q_mid = pin.integrate(model, q1, (0.5 * h) * v1)
             pin.crba(model, data, q_mid)
             force[:nv] -= pin.computeGeneralizedGravity(model, data, q_mid)

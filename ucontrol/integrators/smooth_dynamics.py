@@ -36,9 +36,9 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol.contact.constraint_set import ConstraintSet
-from ucontrol.integrators.moreau_jean import PlantEvaluation, evaluate_plant
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
+from ucontrol.plant import PlantEvaluation, evaluate_plant
 
 Vector = NDArray[np.float64]
 

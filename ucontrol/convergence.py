@@ -51,9 +51,9 @@ from numpy.typing import NDArray
 from ucontrol._validation import as_positive
 from ucontrol.analysis.bouncing_ball import BouncingBall
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, UnknownKeyError
-from ucontrol.integrators import compliant, event_driven
+from ucontrol.integrators.methods import INTEGRATORS, IVP_METHODS
 from ucontrol.log import Log
-from ucontrol.scene import INTEGRATORS, IntegratorSettings, Scene
+from ucontrol.scene import IntegratorSettings, Scene
 from ucontrol.simulate import simulate
 
 #: Default Moreau–Jean steps in [s].
@@ -71,7 +71,6 @@ ATOL_RATIO = 1e-2
 #: Relative tolerance of the compliant runs.
 COMPLIANT_RTOL = 1e-8
 
-_METHODS = {"event_driven": event_driven.METHODS, "compliant": compliant.METHODS}
 _CSV_FIELDS = (
     "integrator",
     "parameter",
@@ -494,7 +493,7 @@ def _simulate(
     duration: float,
     control_period: float | None,
 ) -> tuple[Log, dict[str, Any]]:
-    methods = _METHODS.get(name, ())
+    methods = IVP_METHODS.get(name, ())
     if "method" not in options and scene.integrator.method not in methods:
         options = {**options, "method": None}  # the scene's method is another integrator's
     settings = dataclasses.replace(scene.integrator, name=name, dt=dt, **options)

@@ -1,0 +1,9 @@
+"""The integrators by name, and the choices each accepts (scene files check against these)."""
+
+#: Integrator names, as scene files and the command line give them.
+INTEGRATORS = ("moreau_jean", "event_driven", "compliant")
+#: The solve_ivp methods each smooth integrator accepts: explicit Runge–Kutta between the
+#: events of event_driven, stiff methods for the contact springs of compliant.
+IVP_METHODS = {"event_driven": ("DOP853", "RK45"), "compliant": ("Radau", "BDF", "LSODA")}
+#: The contact force laws of compliant.
+CONTACT_MODELS = ("linear", "hunt_crossley")

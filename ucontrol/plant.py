@@ -1,0 +1,124 @@
+"""What every integrator shares: the plant's evaluation at a state, the outcome of a step.
+
+An integrator (Moreau–Jean, event-driven, compliant) is used the same way by the closed loop
+(:func:`ucontrol.simulate`): :meth:`Integrator.evaluate` at :math:`(q_k, v_k)` gives the
+gaps, normal velocities and energies the controller and the log need, then
+:meth:`Integrator.step` advances under the generalized forces held over the step.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Protocol
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.solvers.contact_solution import ContactSolution
+
+Vector = NDArray[np.float64]
+
+
+class PlantEvaluation(NamedTuple):
+    """Everything the plant knows at the start of a step, at (q_k, v_k).
+
+    Attributes:
+        q: Configuration, shape (nq,) (nq + nf with flexible joints: motors last).
+        v: Velocity, shape (nv,) (nv + nf with flexible joints).
+        gap: Constraint gaps, shape (n,).
+        normal_velocity: Constraint velocities ``J v``, shape (n,).
+        kinetic_energy: In [J], motors included.
+        potential_energy: Gravitational plus the joint springs' elastic energy, in [J].
+    """
+
+    q: Vector
+    v: Vector
+    gap: Vector
+    normal_velocity: Vector
+    kinetic_energy: float
+    potential_energy: float
+
+
+def evaluate_plant(
+    data: pin.Data,
+    constraints: ConstraintSet,
+    flexible: FlexibleJoints | None,
+    q: Vector,
+    v: Vector,
+    *,
+    frames: bool = True,
+) -> PlantEvaluation:
+    """All dynamics terms, constraint gaps, normal velocities and energies at (q, v).
+
+    Runs ``pin.computeAllTerms`` (and the frame placements when ``frames``) on ``data`` at the
+    links' state; with flexible joints (q, v) are the extended state and the energies include
+    the motors and the springs.
+    """
+    model = constraints.robot.model
+    q1, v1 = (q, v) if flexible is None else flexible.split(q, v)[:2]
+    pin.computeAllTerms(model, data, q1, v1)
+    if frames:
+        pin.updateFramePlacements(model, data)
+    gap, normal_velocity = constraints.evaluate(data, q1, v1)
+    kinetic, potential = data.kinetic_energy, data.potential_energy
+    if flexible is not None:
+        motors, springs = flexible.energies(q, v)
+        kinetic += motors
+        potential += springs
+    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential)
+
+
+class StepOutcome(NamedTuple):
+    """The result of one step from a :class:`PlantEvaluation`.
+
+    Attributes:
+        q: Configuration at the end of the step, shape (nq,) (nq + nf with flexible joints).
+        v: Velocity at the end of the step, shape (nv,) (nv + nf with flexible joints).
+        impulse: Normal impulse of each constraint over the step in [N s], shape (n,).
+        active: Which constraints were in the active set, shape (n,).
+        solution: The contact solve, or None when the active set was empty.
+        plastic: Whether Newton's law was replaced by a plastic one (e = 0) in this step,
+            because the restitution impulses would have added energy.
+        events: Events located within the step (impacts, contact closures and releases) by
+            event-driven integrators; 0 for time-stepping, which locates none.
+        friction_impulse: Friction impulse of each constraint over the step in world
+            coordinates, in [N s], shape (n, 3) (on the first sphere of a sphere–sphere
+            contact, the opposite on the second), or None when the constraints have no
+            friction.
+    """
+
+    q: Vector
+    v: Vector
+    impulse: Vector
+    active: NDArray[np.bool_]
+    solution: ContactSolution | None
+    events: int = 0
+    plastic: bool = False
+    friction_impulse: Vector | None = None
+
+
+class Integrator(Protocol):
+    """How time advances: the interface the closed loop relies on.
+
+    Attributes:
+        name: The integrator's name in logs and scene files.
+        dt: Step (or sampling period) h in [s].
+        theta: θ of the position update (1/2 where the integrator has none), used to
+            measure the energy a step's impulses add.
+        constraints: The unilateral constraints it enforces.
+    """
+
+    name: str
+    dt: float
+    theta: float
+    constraints: ConstraintSet
+
+    def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
+        """Dynamics, kinematics and constraint gaps at (q, v); prepares :meth:`step`."""
+        ...
+
+    def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
+        """Advance one step from ``state`` under generalized forces ``tau``, shape (nv,)."""
+        ...

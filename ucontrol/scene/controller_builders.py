@@ -1,0 +1,156 @@
+"""Building a scene's controller from its ``[controller]`` table: one builder per type.
+
+The table's keys are checked when the scene is loaded (:func:`check_controller_table`), the
+controller is built when a run asks for it. The flexible-joint law (which needs casadi) is
+imported only by a scene with flexible joints.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
+
+from ucontrol._validation import check_keys, require_key
+from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+from ucontrol.control.circle_path import CirclePath
+from ucontrol.control.controller import Controller
+from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
+from ucontrol.control.joint_pd import JointPD
+from ucontrol.control.task_coordinates import TaskCoordinates
+from ucontrol.control.zero_torque import ZeroTorque
+from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError
+
+if TYPE_CHECKING:
+    from ucontrol.scene.scene import Scene
+
+_CYCLE_KEYS = (
+    "approach_time",
+    "depth_gain",
+    "depth_exponent",
+    "depth_min",
+    "depth_max",
+    "rest_time",
+    "force_fall_time",
+    "takeoff_acceleration",
+    "takeoff_time",
+    "blend_time",
+    "takeoff_ramp_time",
+)
+_BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
+_CONTROLLER_KEYS = {
+    "zero": {"type"},
+    "joint_pd": {"type", "kp", "kd", "q_ref", "gravity_compensation"},
+    "brogliato": {
+        "type",
+        "frame",
+        "contacts",
+        "tangents",
+        "gamma1",
+        "gamma2",
+        "posture",
+        "mass_scale",
+        "path",
+        "contact_phases",
+        *_BROGLIATO_GAIN_KEYS,
+        *_CYCLE_KEYS,
+    },
+}
+#: Controller types a scene may declare.
+CONTROLLERS = tuple(_CONTROLLER_KEYS)
+_PATH_KEYS = {"type", "centre", "radius", "period", "axes", "start_angle"}
+_CONTACT_PHASE_KEYS = {"contact", "start", "end", "force"}
+
+
+def check_controller_table(table: Mapping[str, Any]) -> str:
+    """Check a ``[controller]`` table's type and keys; returns the type.
+
+    Raises:
+        SceneError: ``table`` is not a table.
+        NotFoundError: Unknown ``type``.
+        UnknownKeyError: A key the type does not define.
+    """
+    if not isinstance(table, Mapping):
+        raise SceneError(f"[controller] must be a table, got {table!r}")
+    kind = str(table.get("type", "zero"))
+    if kind not in _CONTROLLER_KEYS:
+        raise NotFoundError("controller type", kind, CONTROLLERS)
+    check_keys("[controller]", table, _CONTROLLER_KEYS[kind])
+    return kind
+
+
+def build_controller(scene: Scene) -> Controller:
+    """The controller declared by ``scene.controller``."""
+    table = dict(scene.controller)
+    return _BUILDERS[check_controller_table(table)](scene, table)
+
+
+def _zero(scene: Scene, table: Mapping[str, Any]) -> Controller:
+    return ZeroTorque(scene.robot.nu)
+
+
+def _joint_pd(scene: Scene, table: Mapping[str, Any]) -> Controller:
+    return JointPD(
+        scene.robot,
+        q_ref=table.get("q_ref", scene.q0),
+        kp=require_key(table, "[controller]", "kp"),
+        kd=require_key(table, "[controller]", "kd"),
+        gravity_compensation=bool(table.get("gravity_compensation", True)),
+        flexible=scene.flexible,
+    )
+
+
+def _brogliato(scene: Scene, table: Mapping[str, Any]) -> Controller:
+    """The ``type = "brogliato"`` controller of a scene (keys in docs/scene_format.md)."""
+    section = "[controller]"
+    frame = str(require_key(table, section, "frame"))
+    contacts = {contact.name: contact for contact in scene.contacts}
+    names = table.get("contacts", [c.name for c in scene.contacts if c.frame == frame])
+    for name in names:
+        if name not in contacts:
+            raise NotFoundError("contact", str(name), contacts)
+    task = TaskCoordinates(
+        scene.robot, frame, [contacts[name] for name in names], table.get("tangents", ())
+    )
+    path_table = require_key(table, section, "path")
+    check_keys("[controller.path]", path_table, _PATH_KEYS)
+    if path_table.get("type", "circle") != "circle":
+        raise InvalidParameterError("[controller.path] type", path_table["type"], "'circle'")
+    path = CirclePath(
+        centre=require_key(path_table, "[controller.path]", "centre"),
+        radius=require_key(path_table, "[controller.path]", "radius"),
+        period=require_key(path_table, "[controller.path]", "period"),
+        **{key: path_table[key] for key in ("axes", "start_angle") if key in path_table},
+    )
+    phases = []
+    for spec in require_key(table, section, "contact_phases"):
+        entry = "[[controller.contact_phases]]"
+        check_keys(entry, spec, _CONTACT_PHASE_KEYS)
+        phases.append(
+            ContactPhase(**{key: require_key(spec, entry, key) for key in _CONTACT_PHASE_KEYS})
+        )
+    cycle = DesiredCycle(
+        path=path,
+        contact_phases=tuple(phases),
+        **{key: table[key] for key in _CYCLE_KEYS if key in table},
+    )
+    gains = BrogliatoGains(
+        gamma1=require_key(table, section, "gamma1"),
+        gamma2=require_key(table, section, "gamma2"),
+        **{key: table[key] for key in _BROGLIATO_GAIN_KEYS if key in table},
+    )
+    robot = scene.robot.with_scaled_inertia(table.get("mass_scale", 1.0))
+    posture = table.get("posture", scene.q0)
+    if scene.flexible is not None:  # the passivity-based law, through the motors (casadi)
+        from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
+
+        return FlexibleBrogliatoController(
+            robot, scene.flexible, task, cycle, gains, posture=posture
+        )
+    return BrogliatoController(robot, task, cycle, gains, posture=posture)
+
+
+_BUILDERS: dict[str, Callable[[Scene, Mapping[str, Any]], Controller]] = {
+    "zero": _zero,
+    "joint_pd": _joint_pd,
+    "brogliato": _brogliato,
+}

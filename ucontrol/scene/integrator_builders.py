@@ -1,0 +1,105 @@
+"""Building a scene's integrator from its settings: one builder per integrator name.
+
+``event_driven`` and ``compliant`` are imported by their builder only, so a Moreau–Jean
+scene never loads ``scipy.integrate``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.integrators.moreau_jean import MoreauJean
+from ucontrol.solvers.contact_solver_choice import build_contact_solvers
+from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
+
+if TYPE_CHECKING:
+    from ucontrol.plant import Integrator
+    from ucontrol.scene.scene import Scene
+
+
+def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
+    """The integrator ``scene.integrator`` names, with its step or ``dt`` in [s].
+
+    Raises:
+        InvalidParameterError: The scene has friction and the integrator is not
+            ``moreau_jean`` (the others are frictionless), or a ``qpsolvers:`` contact
+            solver was asked for a scene with friction.
+    """
+    name = scene.integrator.name
+    if scene.constraints.has_friction and name != "moreau_jean":
+        raise InvalidParameterError(
+            "[integrator] name",
+            name,
+            "'moreau_jean' for contacts with friction (event_driven and compliant are "
+            "frictionless)",
+        )
+    return _BUILDERS[name](scene, scene.integrator.dt if dt is None else dt)
+
+
+def _moreau_jean(scene: Scene, dt: float) -> Integrator:
+    settings = scene.integrator
+    contact_solver, friction_solver = build_contact_solvers(
+        settings.contact_solver,
+        friction=scene.constraints.has_friction,
+        eps_abs=settings.contact_tolerance,
+        max_iter=settings.max_iter,
+        residual_tolerance=settings.friction_tolerance,
+        friction_max_iter=settings.friction_max_iter,
+    )
+    return MoreauJean(
+        scene.robot,
+        scene.constraints,
+        dt=dt,
+        theta=settings.theta,
+        solver=contact_solver,
+        friction_solver=friction_solver,
+        restitution_threshold=settings.restitution_threshold,
+        on_unsolved=settings.on_unsolved,
+        flexible=scene.flexible,
+        midpoint=settings.midpoint,
+        persistence_tolerance=settings.persistence_tolerance,
+    )
+
+
+def _event_driven(scene: Scene, dt: float) -> Integrator:
+    from ucontrol.integrators.event_driven import EventDriven  # loads scipy.integrate
+
+    settings = scene.integrator
+    return EventDriven(
+        scene.robot,
+        scene.constraints,
+        dt=dt,
+        zeno_velocity=settings.zeno_velocity,
+        impact_solver=ProxsuiteLCPSolver(
+            eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
+        ),
+        acceleration_solver=ProxsuiteLCPSolver(
+            eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
+        ),
+        flexible=scene.flexible,
+        **settings.solver_options(),
+    )
+
+
+def _compliant(scene: Scene, dt: float) -> Integrator:
+    from ucontrol.integrators.compliant import Compliant  # loads scipy.integrate
+
+    settings = scene.integrator
+    return Compliant(
+        scene.robot,
+        scene.constraints,
+        dt=dt,
+        stiffness=settings.stiffness,
+        contact_model=settings.contact_model,
+        flexible=scene.flexible,
+        **settings.solver_options(),
+    )
+
+
+_BUILDERS: dict[str, Callable[[Scene, float], Integrator]] = {
+    "moreau_jean": _moreau_jean,
+    "event_driven": _event_driven,
+    "compliant": _compliant,
+}

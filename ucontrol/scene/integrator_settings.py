@@ -1,0 +1,116 @@
+"""The ``[integrator]`` table of a scene: which integrator, its step and its tolerances."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import chain
+from typing import Any
+
+from ucontrol._validation import as_float, as_in_interval, as_positive
+from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.integrators.methods import CONTACT_MODELS, INTEGRATORS, IVP_METHODS
+from ucontrol.integrators.moreau_jean import ON_UNSOLVED, PERSISTENCE_TOLERANCE
+from ucontrol.solvers.contact_solver_choice import check_contact_solver
+
+
+@dataclass(frozen=True, kw_only=True)
+class IntegratorSettings:
+    """How a scene advances in time.
+
+    Attributes:
+        name: Integrator name, one of :data:`INTEGRATORS`.
+        dt: Time step in [s].
+        theta: θ of the Moreau–Jean position update, in [1/2, 1].
+        contact_tolerance: Absolute tolerance of the contact solver in [m/s].
+        max_iter: Iteration cap of the contact solver.
+        rtol: Relative tolerance of solve_ivp (event_driven, compliant); None: the
+            integrator's default (1e-10 event_driven, 1e-8 compliant).
+        atol: Absolute tolerance of solve_ivp in the state's units; None: the integrator's
+            default (1e-12 event_driven, 1e-10 compliant).
+        method: solve_ivp method: ``"DOP853"`` or ``"RK45"`` (event_driven), ``"Radau"``,
+            ``"BDF"`` or ``"LSODA"`` (compliant); None: DOP853 or Radau.
+        zeno_velocity: Rebound speed in [m/s] below which event_driven makes an impact
+            plastic, cutting accumulations of impacts.
+        stiffness: Contact stiffness of compliant, in [N/m] (linear) or [N/m^1.5]
+            (Hunt–Crossley).
+        contact_model: Force law of compliant, ``"linear"`` or ``"hunt_crossley"``.
+        restitution_threshold: Closing speed in [m/s] below which Moreau–Jean treats a contact
+            as persistent (e = 0); 0 applies Newton's law to every closing contact.
+        contact_solver: Contact solver of Moreau–Jean: ``"proxsuite"``, ``"pinocchio-admm"``,
+            ``"pinocchio-pgs"`` or ``"qpsolvers:<solver>"`` (frictionless scenes only).
+        friction_tolerance: Natural-map residual of the Coulomb problem a step must reach,
+            in [m/s].
+        friction_max_iter: Cap on the fixed-point iterations of the proxsuite friction solver.
+        on_unsolved: ``"raise"`` or ``"warn"`` when a contact solve ends above its tolerance.
+        midpoint: Moreau–Jean evaluates inertia, gravity and Coriolis forces at the step's
+            midpoint: second order between impacts (see :class:`MoreauJean`).
+        persistence_tolerance: Predicted gap in [m] up to which Moreau–Jean keeps a constraint
+            that carried an impulse in the previous step active; 0 turns it off.
+
+    Keys that do not concern the chosen integrator are checked and ignored, so one scene can
+    be run with every integrator.
+    """
+
+    name: str = "moreau_jean"
+    dt: float = 1e-3
+    theta: float = 0.5
+    contact_tolerance: float = 1e-10
+    max_iter: int = 5000
+    rtol: float | None = None
+    atol: float | None = None
+    method: str | None = None
+    zeno_velocity: float = 1e-5
+    stiffness: float = 1e6
+    contact_model: str = "linear"
+    restitution_threshold: float = 0.0
+    contact_solver: str = "proxsuite"
+    friction_tolerance: float = 1e-8
+    friction_max_iter: int = 100
+    on_unsolved: str = "raise"
+    midpoint: bool = False
+    persistence_tolerance: float = PERSISTENCE_TOLERANCE
+
+    def __post_init__(self) -> None:
+        check_contact_solver(self.contact_solver)
+        if not isinstance(self.midpoint, bool):
+            raise InvalidParameterError("midpoint", self.midpoint, "true or false")
+        tolerance = as_float("persistence_tolerance", self.persistence_tolerance)
+        if not tolerance >= 0.0:  # also rejects NaN
+            raise InvalidParameterError("persistence_tolerance", tolerance, "a length >= 0 in [m]")
+        object.__setattr__(self, "persistence_tolerance", tolerance)
+        object.__setattr__(
+            self, "friction_tolerance", as_positive("friction_tolerance", self.friction_tolerance)
+        )
+        object.__setattr__(
+            self, "friction_max_iter", int(as_positive("friction_max_iter", self.friction_max_iter))
+        )
+        if self.on_unsolved not in ON_UNSOLVED:
+            raise InvalidParameterError("on_unsolved", self.on_unsolved, f"one of {ON_UNSOLVED}")
+        if self.name not in INTEGRATORS:
+            raise NotFoundError("integrator", self.name, INTEGRATORS)
+        object.__setattr__(self, "dt", as_positive("dt", self.dt))
+        object.__setattr__(self, "theta", as_in_interval("theta", self.theta, 0.5, 1.0))
+        object.__setattr__(
+            self, "contact_tolerance", as_positive("contact_tolerance", self.contact_tolerance)
+        )
+        object.__setattr__(self, "max_iter", int(as_positive("max_iter", self.max_iter)))
+        for key in ("rtol", "atol"):
+            if getattr(self, key) is not None:
+                object.__setattr__(self, key, as_positive(key, getattr(self, key)))
+        methods = IVP_METHODS.get(self.name, tuple(chain(*IVP_METHODS.values())))
+        if self.method is not None and self.method not in methods:
+            raise InvalidParameterError("method", self.method, f"one of {list(methods)}")
+        object.__setattr__(self, "zeno_velocity", as_positive("zeno_velocity", self.zeno_velocity))
+        object.__setattr__(self, "stiffness", as_positive("stiffness", self.stiffness))
+        if self.contact_model not in CONTACT_MODELS:
+            raise InvalidParameterError(
+                "contact_model", self.contact_model, f"one of {list(CONTACT_MODELS)}"
+            )
+
+    def solver_options(self) -> dict[str, Any]:
+        """The solve_ivp settings given (rtol, atol, method), as keyword arguments."""
+        return {
+            key: getattr(self, key)
+            for key in ("rtol", "atol", "method")
+            if getattr(self, key) is not None
+        }

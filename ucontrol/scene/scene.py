@@ -1,0 +1,157 @@
+"""A scene: a robot, what it can touch, its initial state, and how to run it."""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_positive, as_vector
+from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.contact.joint_stop import JointStop
+from ucontrol.contact.point_contact import PointContact
+from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
+from ucontrol.exceptions import SceneError
+from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.robot_model import RobotModel
+from ucontrol.scene.controller_builders import build_controller
+from ucontrol.scene.integrator_builders import build_integrator
+from ucontrol.scene.integrator_settings import IntegratorSettings
+from ucontrol.scene.scene_table import check_reference, scene_fields
+
+if TYPE_CHECKING:
+    from ucontrol.control.controller import Controller
+    from ucontrol.plant import Integrator
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scene:
+    """A robot, what it can touch, its initial state, and how to run it.
+
+    Attributes:
+        name: Label used in logs.
+        robot: The robot.
+        contacts: Point contacts.
+        stops: Joint stops.
+        sphere_contacts: Contacts between two spheres on robot frames.
+        planar_axis: Unit normal of the plane the robot moves in, shape (3,): its frictional
+            contacts are then planar (one tangent), else spatial (two); None: spatial.
+        q0: Initial configuration of the links, shape (nq,).
+        v0: Initial velocity of the links, shape (nv,).
+        flexible: Flexible joints (their motor coordinates join the state), or None.
+        motor_q0: Initial motor positions of the flexible joints, shape (nf,); default their
+            link positions (unstretched springs).
+        motor_v0: Initial motor velocities, shape (nf,); default their link velocities.
+        duration: Default simulated time in [s].
+        integrator: Default integrator settings.
+        controller: Controller table (``type`` plus parameters); ``{"type": "zero"}`` if none.
+        reference: Analytic reference table (``type`` plus parameters), checked when the scene
+            is loaded, or None; used by
+            :func:`ucontrol.analysis.convergence.run_convergence`.
+        source: The TOML file the scene was loaded from, or None for a scene built in code;
+            :func:`ucontrol.simulate` records it in the log (``scene_path``) for replays.
+    """
+
+    name: str
+    robot: RobotModel
+    contacts: tuple[PointContact, ...] = ()
+    stops: tuple[JointStop, ...] = ()
+    sphere_contacts: tuple[SphereSphereContact, ...] = ()
+    planar_axis: NDArray[np.float64] | None = None
+    q0: NDArray[np.float64]
+    v0: NDArray[np.float64]
+    flexible: FlexibleJoints | None = None
+    motor_q0: NDArray[np.float64] | None = None
+    motor_v0: NDArray[np.float64] | None = None
+    duration: float = 1.0
+    integrator: IntegratorSettings = field(default_factory=IntegratorSettings)
+    controller: Mapping[str, Any] = field(default_factory=lambda: {"type": "zero"})
+    reference: Mapping[str, Any] | None = None
+    source: Path | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q0", self.robot.check_configuration("q0", self.q0))
+        object.__setattr__(self, "v0", self.robot.check_velocity("v0", self.v0))
+        object.__setattr__(self, "duration", as_positive("duration", self.duration))
+        flexible = self.flexible
+        if flexible is None:
+            if self.motor_q0 is not None or self.motor_v0 is not None:
+                raise SceneError("motor_q0 and motor_v0 need flexible joints")
+        else:
+            motor_q0 = flexible.link_positions(self.q0) if self.motor_q0 is None else self.motor_q0
+            motor_v0 = self.v0[flexible.v_index] if self.motor_v0 is None else self.motor_v0
+            object.__setattr__(self, "motor_q0", as_vector("motor_q0", motor_q0, flexible.nf))
+            object.__setattr__(self, "motor_v0", as_vector("motor_v0", motor_v0, flexible.nf))
+        object.__setattr__(self, "contacts", tuple(self.contacts))
+        object.__setattr__(self, "stops", tuple(self.stops))
+        object.__setattr__(self, "sphere_contacts", tuple(self.sphere_contacts))
+        constraints = ConstraintSet(
+            self.robot, self.contacts, self.stops, self.sphere_contacts, self.planar_axis
+        )
+        object.__setattr__(self, "_constraints", constraints)
+
+    @property
+    def constraints(self) -> ConstraintSet:
+        """The unilateral constraints, contacts first then stops."""
+        constraints: ConstraintSet = self.__dict__["_constraints"]
+        return constraints
+
+    def initial_state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The plant's initial (q, v): the links', then the motors' with flexible joints."""
+        if self.flexible is None:
+            return self.q0, self.v0
+        assert self.motor_q0 is not None and self.motor_v0 is not None
+        return np.concatenate((self.q0, self.motor_q0)), np.concatenate((self.v0, self.motor_v0))
+
+    def build_integrator(self, dt: float | None = None) -> Integrator:
+        """The integrator of this scene, optionally with another step ``dt`` in [s].
+
+        Raises:
+            InvalidParameterError: The scene has friction and the integrator is not
+                ``moreau_jean`` (the others are frictionless), or a ``qpsolvers:`` contact
+                solver was asked for a scene with friction.
+        """
+        return build_integrator(self, dt)
+
+    def build_controller(self) -> Controller:
+        """The controller declared by the scene's ``[controller]`` table."""
+        return build_controller(self)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Scene:
+        """Load a scene file; relative URDF paths are taken from the file's folder.
+
+        Raises:
+            SceneError: The file is missing or not valid TOML.
+            UnknownKeyError: A table holds keys the format does not define.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise SceneError(f"scene file {str(path)!r} does not exist")
+        try:
+            table = tomllib.loads(path.read_text())
+        except tomllib.TOMLDecodeError as error:
+            raise SceneError(f"scene file {str(path)!r} is not valid TOML: {error}") from error
+        scene = cls.from_dict(table, base_dir=path.parent, default_name=path.stem)
+        return replace(scene, source=path.resolve())
+
+    @classmethod
+    def from_dict(
+        cls, table: Mapping[str, Any], *, base_dir: Path, default_name: str = "scene"
+    ) -> Scene:
+        """Build a scene from its parsed TOML table (see :meth:`from_toml`).
+
+        Every table is checked (keys, values, the controller's keys) before the scene is
+        built; relative URDF paths are taken from ``base_dir``.
+        """
+        fields = scene_fields(table, base_dir=base_dir, default_name=default_name)
+        reference = fields.pop("reference")
+        scene = cls(**fields)
+        if reference is None:
+            return scene
+        return replace(scene, reference=check_reference(reference, scene.contacts))

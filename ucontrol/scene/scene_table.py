@@ -1,0 +1,234 @@
+"""Reading a scene's TOML table: every key and value checked before anything is built.
+
+:func:`scene_fields` turns the parsed table into the arguments of
+:class:`~ucontrol.scene.Scene`; the format is documented in ``docs/scene_format.md`` and
+unknown keys are an error that names them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ucontrol._validation import as_vector, check_keys, require_key
+from ucontrol.contact.joint_stop import JointStop
+from ucontrol.contact.plane import Plane
+from ucontrol.contact.point_contact import PointContact
+from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
+from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError
+from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.robot_model import RobotModel
+from ucontrol.model.urdf_path import resolve_urdf
+from ucontrol.scene.controller_builders import check_controller_table
+from ucontrol.scene.integrator_settings import IntegratorSettings
+
+#: Analytic references a scene may declare in its ``[reference]`` table.
+REFERENCES = ("bouncing_ball",)
+
+_TOP_KEYS = {
+    "name",
+    "duration",
+    "robot",
+    "surfaces",
+    "contacts",
+    "sphere_contacts",
+    "stops",
+    "integrator",
+    "controller",
+    "reference",
+}
+_ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity", "planar_axis", "flexible"}
+_FLEXIBLE_KEYS = {"joints", "stiffness", "motor_inertia", "damping", "q0", "v0"}
+_SURFACE_KEYS = {"type", "point", "normal"}
+_CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
+_SPHERE_CONTACT_KEYS = {
+    "frame",
+    "other_frame",
+    "radius",
+    "other_radius",
+    "restitution",
+    "friction",
+    "name",
+}
+_STOP_KEYS = {"joint", "lower", "upper", "restitution"}
+_INTEGRATOR_KEYS = {
+    "name",
+    "dt",
+    "theta",
+    "contact_tolerance",
+    "max_iter",
+    "rtol",
+    "atol",
+    "method",
+    "zeno_velocity",
+    "stiffness",
+    "contact_model",
+    "restitution_threshold",
+    "contact_solver",
+    "friction_tolerance",
+    "friction_max_iter",
+    "on_unsolved",
+    "midpoint",
+    "persistence_tolerance",
+}
+_REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
+
+
+def scene_fields(
+    table: Mapping[str, Any], *, base_dir: Path, default_name: str = "scene"
+) -> dict[str, Any]:
+    """The checked arguments of :class:`~ucontrol.scene.Scene` from a parsed scene table.
+
+    The ``reference`` entry holds the raw ``[reference]`` table (or None): it is checked
+    against the scene's contacts by :func:`check_reference`.
+    """
+    check_keys("the scene", table, _TOP_KEYS)
+    robot_table = require_key(table, "the scene", "robot")
+    check_keys("[robot]", robot_table, _ROBOT_KEYS)
+    gravity = robot_table.get("gravity", [0.0, 0.0, -9.81])
+    robot = RobotModel.from_urdf(
+        resolve_urdf(str(require_key(robot_table, "[robot]", "urdf")), base_dir),
+        floating_base=bool(robot_table.get("floating_base", False)),
+        gravity=as_vector("gravity", gravity, 3),
+    )
+    q0 = robot.check_configuration("q0", robot_table.get("q0", robot.neutral()))
+    v0 = robot.check_velocity("v0", robot_table.get("v0", np.zeros(robot.nv)))
+    flexible_table = robot_table.get("flexible")
+    flexible, motor_q0, motor_v0 = None, None, None
+    if flexible_table is not None:
+        flexible, motor_q0, motor_v0 = _flexible(flexible_table, robot)
+    surfaces = {
+        name: _plane(f"[surfaces.{name}]", name, spec)
+        for name, spec in table.get("surfaces", {}).items()
+    }
+    contacts = [_contact(spec, surfaces) for spec in table.get("contacts", [])]
+    sphere_contacts = [_sphere_contact(spec) for spec in table.get("sphere_contacts", [])]
+    planar_axis = robot_table.get("planar_axis")
+    stops = [_stop(spec, robot) for spec in table.get("stops", [])]
+    integrator_table = dict(table.get("integrator", {}))
+    controller = dict(table.get("controller", {"type": "zero"}))
+    check_controller_table(controller)
+    check_keys("[integrator]", integrator_table, _INTEGRATOR_KEYS)
+    return dict(
+        name=str(table.get("name", default_name)),
+        robot=robot,
+        contacts=tuple(contacts),
+        sphere_contacts=tuple(sphere_contacts),
+        planar_axis=None if planar_axis is None else as_vector("planar_axis", planar_axis, 3),
+        stops=tuple(stops),
+        q0=q0,
+        v0=v0,
+        flexible=flexible,
+        motor_q0=motor_q0,
+        motor_v0=motor_v0,
+        duration=table.get("duration", 1.0),
+        integrator=IntegratorSettings(**integrator_table),
+        controller=controller,
+        reference=table.get("reference"),
+    )
+
+
+def check_reference(table: Any, contacts: Sequence[PointContact]) -> dict[str, Any]:
+    """A checked ``[reference]`` table, with ``contact`` resolved to a contact name.
+
+    ``bouncing_ball``: the gap of ``contact`` (default the first) follows
+    :class:`ucontrol.analysis.BouncingBall`, its parameters read from the scene.
+    """
+    if not isinstance(table, Mapping):
+        raise SceneError(f"[reference] must be a table, got {table!r}")
+    kind = require_key(table, "[reference]", "type")
+    if kind not in _REFERENCE_KEYS:
+        raise NotFoundError("reference type", str(kind), REFERENCES)
+    check_keys("[reference]", table, _REFERENCE_KEYS[kind])
+    names = [contact.name for contact in contacts]
+    if not names:
+        raise SceneError("[reference] type 'bouncing_ball' needs a [[contacts]] entry")
+    contact = str(table.get("contact", names[0]))
+    if contact not in names:
+        raise NotFoundError("contact", contact, names)
+    return {"type": kind, "contact": contact}
+
+
+def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
+    check_keys(section, spec, _SURFACE_KEYS)
+    kind = spec.get("type", "plane")
+    if kind != "plane":
+        raise InvalidParameterError(f"{section} type", kind, "'plane'")
+    return Plane(
+        point=spec.get("point", [0.0, 0.0, 0.0]),
+        normal=require_key(spec, section, "normal"),
+        name=name,
+    )
+
+
+def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointContact:
+    check_keys("[[contacts]]", spec, _CONTACT_KEYS)
+    surface = require_key(spec, "[[contacts]]", "surface")
+    if isinstance(surface, Mapping):
+        plane = _plane("[[contacts]] surface", "plane", surface)
+    elif surface in surfaces:
+        plane = surfaces[surface]
+    else:
+        raise NotFoundError("surface", str(surface), surfaces)
+    return PointContact(
+        frame=str(require_key(spec, "[[contacts]]", "frame")),
+        surface=plane,
+        radius=spec.get("radius", 0.0),
+        restitution=spec.get("restitution", 0.0),
+        friction=spec.get("friction", 0.0),
+        name=str(spec.get("name", "")),
+    )
+
+
+def _sphere_contact(spec: Mapping[str, Any]) -> SphereSphereContact:
+    check_keys("[[sphere_contacts]]", spec, _SPHERE_CONTACT_KEYS)
+    return SphereSphereContact(
+        frame=str(require_key(spec, "[[sphere_contacts]]", "frame")),
+        other_frame=str(require_key(spec, "[[sphere_contacts]]", "other_frame")),
+        **{
+            key: spec[key]
+            for key in ("radius", "other_radius", "restitution", "friction")
+            if key in spec
+        },
+        name=str(spec.get("name", "")),
+    )
+
+
+def _flexible(
+    spec: Mapping[str, Any], robot: RobotModel
+) -> tuple[FlexibleJoints, Any | None, Any | None]:
+    """The ``[robot.flexible]`` table: joints (default every actuated one), K, B, D, motor q0/v0."""
+    section = "[robot.flexible]"
+    check_keys(section, spec, _FLEXIBLE_KEYS)
+    joints = spec.get("joints")
+    if joints is None:  # every actuated joint
+        joints = [
+            name
+            for name in robot.joint_names
+            if robot.model.joints[robot.joint_id(name)].idx_v in robot.actuated
+        ]
+    flexible = FlexibleJoints.from_robot(
+        robot,
+        joints,
+        stiffness=require_key(spec, section, "stiffness"),
+        motor_inertia=require_key(spec, section, "motor_inertia"),
+        damping=spec.get("damping", 0.0),
+    )
+    return flexible, spec.get("q0"), spec.get("v0")
+
+
+def _stop(spec: Mapping[str, Any], robot: RobotModel) -> JointStop:
+    """A joint stop; without ``lower``/``upper`` it takes the URDF's position limits."""
+    check_keys("[[stops]]", spec, _STOP_KEYS)
+    joint = str(require_key(spec, "[[stops]]", "joint"))
+    lower, upper = spec.get("lower"), spec.get("upper")
+    if lower is None and upper is None:
+        joint_model = robot.model.joints[robot.joint_id(joint)]
+        lower = float(robot.model.lowerPositionLimit[joint_model.idx_q])
+        upper = float(robot.model.upperPositionLimit[joint_model.idx_q])
+    return JointStop(
+        joint=joint, lower=lower, upper=upper, restitution=spec.get("restitution", 0.0)
+    )
