@@ -139,8 +139,12 @@ def test_missing_controller_keys_and_unknown_contacts() -> None:
     with pytest.raises(NotFoundError, match=r"'hand/table'"):
         _from_table(table).build_controller()
     table = _table()
-    table["controller"]["path"]["type"] = "spline"
-    with pytest.raises(InvalidParameterError, match=r"'circle'"):
+    table["controller"]["path"]["type"] = "helix"  # the known types are listed
+    with pytest.raises(InvalidParameterError, match=r"'circle', 'segment', 'polyline', 'spline'"):
+        _from_table(table).build_controller()
+    table = _table()
+    table["controller"]["path"]["type"] = "spline"  # a spline has no centre
+    with pytest.raises(UnknownKeyError, match=r"'centre'.*allowed: period, times, type"):
         _from_table(table).build_controller()
 
 

@@ -12,13 +12,13 @@ from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import check_keys, require_key
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
-from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.controller import Controller
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
 from ucontrol.control.joint_pd import JointPD
+from ucontrol.control.path_table import path_from_table
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
-from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError
+from ucontrol.exceptions import NotFoundError, SceneError
 
 if TYPE_CHECKING:
     from ucontrol.scene.scene import Scene
@@ -57,7 +57,6 @@ _CONTROLLER_KEYS = {
 }
 #: Controller types a scene may declare.
 CONTROLLERS = tuple(_CONTROLLER_KEYS)
-_PATH_KEYS = {"type", "centre", "radius", "period", "axes", "start_angle"}
 _CONTACT_PHASE_KEYS = {"contact", "start", "end", "force"}
 
 
@@ -111,16 +110,7 @@ def _brogliato(scene: Scene, table: Mapping[str, Any]) -> Controller:
     task = TaskCoordinates(
         scene.robot, frame, [contacts[name] for name in names], table.get("tangents", ())
     )
-    path_table = require_key(table, section, "path")
-    check_keys("[controller.path]", path_table, _PATH_KEYS)
-    if path_table.get("type", "circle") != "circle":
-        raise InvalidParameterError("[controller.path] type", path_table["type"], "'circle'")
-    path = CirclePath(
-        centre=require_key(path_table, "[controller.path]", "centre"),
-        radius=require_key(path_table, "[controller.path]", "radius"),
-        period=require_key(path_table, "[controller.path]", "period"),
-        **{key: path_table[key] for key in ("axes", "start_angle") if key in path_table},
-    )
+    path = path_from_table(require_key(table, section, "path"))
     phases = []
     for spec in require_key(table, section, "contact_phases"):
         entry = "[[controller.contact_phases]]"
