@@ -1,0 +1,372 @@
+"""Run a campaign on dask.distributed, one file per finished run, resumable.
+
+:func:`run_task` is the pure task function shipped to the workers: a scene table and its
+overrides in, a JSON-ready record out; it never raises (a failing run is a record with status
+``"error"`` and the exception's text). :func:`run_campaign` maps it over the runs not yet on
+disk (``client.map``), writes each record as it arrives (``as_completed``) to
+``DIR/runs/<run_id>.json`` atomically, and writes the campaign table at the end, also when
+interrupted (Ctrl-C or SIGTERM). dask and distributed are imported only here.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import sys
+import time
+import traceback
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ucontrol.campaign.criterion import parse_criterion
+from ucontrol.campaign.errors import (
+    CampaignMismatchError,
+    OutputDirectoryError,
+    SchedulerUnreachableError,
+)
+from ucontrol.campaign.metrics import Metric
+from ucontrol.campaign.overrides import apply_overrides
+from ucontrol.campaign.spec import Campaign, scene_file
+from ucontrol.campaign.table import (
+    CAMPAIGN_FILE,
+    PLAN_FILE,
+    RUNS_DIR,
+    finished_runs,
+    write_table,
+)
+
+#: Run statuses: completed, raised an exception, or its worker died twice (KilledWorker).
+OK, ERROR, KILLED = "ok", "error", "killed"
+#: Seconds allowed to connect to a scheduler given by address.
+CONNECT_TIMEOUT_S = 5.0
+
+
+@dataclass(frozen=True)
+class CampaignOutcome:
+    """What :func:`run_campaign` did.
+
+    Attributes:
+        directory: The output directory.
+        total: Runs in the campaign.
+        skipped: Runs already on disk, not run again.
+        ran: Runs finished in this call (``ok``, ``error`` or ``killed``).
+        failed: Of those, runs that did not complete (``error`` or ``killed``).
+        interrupted: The campaign was stopped (Ctrl-C, SIGTERM) before every run ended.
+        tables: The table files written.
+    """
+
+    directory: Path
+    total: int
+    skipped: int
+    ran: int
+    failed: int
+    interrupted: bool
+    tables: list[Path]
+
+
+def run_task(task: Mapping[str, Any]) -> dict[str, Any]:
+    """Run one campaign run and return its record (never raises).
+
+    Args:
+        task: ``run_id``, ``index``, ``scene`` (base table), ``scene_ref``, ``parameters``
+            (dotted key -> value), ``metrics`` (list of (name, spec)), ``success``
+            (criterion text or None), ``python_path``.
+
+    Returns:
+        ``run_id``, ``index``, ``parameters``, ``metrics``, ``success``, ``status``
+        (``"ok"`` or ``"error"``), ``error`` (exception text, empty when ok),
+        ``wall_time_s`` and ``worker`` (host:pid).
+    """
+    start = time.perf_counter()
+    record: dict[str, Any] = {
+        "run_id": task["run_id"],
+        "index": task["index"],
+        "parameters": dict(task["parameters"]),
+        "metrics": {},
+        "success": False,
+        "status": OK,
+        "error": "",
+        "wall_time_s": 0.0,
+        "worker": f"{socket.gethostname()}:{os.getpid()}",
+    }
+    try:
+        from ucontrol.scene import Scene
+        from ucontrol.simulate import simulate
+
+        path = scene_file(task["scene_ref"])
+        table = apply_overrides(task["scene"], task["parameters"])
+        scene = Scene.from_dict(table, base_dir=path.parent, default_name=path.stem)
+        result = simulate(scene, progress=False)
+        python_path = tuple(task.get("python_path", ()))
+        metrics = {
+            name: Metric(name, spec).evaluate(result, python_path) for name, spec in task["metrics"]
+        }
+        record["metrics"] = metrics
+        success = task.get("success")
+        record["success"] = True if success is None else parse_criterion(success)(metrics)
+    except Exception as error:  # a failing run is data: record it, never re-raise
+        record["status"] = ERROR
+        record["error"] = f"{type(error).__name__}: {error}"
+        record["traceback"] = traceback.format_exc(limit=8)
+    record["wall_time_s"] = time.perf_counter() - start
+    return record
+
+
+def run_campaign(
+    campaign: Campaign,
+    out: str | Path,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    client: Any = None,
+    formats: tuple[str, ...] = ("csv",),
+    progress: bool | None = None,
+) -> CampaignOutcome:
+    """Run the runs of ``campaign`` not yet in ``out`` and write the campaign table.
+
+    Args:
+        campaign: A checked campaign (:func:`ucontrol.campaign.load_campaign`).
+        out: Output directory: ``campaign.json``, ``plan.csv``, ``runs/<run_id>.json``,
+            ``campaign.csv`` (and ``campaign.parquet``).
+        scheduler: Address of a running Dask scheduler (``tcp://host:8786``); None starts a
+            ``LocalCluster`` of ``workers`` single-threaded processes.
+        workers: Worker processes of the local cluster; default the number of cores.
+        client: An existing ``distributed.Client`` to use instead (not closed here).
+        formats: Table formats, ``"csv"`` and/or ``"parquet"``.
+        progress: Show a progress bar; default only when stderr is a terminal.
+
+    Raises:
+        OutputDirectoryError: ``out`` cannot be created or written.
+        CampaignMismatchError: ``out`` holds another campaign.
+        SchedulerUnreachableError: No scheduler answered at ``scheduler``.
+    """
+    from ucontrol.campaign.table import check_formats
+
+    check_formats(formats)
+    directory = prepare_directory(campaign, out)
+    plan = campaign.plan()
+    done = finished_runs(directory)
+    pending = [run for run in plan if run.run_id not in done]
+    skipped = len(plan) - len(pending)
+    ran = failed = 0
+    interrupted = False
+    if pending:
+        with _client(client, scheduler, workers, len(pending)) as dask_client, _sigterm():
+            bar = _progress_bar(len(plan), skipped, progress)
+            try:
+                for record in _results(dask_client, campaign, pending):
+                    write_record(directory, record)
+                    ran += 1
+                    failed += record["status"] != OK
+                    if bar is not None:
+                        bar.update(1)
+                        bar.set_postfix(failed=failed, refresh=False)
+            except KeyboardInterrupt:
+                interrupted = True
+            finally:
+                if bar is not None:
+                    bar.close()
+    tables = write_table(directory, formats)
+    return CampaignOutcome(directory, len(plan), skipped, ran, failed, interrupted, tables)
+
+
+def prepare_directory(campaign: Campaign, out: str | Path) -> Path:
+    """Create ``out`` with its ``runs`` folder and record the campaign there.
+
+    Raises:
+        OutputDirectoryError: It cannot be created or written.
+        CampaignMismatchError: It already records another campaign.
+    """
+    directory = Path(out)
+    fingerprint = campaign.fingerprint()
+    try:
+        (directory / RUNS_DIR).mkdir(parents=True, exist_ok=True)
+        probe = directory / f".write-probe-{os.getpid()}"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as error:
+        raise OutputDirectoryError(str(directory), error.strerror or str(error)) from error
+    record_path = directory / CAMPAIGN_FILE
+    if record_path.is_file():
+        found = json.loads(record_path.read_text()).get("fingerprint", "")
+        if found != fingerprint:
+            raise CampaignMismatchError(str(directory), found, fingerprint)
+        return directory
+    plan = campaign.plan()
+    record = {
+        "name": campaign.name,
+        "fingerprint": fingerprint,
+        "source": None if campaign.source is None else str(campaign.source),
+        "scene": campaign.scene_ref,
+        "scene_path": str(scene_file(campaign.scene_ref)),
+        "duration": campaign.scene_table.get("duration"),
+        "dt": campaign.scene_table.get("integrator", {}).get("dt"),
+        "seed": campaign.seed,
+        "runs": len(plan),
+        "parameters": campaign.parameter_names,
+        "grid": campaign.grid,
+        "metrics": {m.name: m.spec for m in campaign.metrics},
+        "success": None if campaign.criterion is None else campaign.criterion.expression,
+        "worst": campaign.worst,
+    }
+    _write_json(directory / CAMPAIGN_FILE, record)
+    _write_plan(directory / PLAN_FILE, campaign.parameter_names, plan)
+    return directory
+
+
+def write_record(directory: Path, record: Mapping[str, Any]) -> Path:
+    """Write one run's record to ``runs/<run_id>.json`` atomically (temp file + rename)."""
+    return _write_json(directory / RUNS_DIR / f"{record['run_id']}.json", record)
+
+
+def connect(address: str, timeout: float = CONNECT_TIMEOUT_S) -> Any:
+    """A ``distributed.Client`` connected to ``address``.
+
+    Raises:
+        SchedulerUnreachableError: Nothing answered within ``timeout`` seconds.
+    """
+    from distributed import Client
+
+    try:
+        return Client(address, timeout=timeout)
+    except (OSError, TimeoutError, ValueError, TypeError) as error:
+        raise SchedulerUnreachableError(address, str(error) or type(error).__name__) from error
+
+
+def _results(client: Any, campaign: Campaign, pending: list[Any]) -> Iterator[dict[str, Any]]:
+    """Submit the pending runs and yield each record as its run ends."""
+    from distributed import as_completed
+
+    tag = campaign.fingerprint()[:10]
+    tasks = [
+        {
+            "run_id": run.run_id,
+            "index": run.index,
+            "scene": campaign.scene_table,
+            "scene_ref": campaign.scene_ref,
+            "parameters": run.parameters,
+            "metrics": [(m.name, m.spec) for m in campaign.metrics],
+            "success": None if campaign.criterion is None else campaign.criterion.expression,
+            "python_path": list(campaign.python_path),
+        }
+        for run in pending
+    ]
+    keys = [f"ucontrol-run-{tag}-{run.run_id}" for run in pending]
+    futures = client.map(run_task, tasks, key=keys, pure=False)
+    by_key = {future.key: (task, future) for task, future in zip(tasks, futures, strict=True)}
+    try:
+        for future in as_completed(futures):
+            task, _ = by_key[future.key]
+            if future.status == "finished":
+                yield future.result()
+            else:  # the task never returned: its worker died (KilledWorker) or it was lost
+                error = future.exception()
+                yield {
+                    "run_id": task["run_id"],
+                    "index": task["index"],
+                    "parameters": task["parameters"],
+                    "metrics": {},
+                    "success": False,
+                    "status": KILLED if type(error).__name__ == "KilledWorker" else ERROR,
+                    "error": f"{type(error).__name__}: {error}",
+                    "wall_time_s": float("nan"),
+                    "worker": "",
+                }
+            future.release()
+    finally:
+        client.cancel([f for _, f in by_key.values() if not f.done()])
+
+
+@contextmanager
+def _client(client: Any, scheduler: str | None, workers: int | None, pending: int) -> Iterator[Any]:
+    """The given client, a client of ``scheduler``, or a new LocalCluster's."""
+    if client is not None:
+        yield client
+        return
+    if scheduler is not None:
+        remote = connect(scheduler)
+        try:
+            yield remote
+        finally:
+            remote.close()
+        return
+    import dask
+    from distributed import Client, LocalCluster
+
+    n = max(1, min(workers or os.cpu_count() or 1, pending))
+    # a run whose worker dies is tried once more on a fresh worker, then recorded as killed
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        cluster = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=40,  # logging.ERROR: a killed worker's traceback is recorded instead
+        )
+    local = Client(cluster)
+    try:
+        yield local
+    finally:
+        local.close()
+        cluster.close()
+
+
+@contextmanager
+def _sigterm() -> Iterator[None]:
+    """SIGTERM raises KeyboardInterrupt in the main thread (so the table gets written)."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _progress_bar(total: int, initial: int, progress: bool | None) -> Any:
+    if progress is False or (progress is None and not sys.stderr.isatty()):
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, unit="run", desc="campaign")
+
+
+def _write_json(path: Path, content: Mapping[str, Any]) -> Path:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(content, indent=1, default=_jsonable) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
+def _write_plan(path: Path, names: list[str], plan: list[Any]) -> None:
+    import csv
+    import io
+
+    buffer = io.StringIO()
+    writer = csv.writer(buffer)
+    writer.writerow(["run_id", "index", *names])
+    for run in plan:
+        writer.writerow([run.run_id, run.index, *(json.dumps(run.parameters[n]) for n in names)])
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(buffer.getvalue())
+    os.replace(tmp, path)
+
+
+def _jsonable(value: Any) -> Any:
+    if hasattr(value, "item"):
+        return value.item()
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return str(value)
