@@ -1,0 +1,342 @@
+r"""Cartesian impedance control of one frame, with a desired contact force during contact phases.
+
+The baseline an engineer tries first on a contact task: a task-space PD on the position of a
+URDF frame with gravity compensation, plus a feedforward force pushing along the surface normal
+during the declared contact phases,
+
+.. math::
+
+    \tau = g(q) + J^T\Big(K_p (x_d - x) + K_d (\dot x_d - \dot x)
+           - \sum_c n_c\, f_{d,c}(t)\Big) - D\,\dot q
+           + N^T\big(K_q (q_p \ominus q) - D_q \dot q\big),
+
+with x the frame's position (its origin, world frame), J its translational Jacobian
+(``LOCAL_WORLD_ALIGNED``), :math:`n_c` the outward unit normal of the surface of contact c,
+:math:`f_{d,c} \ge 0` the desired force the surface exerts on the robot (the robot presses with
+:math:`-n_c f_{d,c}`), D an optional joint damping and the last term an optional posture task in
+the null space :math:`N = I - J^+ J` of the task (redundant arms). During a contact phase, the
+desired position is the projection of the nominal path on the surface wherever the path is
+below it (``project = True``), so that at rest in contact the normal force is :math:`f_d`; with
+``project = False`` the desired point stays below the surface by a depth d and the force at rest
+is :math:`f_d + n^T K_p n\, d` (a spring pressed by d).
+
+Unlike :class:`ucontrol.control.BrogliatoController` it has no phases and no transition design:
+it lands with the velocity the nominal path has when it meets the surface, and the impacts
+accumulate as the plant's restitution lets them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_float, as_positive
+from ucontrol.contact.point_contact import PointContact
+from ucontrol.control.controller import ContactState, Vector
+from ucontrol.control.desired_cycle import PATH_SAMPLES, PATH_TOLERANCE, ContactPhase, NominalPath
+from ucontrol.control.trajectory_segment import smooth_step
+from ucontrol.exceptions import (
+    InvalidParameterError,
+    NonFiniteValueError,
+    NotFoundError,
+    PathThroughSurfaceError,
+    ShapeError,
+)
+from ucontrol.model.robot_model import RobotModel
+
+if TYPE_CHECKING:
+    from ucontrol.log import Log
+
+Matrix = NDArray[np.float64]
+_LWA = pin.LOCAL_WORLD_ALIGNED
+
+#: Per-sample fields written to the log (name: shape, with n declared contacts).
+LOG_FIELDS = {
+    "task_position": "(3,)",
+    "task_desired": "(3,)",
+    "lambda_d": "(n,)",
+    "contact_force": "(n,)",
+    "contact_window": "(n,)",
+}
+
+
+def as_gain_matrix(name: str, value: Any, *, positive: bool) -> Matrix:
+    """A 3×3 gain from a scalar, a diagonal (3,) or a symmetric (3, 3) matrix.
+
+    Args:
+        name: Argument name used in error messages.
+        value: The gain.
+        positive: Require a positive definite matrix (else positive semidefinite).
+
+    Raises:
+        ShapeError: ``value`` is neither a scalar nor of shape (3,) or (3, 3).
+        NonFiniteValueError: ``value`` holds NaN or infinity.
+        InvalidParameterError: Not symmetric, or not positive (semi)definite.
+    """
+    if isinstance(value, bool):
+        raise InvalidParameterError(name, value, "a number, a 3-vector or a 3×3 matrix")
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise InvalidParameterError(name, value, "a number, a 3-vector or a 3×3 matrix") from error
+    if array.ndim == 0:
+        matrix = float(array) * np.eye(3)
+    elif array.shape == (3,):
+        matrix = np.diag(array)
+    elif array.shape == (3, 3):
+        matrix = array
+    else:
+        raise ShapeError(name, (3, 3), array.shape)
+    if not np.isfinite(matrix).all():
+        raise NonFiniteValueError(name, value, np.flatnonzero(~np.isfinite(array)).tolist())
+    if not np.allclose(matrix, matrix.T, rtol=0.0, atol=1e-12 * max(1.0, np.abs(matrix).max())):
+        raise InvalidParameterError(name, value, "a symmetric matrix")
+    smallest = float(np.linalg.eigvalsh(matrix).min())
+    if smallest < 0.0 or (positive and smallest == 0.0):
+        kind = "positive definite" if positive else "positive semidefinite"
+        raise InvalidParameterError(name, value, f"{kind} (smallest eigenvalue {smallest:.3g})")
+    return np.asarray(matrix, dtype=float)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ImpedanceGains:
+    r"""Gains of :class:`ImpedanceController`.
+
+    Attributes:
+        stiffness: :math:`K_p` in [N/m]: a number, a diagonal (3,) or a symmetric positive
+            definite (3, 3) matrix in the world frame; stored as (3, 3).
+        damping: :math:`K_d` in [N s/m], same forms, positive semidefinite.
+        joint_damping: D in [N m s/rad], >= 0: damping of every joint velocity.
+        posture_stiffness: :math:`K_q` in [N m/rad], >= 0: posture task in the null space.
+        posture_damping: :math:`D_q` in [N m s/rad], >= 0: null-space damping.
+    """
+
+    stiffness: Any
+    damping: Any
+    joint_damping: float = 0.0
+    posture_stiffness: float = 0.0
+    posture_damping: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "stiffness", as_gain_matrix("stiffness", self.stiffness, positive=True)
+        )
+        object.__setattr__(self, "damping", as_gain_matrix("damping", self.damping, positive=False))
+        for name in ("joint_damping", "posture_stiffness", "posture_damping"):
+            value = as_float(name, getattr(self, name))
+            if value < 0.0:
+                raise InvalidParameterError(name, getattr(self, name), ">= 0")
+            object.__setattr__(self, name, value)
+
+    @property
+    def has_posture(self) -> bool:
+        """Whether the null-space posture task is on."""
+        return self.posture_stiffness > 0.0 or self.posture_damping > 0.0
+
+
+class ImpedanceController:
+    """Task-space PD with gravity compensation and a desired contact force (module docstring).
+
+    Call it as ``controller(t, q, v, contacts)`` (see :class:`ucontrol.control.Controller`);
+    it is a :class:`ucontrol.control.LoggingController` (fields :data:`LOG_FIELDS`).
+
+    Args:
+        robot: The controller's model of the robot; fully actuated, rigid joints.
+        frame: Name of the frame whose origin follows the path.
+        path: The nominal path of the frame (period P, e.g. :class:`CirclePath`,
+            :class:`SplinePath`).
+        gains: Stiffness, damping and the optional joint / null-space gains.
+        contacts: Point contacts of ``frame`` the contact phases refer to (their surface
+            normals carry the desired force).
+        contact_phases: Declared contact phases: during phase c, modulo P, the desired force
+            :math:`f_{d,c}` rises smoothly from 0 to ``force`` over ``force_rise_time`` after
+            ``start`` and falls back to 0 over ``force_fall_time`` before ``end``.
+        posture: Posture :math:`q_p` of the null-space task, shape (nq,); default neutral.
+        project: Project the desired point on the surface during a contact phase where the
+            nominal path is below it.
+        force_rise_time: Rise time of :math:`f_d` in [s], > 0.
+        force_fall_time: Fall time of :math:`f_d` in [s], > 0.
+
+    Raises:
+        InvalidParameterError: The robot is not fully actuated, a contact acts on another
+            frame, a phase is longer than the period or shorter than its rise and fall.
+        NotFoundError: A contact phase names a contact not in ``contacts``.
+        PathThroughSurfaceError: The nominal path enters a surface of ``contacts`` deeper
+            than :data:`ucontrol.control.desired_cycle.PATH_TOLERANCE` outside that
+            contact's phase.
+    """
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        frame: str,
+        path: NominalPath,
+        gains: ImpedanceGains,
+        *,
+        contacts: Sequence[PointContact] = (),
+        contact_phases: Sequence[ContactPhase] = (),
+        posture: Vector | None = None,
+        project: bool = True,
+        force_rise_time: float = 0.1,
+        force_fall_time: float = 0.5,
+    ) -> None:
+        if robot.nu != robot.nv:
+            raise InvalidParameterError("robot", robot.name, "a fully actuated robot (nu = nv)")
+        self.robot = robot
+        self.frame = frame
+        self.frame_id = robot.frame_id(frame)
+        self.path = path
+        self.gains = gains
+        self.posture = robot.check_configuration(
+            "posture", robot.neutral() if posture is None else posture
+        )
+        self.project = bool(project)
+        self.force_rise_time = as_positive("force_rise_time", force_rise_time)
+        self.force_fall_time = as_positive("force_fall_time", force_fall_time)
+        by_name = {contact.name: contact for contact in contacts}
+        for contact in contacts:
+            if contact.frame != frame:
+                raise InvalidParameterError(
+                    f"contact {contact.name!r} frame", contact.frame, f"the task frame {frame!r}"
+                )
+        period = float(path.period)
+        self.contact_phases = tuple(contact_phases)
+        names = [phase.contact for phase in self.contact_phases]
+        if len(set(names)) != len(names):
+            raise InvalidParameterError("contact_phases", names, "one phase per contact")
+        for phase in self.contact_phases:
+            if phase.contact not in by_name:
+                raise NotFoundError("contact", phase.contact, by_name)
+            length = phase.end - phase.start  # [s]
+            if length > period:
+                raise InvalidParameterError(
+                    f"contact phase of {phase.contact!r}",
+                    (phase.start, phase.end),
+                    f"at most one period ({period} s) long",
+                )
+            if self.force_rise_time + self.force_fall_time > length:
+                raise InvalidParameterError(
+                    "force_rise_time + force_fall_time",
+                    self.force_rise_time + self.force_fall_time,
+                    f"<= the length {length} s of the contact phase of {phase.contact!r}",
+                )
+        self.contacts = tuple(by_name[name] for name in names)
+        self._normals = np.array([c.surface.normal for c in self.contacts]).reshape(-1, 3)
+        self._offsets = np.array(
+            [c.surface.normal @ c.surface.point + c.radius for c in self.contacts]
+        )
+        _check_path(path, contacts, self.contact_phases)
+        self._model = robot.model
+        self._data = robot.model.createData()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the run (plant contact indices, last values)."""
+        n = len(self.contacts)
+        self._plant_index: NDArray[np.int64] | None = None
+        self.x = np.zeros(3)
+        self.x_desired = np.zeros(3)
+        self.force_desired = np.zeros(n)
+        self.contact_force = np.zeros(n)
+        self.window = np.zeros(n, dtype=bool)
+
+    def desired(self, t: float) -> tuple[Vector, Vector, Vector, NDArray[np.bool_]]:
+        r"""Desired position [m] and velocity [m/s] (3,), :math:`f_d` [N] (n,) and windows (n,).
+
+        Args:
+            t: Time in [s].
+        """
+        p, dp = self.path.derivatives(t, 1)
+        period = float(self.path.period)
+        forces = np.zeros(len(self.contacts))
+        window = np.zeros(len(self.contacts), dtype=bool)
+        for i, phase in enumerate(self.contact_phases):
+            since = (t - phase.start) % period  # [s] since the phase started
+            if since > phase.end - phase.start:
+                continue
+            window[i] = True
+            n = self._normals[i]
+            rise = smooth_step(since / self.force_rise_time)[0]
+            fall = smooth_step((since - (phase.end - phase.start)) / self.force_fall_time + 1.0)
+            forces[i] = phase.force * rise * (1.0 - fall[0])
+            gap = n @ p - self._offsets[i]  # [m] of the nominal point
+            if self.project and gap < 0.0:
+                p = p - gap * n
+                dp = dp - (n @ dp) * n
+        return p, dp, forces, window
+
+    def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
+        """Torques, shape (nu,), in [N m] (or [N] for prismatic joints)."""
+        if self._plant_index is None:
+            self._plant_index = _find_contacts([c.name for c in self.contacts], contacts.names)
+        self.contact_force = contacts.force[self._plant_index]
+        model, data, gains = self._model, self._data, self.gains
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        J = pin.getFrameJacobian(model, data, self.frame_id, _LWA)[:3]
+        x = data.oMf[self.frame_id].translation.copy()
+        x_d, dx_d, f_d, window = self.desired(t)
+        force = gains.stiffness @ (x_d - x) + gains.damping @ (dx_d - J @ v)  # [N]
+        force -= self._normals.T @ f_d
+        tau = pin.computeGeneralizedGravity(model, data, q) + J.T @ force
+        if gains.joint_damping > 0.0:
+            tau -= gains.joint_damping * v
+        if gains.has_posture:
+            N = np.eye(model.nv) - np.linalg.pinv(J, rcond=1e-10) @ J  # symmetric projector
+            posture = gains.posture_stiffness * pin.difference(model, q, self.posture)
+            tau += N @ (posture - gains.posture_damping * v)
+        self.x, self.x_desired, self.force_desired, self.window = x, x_d, f_d, window
+        return np.asarray(tau[self.robot.actuated], dtype=float)
+
+    def prepare_log(self, log: Log) -> None:
+        """Declare the fields of :data:`LOG_FIELDS` and the contact names (metadata)."""
+        n = len(self.contacts)
+        shapes = {"(3,)": (3,), "(n,)": (n,)}
+        for name, shape in LOG_FIELDS.items():
+            log.add_field(name, shapes[shape], np.int64 if name == "contact_window" else float)
+        log.metadata["controller"] = "impedance"
+        log.metadata["controller_contacts"] = [c.name for c in self.contacts]
+        log.metadata["period"] = float(self.path.period)
+
+    def record(self, log: Log) -> None:
+        """Write the values of the last call into the current row."""
+        log.record_extra("task_position", self.x)
+        log.record_extra("task_desired", self.x_desired)
+        log.record_extra("lambda_d", self.force_desired)
+        log.record_extra("contact_force", self.contact_force)
+        log.record_extra("contact_window", self.window.astype(np.int64))
+
+
+def _find_contacts(wanted: list[str], names: list[str]) -> NDArray[np.int64]:
+    """Indices of the controller's contacts among the plant's constraints."""
+    for name in wanted:
+        if name not in names:
+            raise NotFoundError("plant contact", name, names)
+    return np.array([names.index(name) for name in wanted], dtype=np.int64)
+
+
+def _check_path(
+    path: NominalPath, contacts: Sequence[PointContact], phases: Sequence[ContactPhase]
+) -> None:
+    """Raise :class:`PathThroughSurfaceError` where the path enters a surface outside a phase."""
+    if not contacts:
+        return
+    period = float(path.period)
+    t = np.linspace(0.0, period, PATH_SAMPLES, endpoint=False)
+    points = np.array([path(float(time))[0] for time in t])  # (N, 3) [m]
+    for contact in contacts:
+        n = contact.surface.normal
+        gap = points @ n - (n @ contact.surface.point + contact.radius)  # [m]
+        inside = gap < -PATH_TOLERANCE
+        for phase in phases:
+            if phase.contact == contact.name:
+                inside &= ~phase.covers(t, period)
+        if inside.any():
+            worst = int(np.argmin(np.where(inside, gap, math.inf)))
+            raise PathThroughSurfaceError(contact.name, float(t[worst]), float(gap[worst]))

@@ -1,0 +1,99 @@
+"""The ``[controller] type = "impedance"`` table of a scene -> an :class:`ImpedanceController`."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+from ucontrol._validation import check_keys, require_key
+from ucontrol.control.desired_cycle import ContactPhase
+from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
+from ucontrol.control.path_reach import check_reach
+from ucontrol.control.path_table import path_from_table
+from ucontrol.exceptions import InvalidParameterError, NotFoundError
+
+if TYPE_CHECKING:
+    from ucontrol.scene import Scene
+
+_GAIN_KEYS = ("stiffness", "damping", "joint_damping", "posture_stiffness", "posture_damping")
+#: Keys of the ``[controller]`` table of type ``"impedance"``.
+IMPEDANCE_KEYS = {
+    "type",
+    "frame",
+    "contacts",
+    "posture",
+    "project",
+    "force_rise_time",
+    "force_fall_time",
+    "check_reach",
+    "path",
+    "contact_phases",
+    *_GAIN_KEYS,
+}
+_CONTACT_PHASE_KEYS = ("contact", "start", "end", "force")
+
+
+def impedance_from_table(scene: Scene, table: Mapping[str, Any]) -> ImpedanceController:
+    """Build the impedance controller a ``[controller]`` table declares for ``scene``.
+
+    Keys (docs/task_paths.md): ``frame``, ``stiffness``, ``damping`` (required);
+    ``joint_damping``, ``posture_stiffness``, ``posture_damping``, ``posture`` (default the
+    scene's q0), ``contacts`` (default the scene's contacts on ``frame``), ``project``,
+    ``force_rise_time``, ``force_fall_time``, ``check_reach`` (default true: inverse kinematics
+    along the path from q0, :func:`ucontrol.control.path_reach.check_reach`), the
+    ``[controller.path]`` table (:func:`ucontrol.control.path_table.path_from_table`) and
+    optional ``[[controller.contact_phases]]`` (contact, start, end, force).
+
+    Raises:
+        InvalidParameterError: The scene has flexible joints (this law drives rigid joints),
+            or a value is invalid.
+        SceneError: A required key is missing or a table is malformed.
+        UnknownKeyError: A table holds unknown keys.
+        NotFoundError: A contact name is not a contact of the scene.
+        PathOutOfReachError: The path leaves the frame's workspace.
+        PathThroughSurfaceError: The path crosses a surface outside its contact phase.
+    """
+    section = "[controller]"
+    check_keys(section, table, IMPEDANCE_KEYS)
+    if scene.flexible is not None:
+        raise InvalidParameterError(
+            f"{section} type",
+            table.get("type", "impedance"),
+            "a controller for flexible joints ('brogliato' or 'joint_pd'): 'impedance' drives "
+            "rigid joints and the scene declares [robot.flexible]",
+        )
+    frame = str(require_key(table, section, "frame"))
+    scene_contacts = {contact.name: contact for contact in scene.contacts}
+    names = table.get("contacts", [c.name for c in scene.contacts if c.frame == frame])
+    for name in names:
+        if name not in scene_contacts:
+            raise NotFoundError("contact", str(name), scene_contacts)
+    phases = []
+    entry = "[[controller.contact_phases]]"
+    for spec in table.get("contact_phases", []):
+        check_keys(entry, spec, set(_CONTACT_PHASE_KEYS))
+        phases.append(
+            ContactPhase(**{key: require_key(spec, entry, key) for key in _CONTACT_PHASE_KEYS})
+        )
+    path = path_from_table(require_key(table, section, "path"))
+    gains = ImpedanceGains(
+        stiffness=require_key(table, section, "stiffness"),
+        damping=require_key(table, section, "damping"),
+        **{key: table[key] for key in _GAIN_KEYS[2:] if key in table},
+    )
+    for key in ("project", "check_reach"):
+        if key in table and not isinstance(table[key], bool):
+            raise InvalidParameterError(f"{section} {key}", table[key], "true or false")
+    if table.get("check_reach", True):
+        check_reach(path, scene.robot, frame, scene.q0)
+    return ImpedanceController(
+        scene.robot,
+        frame,
+        path,
+        gains,
+        contacts=[scene_contacts[name] for name in names],
+        contact_phases=phases,
+        posture=table.get("posture", scene.q0),
+        project=table.get("project", True),
+        **{key: table[key] for key in ("force_rise_time", "force_fall_time") if key in table},
+    )
