@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import ROBOTS
+from conftest import ROBOTS, load_experiment
 
 from ucontrol.control.controller import ContactState
 from ucontrol.control.desired_cycle import ContactPhase
@@ -265,3 +265,37 @@ def test_table_errors_name_what_is_wrong() -> None:
     state = ContactState(["other"], np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1, bool), 1e-3)
     with pytest.raises(NotFoundError, match="end_effector/ground"):
         controller(0.0, scene.q0, scene.v0, state)
+
+
+def test_comparison_experiment_measures_both_controllers() -> None:
+    experiment = load_experiment("impedance_vs_brogliato")
+    runs = experiment.main(["--cycles", "1", "--no-figures"])
+    assert [(r.task, r.controller) for r in runs] == [
+        ("two-link, 1 constraint", "brogliato"),
+        ("two-link, 1 constraint", "impedance"),
+        ("Panda, table", "brogliato"),
+        ("Panda, table", "impedance"),
+    ]
+    for r in runs:
+        (landing,) = r.landings
+        assert landing.impacts >= 1 and landing.transition > 0.0
+        # The first impulse obeys Newton's law with the plant's restitution:
+        # P = (1 + e) m_eff |u_n^-|, m_eff = 1 / (J_n M^-1 J_n^T) at the impact.
+        i = r.log.constraint_names.index(r.phase.contact)
+        row = int(np.flatnonzero(r.log.impulse[:, i] > 0.0)[0])
+        contact = r.scene.contacts[0]
+        model = r.scene.robot.model
+        data = model.createData()
+        q = r.log.q[row, : model.nq]
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        frame = model.getFrameId(contact.frame)
+        J_n = (
+            contact.surface.normal
+            @ pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED)[:3]
+        )
+        m_eff = 1.0 / float(J_n @ np.linalg.solve(M, J_n))  # [kg]
+        expected = (1.0 + contact.restitution) * m_eff * -r.log.normal_velocity[row, i]
+        assert landing.first_impulse == pytest.approx(expected, rel=0.05)
+        # In the plateau the mean contact force is the desired one within 2 %.
+        assert landing.force_error_mean < 0.02
