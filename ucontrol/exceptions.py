@@ -357,3 +357,32 @@ class PathOutOfReachError(InvalidParameterError):
         self.value = self.point
         self.expected = f"points that frame {frame!r} can reach"
 
+
+class DesignError(UControlError):
+    """A desired cycle cannot be designed from a task as given."""
+
+
+class InfeasibleDesignError(DesignError):
+    """The optimal-control problem of a task has no feasible cycle.
+
+    Attributes:
+        binding: The constraints that cannot be met, each ``(name, violation)`` with the
+            violation in the constraint's units, largest first.
+        best: The best iterate found (a :class:`ucontrol.design.DesignedCycle` of the
+            elastic problem whose named limits were relaxed), or None.
+        report: The solver's report of the failed solve (a
+            :class:`ucontrol.design.DesignReport`), or None.
+    """
+
+    def __init__(
+        self, binding: Sequence[tuple[str, float]], best: Any = None, report: Any = None
+    ) -> None:
+        self.binding = list(binding)
+        self.best = best
+        self.report = report
+        named = "; ".join(f"{name} (violated by {value:.4g})" for name, value in self.binding)
+        super().__init__(
+            "no feasible cycle: the binding constraint(s) are "
+            f"{named or 'unknown (the dynamics or periodicity cannot be met)'}; relax them in "
+            "the task file (the best iterate is kept in `best`)"
+        )
