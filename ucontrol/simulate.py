@@ -188,6 +188,17 @@ class _ClosedLoop:
         self.row_open = False
         self.n_events = 0
         self.n_plastic = 0
+        period = hold * integrator.dt
+        self.sensors = self.actuators = None
+        if scene.sensors is not None:  # what the controller sees, imported only when declared
+            from ucontrol.sensors.measurement import Sensors
+
+            self.sensors = Sensors(scene.sensors, robot, integrator.constraints, flexible, period)
+        if scene.actuators is not None:
+            from ucontrol.sensors.actuators import Actuators
+
+            self.actuators = Actuators(scene.actuators, robot, period)
+        self.measured_q, self.measured_v, self.commanded_u = self.q, self.v, self.u
 
     def sample(self, t: float) -> PlantEvaluation:
         """Evaluate the plant at t [s] and open the log row of that sample."""
@@ -219,17 +230,21 @@ class _ClosedLoop:
         contacts = ContactState(
             constraints.names, state.gap, state.normal_velocity, impulse, active, span
         )
-        output = _as_array(self.controller(t, self.q, self.v, contacts))
+        q, v = self.q, self.v
+        if self.sensors is not None:
+            q, v, contacts = self.sensors.measure(q, v, contacts)
+            self.measured_q, self.measured_v = q, v
+        output = _as_array(self.controller(t, q, v, contacts))
         if output.shape != (self.nu,):
             raise ShapeError("controller output u", (self.nu,), output.shape)
-        self.u = output
-        self.tau[self.actuated] = output
+        self.commanded_u = output
+        self.u = output if self.actuators is None else self.actuators.apply(output)
+        self.tau[self.actuated] = self.u
 
     def advance(self, state: PlantEvaluation) -> None:
         """One plant step from ``state`` under the held input; closes the log row."""
         log = self.log
-        if self.recorder is not None:
-            self.recorder.record(log)
+        self._record_controller_fields()
         outcome = self.integrator.step(state, self.tau)
         _record_step(log, self.u, outcome)
         self.row_open = False
@@ -252,6 +267,16 @@ class _ClosedLoop:
             t = float(log.t[len(log) - 1]) + self.integrator.dt
             raise _NonFiniteState(f"the state became non-finite at t = {t:.6g} s")
 
+    def _record_controller_fields(self) -> None:
+        """The controller's own fields, and what it measured and commanded, in the open row."""
+        if self.recorder is not None:
+            self.recorder.record(self.log)
+        if self.sensors is not None:
+            self.log.record_extra("measured_q", self.measured_q)
+            self.log.record_extra("measured_v", self.measured_v)
+        if self.actuators is not None:
+            self.log.record_extra("commanded_u", self.commanded_u)
+
     def close_row(self) -> None:
         """Close an open log row as a step without impulses (the end, or a failure)."""
         if self.row_open:
@@ -260,8 +285,7 @@ class _ClosedLoop:
 
     def finish(self) -> None:
         """Complete the last row: the controller's fields, no step after it."""
-        if self.recorder is not None:
-            self.recorder.record(self.log)
+        self._record_controller_fields()
         self.close_row()
         if self.observer is not None:
             self.observer(self.log)
@@ -327,6 +351,12 @@ def _new_log(
         recorder.prepare_log(log)
     if constraints.has_friction:  # world friction impulse of each constraint [N s]
         log.add_field("friction_impulse", (constraints.size, 3))
+    n_q, n_v = robot.nq + (0 if flexible is None else flexible.nf), robot.nv
+    if scene.sensors is not None:  # what the controller saw (motors after the links)
+        log.add_field("measured_q", (n_q,))
+        log.add_field("measured_v", (n_v + (0 if flexible is None else flexible.nf),))
+    if scene.actuators is not None:  # the controller's output before the limits
+        log.add_field("commanded_u", (robot.nu,))
     if flexible is not None:  # motor states, beside the links' q and v
         log.add_field("motor_q", (flexible.nf,))
         log.add_field("motor_v", (flexible.nf,))

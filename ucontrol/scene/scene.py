@@ -27,6 +27,7 @@ from ucontrol.scene.scene_table import check_reference, scene_fields
 if TYPE_CHECKING:
     from ucontrol.control.controller import Controller
     from ucontrol.plant import Integrator
+    from ucontrol.sensors.sensor_settings import ActuatorSettings, SensorSettings
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -53,6 +54,9 @@ class Scene:
         reference: Analytic reference table (``type`` plus parameters), checked when the scene
             is loaded, or None; used by
             :func:`ucontrol.analysis.convergence.run_convergence`.
+        sensors: What the controller measures (noise, quantisation, velocity estimate,
+            delay), or None: it reads the true state.
+        actuators: Torque saturation and rate limits between controller and plant, or None.
         source: The TOML file the scene was loaded from, or None for a scene built in code;
             :func:`ucontrol.simulate` records it in the log (``scene_path``) for replays.
     """
@@ -72,6 +76,8 @@ class Scene:
     integrator: IntegratorSettings = field(default_factory=IntegratorSettings)
     controller: Mapping[str, Any] = field(default_factory=lambda: {"type": "zero"})
     reference: Mapping[str, Any] | None = None
+    sensors: SensorSettings | None = None
+    actuators: ActuatorSettings | None = None
     source: Path | None = None
 
     def __post_init__(self) -> None:

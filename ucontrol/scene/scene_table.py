@@ -39,6 +39,8 @@ _TOP_KEYS = {
     "integrator",
     "controller",
     "reference",
+    "sensors",
+    "actuators",
 }
 _ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity", "planar_axis", "flexible"}
 _FLEXIBLE_KEYS = {"joints", "stiffness", "motor_inertia", "damping", "q0", "v0"}
@@ -128,7 +130,22 @@ def scene_fields(
         integrator=IntegratorSettings(**integrator_table),
         controller=controller,
         reference=table.get("reference"),
+        **_sensors_and_actuators(table),
     )
+
+
+def _sensors_and_actuators(table: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``[sensors]`` and ``[actuators]`` settings, imported only when declared."""
+    fields: dict[str, Any] = {}
+    if "sensors" in table:
+        from ucontrol.sensors.sensor_settings import SensorSettings
+
+        fields["sensors"] = SensorSettings.from_table(table["sensors"])
+    if "actuators" in table:
+        from ucontrol.sensors.sensor_settings import ActuatorSettings
+
+        fields["actuators"] = ActuatorSettings.from_table(table["actuators"])
+    return fields
 
 
 def check_reference(table: Any, contacts: Sequence[PointContact]) -> dict[str, Any]:

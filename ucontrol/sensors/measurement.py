@@ -1,0 +1,163 @@
+r"""Sensors in the loop: what the controller sees of the plant at each control period.
+
+Position: :math:`q_m = \operatorname{quantise}(q \oplus \delta)`, with :math:`\delta` white
+Gaussian noise in the tangent space and the rounding applied to one-coordinate joints
+(revolute, prismatic) and motors.
+
+Velocity, with control period :math:`T`: ``"difference"`` is the finite difference
+:math:`d_k = (q_{m,k} \ominus q_{m,k-1}) / T` through a first-order low-pass filter of cut-off
+:math:`f_c` (backward Euler, :math:`\hat v_k = \hat v_{k-1} + \alpha (d_k - \hat v_{k-1})`,
+:math:`\alpha = \omega_c T / (1 + \omega_c T)`, :math:`\omega_c = 2\pi f_c`).
+At an impact the true velocity jumps; such a filter then lags the jump by about
+:math:`1/\omega_c` and the controller acts on a velocity the robot no longer has (a
+transition controller reads it as a persisting approach speed). ``"observer"`` re-initialises
+the filter at impacts: when a constraint closes (it carries an impulse after a period
+without, as the contact switches tell: the true impulses, before any force noise), the estimate is set to the raw difference for that period
+and the next one, so the period that spans the jump is not carried forward. It is the simplest
+of the observers designed for jumps (book §8.5.4 points at observers for complementarity
+systems): it needs no model of the plant, and costs the accuracy of one unfiltered period per
+impact. The velocity of the first period is the true initial velocity (the robot starts at
+rest or from a known state).
+
+Delay: the controller at period k receives the whole measurement (positions, velocity,
+contact information) of period :math:`k - d`; before :math:`d` periods have passed it receives
+the first one.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.control.controller import ContactState
+from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.robot_model import RobotModel
+from ucontrol.sensors.sensor_settings import SensorSettings
+
+Vector = NDArray[np.float64]
+
+
+class Sensors:
+    """The measurement chain of a run (built by the closed loop when a scene declares it).
+
+    Args:
+        settings: What is measured and how.
+        robot: The robot (its joints tell which coordinates are quantised).
+        constraints: The constraints (the measured gaps and normal velocities are theirs at the
+            measured state).
+        flexible: Flexible joints (their motor coordinates are measured too), or None.
+        period: Control period T in [s].
+    """
+
+    def __init__(
+        self,
+        settings: SensorSettings,
+        robot: RobotModel,
+        constraints: ConstraintSet,
+        flexible: FlexibleJoints | None,
+        period: float,
+    ) -> None:
+        self.settings = settings
+        self.period = period
+        self._robot, self._constraints = robot, constraints
+        self._data = robot.model.createData()
+        self._nq, self._nv = robot.nq, robot.nv
+        nf = 0 if flexible is None else flexible.nf
+        self._rng = np.random.default_rng(settings.seed)
+        self._noise = np.broadcast_to(settings.position_noise, (robot.nv + nf,)).copy()
+        model = robot.model
+        one_coordinate = [
+            (joint.idx_q, joint.idx_v)
+            for joint in model.joints[1:]
+            if joint.nq == 1 and joint.nv == 1
+        ]
+        q_index = [iq for iq, _ in one_coordinate] + list(range(robot.nq, robot.nq + nf))
+        v_index = [iv for _, iv in one_coordinate] + list(range(robot.nv, robot.nv + nf))
+        resolution = np.broadcast_to(settings.quantisation, (robot.nv + nf,))[v_index]
+        keep = resolution > 0.0
+        self._quantised = np.array(q_index, dtype=np.intp)[keep]
+        self._resolution = resolution[keep]
+        cutoff = settings.velocity_cutoff
+        omega_t = 0.0 if cutoff is None else 2.0 * np.pi * cutoff * period
+        self._alpha = 1.0 if cutoff is None else omega_t / (1.0 + omega_t)
+        self._last_q: Vector | None = None
+        self._estimate: Vector | None = None
+        self._was_carrying: NDArray[np.bool_] | None = None
+        self._raw_periods = 0  # periods left whose velocity is the raw difference
+        self._queue: deque[tuple[Vector, Vector, ContactState]] = deque()
+
+    def measure(
+        self, q: Vector, v: Vector, contacts: ContactState
+    ) -> tuple[Vector, Vector, ContactState]:
+        """The measurement the controller receives now (delayed), from the true signals.
+
+        Args:
+            q: True configuration, shape (nq,) (+ nf motors).
+            v: True velocity, shape (nv,) (+ nf motors).
+            contacts: True contact information of the period that ends now.
+
+        Returns:
+            Measured configuration, velocity and contact information.
+        """
+        q_m = self._position(q)
+        v_m = self._velocity(q_m, v, contacts)
+        self._queue.append((q_m, v_m, self._contacts(q_m, v_m, contacts)))
+        if len(self._queue) > self.settings.delay + 1:
+            self._queue.popleft()
+        return self._queue[0]
+
+    def _position(self, q: Vector) -> Vector:
+        q_m = q.copy()
+        if np.any(self._noise > 0.0):
+            delta = self._noise * self._rng.standard_normal(self._noise.size)
+            q_m[: self._nq] = pin.integrate(self._robot.model, q[: self._nq], delta[: self._nv])
+            q_m[self._nq :] += delta[self._nv :]
+        if self._quantised.size:
+            values = q_m[self._quantised] / self._resolution
+            q_m[self._quantised] = np.round(values) * self._resolution
+        return q_m
+
+    def _velocity(self, q_m: Vector, v: Vector, contacts: ContactState) -> Vector:
+        source = self.settings.velocity
+        if source == "true":
+            return v.copy()
+        last, self._last_q = self._last_q, q_m
+        if last is None or self._estimate is None:
+            self._estimate = v.copy()
+            self._was_carrying = contacts.impulse > 0.0
+            return self._estimate.copy()
+        raw = np.empty_like(v)
+        raw[: self._nv] = pin.difference(self._robot.model, last[: self._nq], q_m[: self._nq])
+        raw[self._nv :] = q_m[self._nq :] - last[self._nq :]
+        raw /= self.period  # [rad/s] or [m/s]
+        if source == "observer":
+            assert self._was_carrying is not None
+            carrying = contacts.impulse > 0.0
+            if np.any(carrying & ~self._was_carrying):  # a constraint closed: an impact
+                self._raw_periods = 2
+            self._was_carrying = carrying
+        if self._raw_periods > 0:
+            self._raw_periods -= 1
+            self._estimate = raw
+        else:
+            self._estimate = self._estimate + self._alpha * (raw - self._estimate)
+        return self._estimate.copy()
+
+    def _contacts(self, q_m: Vector, v_m: Vector, contacts: ContactState) -> ContactState:
+        """Gaps and normal velocities at the measured state, noisy impulses."""
+        model, data = self._robot.model, self._data
+        pin.forwardKinematics(model, data, q_m[: self._nq], v_m[: self._nv])
+        pin.updateFramePlacements(model, data)
+        gap, normal_velocity = self._constraints.evaluate(data, q_m[: self._nq], v_m[: self._nv])
+        impulse = contacts.impulse
+        sigma = self.settings.force_noise
+        if sigma > 0.0:  # a force noise of σ [N] on the mean force over the period
+            noise = self._rng.standard_normal(impulse.size)
+            impulse = impulse + (sigma * contacts.dt) * noise
+        return ContactState(
+            contacts.names, gap, normal_velocity, impulse, contacts.active.copy(), contacts.dt
+        )

@@ -1,0 +1,140 @@
+"""The ``[sensors]`` and ``[actuators]`` tables of a scene: what the controller sees and does.
+
+Declared only by scenes that want them: without the tables the controller reads the plant's
+true state and its torques are applied as they are (nothing of :mod:`ucontrol.sensors` is
+imported then).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_float, as_vector, check_keys
+from ucontrol.exceptions import InvalidParameterError
+
+#: How the controller's velocity is obtained (see :class:`SensorSettings`).
+VELOCITY_SOURCES = ("true", "difference", "observer")
+
+_SENSOR_KEYS = {
+    "position_noise",
+    "quantisation",
+    "velocity",
+    "velocity_cutoff",
+    "delay",
+    "force_noise",
+    "seed",
+}
+_ACTUATOR_KEYS = {"torque_limit", "rate_limit"}
+
+
+def _non_negative(name: str, value: Any) -> float | NDArray[np.float64]:
+    """A number or a vector of numbers, each finite and >= 0."""
+    array = (
+        np.array(as_float(name, value))
+        if np.isscalar(value) and not isinstance(value, bool)
+        else as_vector(name, value)
+    )
+    if isinstance(value, bool) or not np.all(array >= 0.0):
+        raise InvalidParameterError(name, value, "a number >= 0 or a list of them")
+    return float(array) if array.ndim == 0 else array
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorSettings:
+    r"""What the controller measures, and how.
+
+    The controller is called with measured signals; the log keeps them (``measured_q``,
+    ``measured_v``) beside the true ``q`` and ``v``.
+
+    Attributes:
+        position_noise: Standard deviation of a white Gaussian noise on the position
+            measurement, in [rad] or [m]: one number or one per velocity coordinate
+            (nv, + nf motors with flexible joints), applied in the tangent space
+            (:math:`q_m = q \oplus \delta`).
+        quantisation: Encoder resolution in [rad] or [m] (one number or one per velocity
+            coordinate): positions of one-coordinate joints (revolute, prismatic) and motors
+            are rounded to a multiple of it; 0 for none.
+        velocity: ``"true"`` (the plant's velocity, with no noise), ``"difference"`` (finite
+            difference of the measured positions over the control period, low-pass filtered),
+            or ``"observer"`` (the same filter re-initialised at impacts; see
+            :class:`~ucontrol.sensors.measurement.Sensors`).
+        velocity_cutoff: Cut-off frequency of the velocity filter in [Hz]; None: no filter.
+        delay: Measurement delay in control periods (an integer >= 0): the controller at
+            period k sees the measurement of period k - delay.
+        force_noise: Standard deviation of a white Gaussian noise on each constraint's
+            measured mean force, in [N] (the impulses the controller sees get it times the
+            period).
+        seed: Seed of the noise generator (the same seed gives the same noise).
+    """
+
+    position_noise: float | NDArray[np.float64] = 0.0
+    quantisation: float | NDArray[np.float64] = 0.0
+    velocity: str = "true"
+    velocity_cutoff: float | None = None
+    delay: int = 0
+    force_noise: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "position_noise", _non_negative("position_noise", self.position_noise)
+        )
+        object.__setattr__(self, "quantisation", _non_negative("quantisation", self.quantisation))
+        if self.velocity not in VELOCITY_SOURCES:
+            raise InvalidParameterError("velocity", self.velocity, f"one of {VELOCITY_SOURCES}")
+        if self.velocity_cutoff is not None:
+            cutoff = as_float("velocity_cutoff", self.velocity_cutoff)
+            if not cutoff > 0.0:
+                raise InvalidParameterError("velocity_cutoff", cutoff, "a frequency > 0 in [Hz]")
+            object.__setattr__(self, "velocity_cutoff", cutoff)
+        if isinstance(self.delay, bool) or not isinstance(self.delay, int) or self.delay < 0:
+            raise InvalidParameterError("delay", self.delay, "a whole number of periods >= 0")
+        force_noise = _non_negative("force_noise", self.force_noise)
+        if not isinstance(force_noise, float):
+            raise InvalidParameterError("force_noise", self.force_noise, "one number >= 0 in [N]")
+        object.__setattr__(self, "force_noise", force_noise)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidParameterError("seed", self.seed, "a whole number >= 0")
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, Any]) -> SensorSettings:
+        """The settings of a ``[sensors]`` table (keys as the attributes)."""
+        check_keys("[sensors]", table, _SENSOR_KEYS)
+        return cls(**table)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ActuatorSettings:
+    """What the actuators can do: torque saturation and rate limits.
+
+    The plant receives the limited torque (the log's ``u``); the controller's output is kept
+    as ``commanded_u``.
+
+    Attributes:
+        torque_limit: Largest |u| per input in [N m] or [N]: ``"urdf"`` (the joints'
+            ``effort`` limits), one number, or one per input (nu,); None: no saturation.
+        rate_limit: Largest change of the torque in [N m/s] (or [N/s]), one number or one per
+            input; None: no limit. Applied per control period, from zero torque at t = 0.
+    """
+
+    torque_limit: str | float | NDArray[np.float64] | None = None
+    rate_limit: float | NDArray[np.float64] | None = None
+
+    def __post_init__(self) -> None:
+        if self.torque_limit is not None and self.torque_limit != "urdf":
+            object.__setattr__(
+                self, "torque_limit", _non_negative("torque_limit", self.torque_limit)
+            )
+        if self.rate_limit is not None:
+            object.__setattr__(self, "rate_limit", _non_negative("rate_limit", self.rate_limit))
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, Any]) -> ActuatorSettings:
+        """The settings of an ``[actuators]`` table (keys as the attributes)."""
+        check_keys("[actuators]", table, _ACTUATOR_KEYS)
+        return cls(**table)
