@@ -163,8 +163,8 @@ def _success_1d(frame: Any, key: str, info: dict[str, Any], out: Path) -> Path:
         low, high = wilson_interval(k, n)
         rate = k / n if n else math.nan
         rates.append(rate)
-        lows.append(rate - low if n else 0.0)
-        highs.append(high - rate if n else 0.0)
+        lows.append(max(rate - low, 0.0) if n else 0.0)  # rounding may cross the rate
+        highs.append(max(high - rate, 0.0) if n else 0.0)
         counts.append((k, n))
     fig, ax = plt.subplots(figsize=(7, 4))
     x = np.arange(len(labels))
