@@ -14,6 +14,7 @@ from ucontrol._validation import check_keys, require_key
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
 from ucontrol.control.controller import Controller
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
+from ucontrol.control.impedance_table import IMPEDANCE_KEYS, impedance_from_table
 from ucontrol.control.joint_pd import JointPD
 from ucontrol.control.path_table import path_from_table
 from ucontrol.control.task_coordinates import TaskCoordinates
@@ -54,6 +55,7 @@ _CONTROLLER_KEYS = {
         *_BROGLIATO_GAIN_KEYS,
         *_CYCLE_KEYS,
     },
+    "impedance": IMPEDANCE_KEYS,
 }
 #: Controller types a scene may declare.
 CONTROLLERS = tuple(_CONTROLLER_KEYS)
@@ -143,4 +145,5 @@ _BUILDERS: dict[str, Callable[[Scene, Mapping[str, Any]], Controller]] = {
     "zero": _zero,
     "joint_pd": _joint_pd,
     "brogliato": _brogliato,
+    "impedance": impedance_from_table,
 }
