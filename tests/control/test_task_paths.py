@@ -329,3 +329,28 @@ def test_desired_cycle_rejects_a_path_through_the_ground(path) -> None:
     cycle = DesiredCycle(path=path, contact_phases=(phase,), approach_time=0.8, takeoff_time=0.1)
     cycle.check(task)
     assert isinstance(contact, PointContact)
+
+
+def test_brogliato_controller_tracks_a_spline_cycle() -> None:
+    from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+    from ucontrol.simulate import simulate
+
+    scene = _two_link_scene()
+    contact = scene.contacts[0]
+    # Twelve points of the scene's circle (centre (0.65, 0), radius 0.1, period 10 s).
+    angles = np.linspace(0.0, 2 * np.pi, 12, endpoint=False)
+    waypoints = np.stack([0.65 + 0.1 * np.cos(angles), 0.1 * np.sin(angles), 0 * angles], axis=1)
+    path = SplinePath(waypoints=waypoints, period=10.0, times=10.0 * angles / (2 * np.pi))
+    circle = CirclePath(centre=[0.65, 0, 0], radius=0.1, period=10.0)
+    worst = max(np.linalg.norm(path(t)[0] - circle(t)[0]) for t in np.linspace(0, 10, 500))
+    assert worst < 1e-4  # a quintic spline through 12 points of a circle
+    task = TaskCoordinates(scene.robot, "end_effector", [contact], [[1.0, 0.0, 0.0]])
+    phase = ContactPhase(contact=contact.name, start=5.0, end=10.0, force=5.0)
+    cycle = DesiredCycle(path=path, contact_phases=(phase,), depth_min=0.01)
+    controller = BrogliatoController(
+        scene.robot, task, cycle, BrogliatoGains(gamma1=8.0, gamma2=7.0), posture=scene.q0
+    )
+    result = simulate(scene, controller, duration=10.5, dt=1e-3, progress=False)
+    stability = result.summary["weak_stability"]
+    assert stability["n_complete_cycles"] == 1
+    assert result.summary["tracking"]["force_error_mid_max"] < 1e-3
