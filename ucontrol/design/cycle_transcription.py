@@ -65,6 +65,7 @@ class _Group:
     lb: Vector
     ub: Vector
     slack: Any = None
+    scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -194,9 +195,12 @@ class CycleTranscription:
             upper = np.flatnonzero(np.isfinite(ub) & (lb != ub))
             low = high = expr
             if elastic and kind in _SOFT_KINDS and (lower.size or upper.size):
-                group.slack = opti.variable(n)
+                finite = np.abs(np.concatenate((lb[np.isfinite(lb)], ub[np.isfinite(ub)])))
+                group.scale = max(float(np.max(finite, initial=0.0)), 1e-3)
+                group.slack = opti.variable()  # relative violation of the whole group
                 opti.subject_to(group.slack >= 0)
-                low, high = expr + group.slack, expr - group.slack
+                opti.set_initial(group.slack, 1.0)
+                low, high = expr + group.scale * group.slack, expr - group.scale * group.slack
             if equal.size:
                 opti.subject_to(expr[equal.tolist()] == lb[equal])
             if lower.size:
@@ -411,7 +415,7 @@ class CycleTranscription:
         self._set_initial(opti, phases, impulses, warm)
         scale = max(abs(float(_evaluate_initial(opti, cost))), 1e-3)
         if elastic:
-            penalty = sum(ca.sum1(g.slack) for g in groups if g.slack is not None)
+            penalty = sum(g.slack for g in groups if g.slack is not None)
             opti.minimize(penalty + 1e-6 * cost / scale)
         else:
             opti.minimize(cost / scale)
@@ -451,14 +455,10 @@ class CycleTranscription:
         for group in elastic_handles["groups"]:
             if group.slack is None:
                 continue
-            slack = (
-                float(np.max(np.atleast_1d(elastic.value(group.slack))))
-                if elastic_report.success
-                else 0.0
-            )
+            slack = group.scale * float(elastic.debug.value(group.slack))
             if slack > _BINDING_SLACK:
                 binding.append((group.name, slack))
-        if not binding:
+        if not elastic_report.success or not binding:
             binding = [(name, value) for name, value in report.violations.items() if value > 1e-6]
         binding.sort(key=lambda item: -item[1])
         raise InfeasibleDesignError(binding, best=best, report=report)
