@@ -31,11 +31,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
+from ucontrol.control.compiled_function import CompiledFunction
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.phase import Phase
@@ -48,6 +50,7 @@ if TYPE_CHECKING:
     from ucontrol.log import Log
 
 Matrix = NDArray[np.float64]
+_LWA = pin.LOCAL_WORLD_ALIGNED
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -149,6 +152,14 @@ class BrogliatoController:
         self._model = robot.model
         self._data = robot.model.createData()
         self._redundant = task.m < robot.nv
+        self._lower = np.tril_indices(robot.nv, -1)
+        self._M = np.zeros((robot.nv, robot.nv))
+        self._all_actuated = bool(np.array_equal(robot.actuated, np.arange(robot.nv)))
+        self._compiled_law: CompiledFunction | None = None
+        if type(self)._order == 2:  # the rigid law (subclasses bring their own)
+            law = CompiledFunction(_rigid_law_function(robot.nv, task, gains, self._redundant))
+            self._compiled_law = law if law.compiled else None
+        self._force_input = np.zeros(task.m)
         self.reset()
 
     def reset(self) -> None:
@@ -172,6 +183,8 @@ class BrogliatoController:
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Torques, shape (nu,), in [N m] (or [N] for prismatic joints)."""
         closed = self._measure(t, contacts)
+        if self._compiled_law is not None:
+            return self._compiled_call(t, q, v, closed)
         state, M, dyn = self._kinematics(q, v)
 
         def lyapunov(desired: DesiredState) -> float:
@@ -253,10 +266,10 @@ class BrogliatoController:
     def _kinematics(self, q: Vector, v: Vector) -> tuple[TaskState, Matrix, _Dynamics]:
         """Task state, mass matrix and the terms of the law at (q, v)."""
         model, data = self._model, self._data
-        pin.computeAllTerms(model, data, q, v)
-        pin.computeJointJacobiansTimeVariation(model, data, q, v)
-        pin.updateFramePlacements(model, data)
-        M = np.triu(data.M) + np.triu(data.M, 1).T
+        coriolis = self._pinocchio_pass(q, v)
+        M = self._M
+        M[...] = data.M
+        M[self._lower] = M.T[self._lower]  # crba fills the upper triangle
         state = self.task.evaluate(model, data, v)
         J, dJ = state.J, state.dJ
         JJt = J @ J.T
@@ -271,8 +284,74 @@ class BrogliatoController:
             null = (N, N @ xi, dN @ xi + N @ d_xi)
         else:
             null = None
-        coriolis = pin.computeCoriolisMatrix(model, data, q, v)
         return state, M, _Dynamics(v, J_pinv, dJ_pinv, null, data.nle.copy(), coriolis)
+
+    def _pinocchio_pass(self, q: Vector, v: Vector) -> Matrix:
+        """Fill ``self._data`` with what the law needs at (q, v); return C(q, v) (nv, nv).
+
+        ``computeCoriolisMatrix`` leaves the joint placements, the joint Jacobians and their
+        time variation in the data; ``crba`` adds M (upper triangle), ``nonLinearEffects`` h,
+        ``updateFramePlacement`` the task frame's placement.
+        """
+        model, data = self._model, self._data
+        coriolis = pin.computeCoriolisMatrix(model, data, q, v)
+        pin.crba(model, data, q)
+        pin.nonLinearEffects(model, data, q, v)
+        pin.updateFramePlacement(model, data, self.task.frame_id)
+        return coriolis
+
+    def _compiled_call(self, t: float, q: Vector, v: Vector, closed: NDArray[np.bool_]) -> Vector:
+        """The law through its compiled form (same terms as :meth:`_torque`)."""
+        model, data, law = self._model, self._data, self._compiled_law
+        assert law is not None
+        self._pinocchio_pass(q, v)
+        frame_id = self.task.frame_id
+        J6 = pin.getFrameJacobian(model, data, frame_id, _LWA)
+        dJ6 = pin.getFrameJacobianTimeVariation(model, data, frame_id, _LWA)
+        posture = pin.difference(model, self.posture, q) if self._redundant else None
+        kinematics = (data.M, data.C, data.nle, J6, dJ6, data.oMf[frame_id].translation, v)
+        machine = self.machine
+        desired = machine.desired(t)
+        out = self._compiled_values(kinematics, posture, desired)
+        if machine.update(t, closed, float(out[self._V1_at]), desired):
+            desired = machine.desired(t)
+            out = self._compiled_values(None, None, desired)
+        self.desired = desired
+        m, nv = self.task.m, self.robot.nv
+        self.V1, self.V = float(out[nv]), float(out[nv + 1])
+        self.X = out[nv + 2 : nv + 2 + m].copy()
+        tau = out[:nv].copy()
+        return tau if self._all_actuated else tau[self.robot.actuated]
+
+    @property
+    def _V1_at(self) -> int:
+        return self.robot.nv
+
+    def _compiled_values(
+        self,
+        kinematics: tuple[Vector, ...] | None,
+        posture: Vector | None,
+        desired: DesiredState,
+    ) -> Vector:
+        """Outputs (tau, V1, V, X) of the compiled law; ``kinematics`` None: as last call."""
+        law = self._compiled_law
+        assert law is not None
+        force = self._force_input
+        force[:] = 0.0
+        if desired.constrained.any():
+            held = desired.constrained
+            lambda_d = desired.force[held]
+            measured = np.where(self._persistent[held], self.contact_force[held], lambda_d)
+            force[self.machine.coordinates[held]] = -lambda_d + self.gains.force_gain * (
+                measured - lambda_d
+            )
+        np.concatenate(desired.target, out=law.input_buffer(8))
+        np.concatenate(desired.reference, out=law.input_buffer(9))
+        if kinematics is None:
+            (out,) = law(None, None, None, None, None, None, None, None, None, None, force)
+        else:
+            (out,) = law(*kinematics, posture, None, None, force)
+        return out
 
     def _sliding(self, state: TaskState, X_d: Vector, dX_d: Vector, dyn: _Dynamics) -> Vector:
         r""":math:`s_q = v - \dot q_r` for the desired (X_d, dX_d), shape (nv,), in [rad/s]."""
@@ -324,3 +403,64 @@ class _Dynamics:
     null: tuple[Matrix, Vector, Vector] | None
     nle: Vector
     coriolis: Matrix
+
+
+def _rigid_law_function(
+    nv: int, task: TaskCoordinates, gains: BrogliatoGains, redundant: bool
+) -> ca.Function:
+    r"""The rigid law of :class:`BrogliatoController` as one casadi Function (for C code).
+
+    The same terms as :meth:`BrogliatoController._kinematics` and
+    :meth:`BrogliatoController._torque`. Inputs: M (nv, nv) (upper triangle read),
+    C(q, v) (nv, nv), h (nv,), the frame Jacobian and its time variation in
+    LOCAL_WORLD_ALIGNED (6, nv), the frame position (3,), v (nv,), :math:`q \ominus q_p`
+    (nv,), the target (m, 3) (position, velocity, acceleration as columns), the reference
+    (m, 2), and the force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)` on the task
+    rows (m,) (0 off the held contacts). Output, stacked: tau (nv,), V1, V on the reference,
+    the task coordinates X (m,).
+    """
+    m = task.m
+    M_upper, C = ca.SX.sym("M", nv, nv), ca.SX.sym("C", nv, nv)
+    nle, v = ca.SX.sym("nle", nv), ca.SX.sym("v", nv)
+    J6, dJ6 = ca.SX.sym("J", 6, nv), ca.SX.sym("dJ", 6, nv)
+    p, posture_error = ca.SX.sym("p", 3), ca.SX.sym("posture_error", nv)
+    target, reference = ca.SX.sym("target", m, 3), ca.SX.sym("reference", m, 2)
+    force = ca.SX.sym("force", m)
+    M = ca.triu(M_upper) + ca.triu(M_upper, False).T
+    A = ca.DM(task.A)
+    J, dJ = A @ J6[:3, :], A @ dJ6[:3, :]
+    X = A @ p - ca.DM(task.b)  # [m]
+    dX = J @ v
+    JJt = J @ J.T
+    J_pinv = ca.solve(JJt, J).T
+    dJ_pinv = -J_pinv @ dJ @ J_pinv
+    gamma1, gamma2 = gains.gamma1, gains.gamma2
+    if redundant:
+        N = ca.SX.eye(nv) - J_pinv @ J
+        dJ_pinv += N @ ca.solve(JJt, dJ).T
+        dN = -(dJ_pinv @ J + J_pinv @ dJ)
+        xi = -gains.posture_gain * posture_error  # [rad/s]
+        d_xi = -gains.posture_gain * v
+        N_xi, null_acceleration = N @ xi, dN @ xi + N @ d_xi
+    else:
+        N_xi = ca.SX.zeros(nv)
+
+    def sliding(X_d: ca.SX, dX_d: ca.SX) -> tuple[ca.SX, ca.SX]:
+        dX_r = dX_d - gamma2 * (X - X_d)  # [m/s]
+        return v - (J_pinv @ dX_r + N_xi), dX_r
+
+    s_reference, _ = sliding(reference[:, 0], reference[:, 1])
+    V1 = 0.5 * ca.dot(s_reference, M @ s_reference)  # [J]
+    X_error = X - reference[:, 0]
+    V = V1 + gamma1 * gamma2 * ca.dot(X_error, X_error)
+    X_d, dX_d, ddX_d = target[:, 0], target[:, 1], target[:, 2]
+    s_q, dX_r = sliding(X_d, dX_d)
+    ddX_r = ddX_d - gamma2 * (dX - dX_d)  # [m/s²]
+    ddq_r = dJ_pinv @ dX_r + J_pinv @ ddX_r
+    s = J @ s_q
+    tau = M @ ddq_r + nle - C @ s_q - gamma1 * (J.T @ s)
+    if redundant:
+        tau += M @ null_acceleration - gains.null_space_gain * (N.T @ (M @ (N @ s_q)))
+    tau += J.T @ force
+    inputs = [M_upper, C, nle, J6, dJ6, p, v, posture_error, target, reference, force]
+    return ca.Function("brogliato_law", inputs, [ca.vertcat(tau, V1, V, X)])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -64,12 +65,32 @@ class CirclePath:
         :math:`p^{(k)} = r \omega^k (\cos(\varphi + k\pi/2)\,u + \sin(\varphi + k\pi/2)\,w)`
         for k >= 1, with :math:`\omega = 2\pi/P`.
         """
+        return tuple(self.derivative_matrix(t, order))
+
+    def derivative_matrix(self, t: float, order: int) -> NDArray[np.float64]:
+        """:meth:`derivatives` stacked, shape (order + 1, 3): row k is the k-th derivative.
+
+        Evaluated on floats (3-vectors are cheaper so than as numpy arrays), with the same
+        operations in the same order as the vector form, so the values are identical.
+        """
         omega = 2.0 * math.pi / self.period  # [rad/s]
         angle = self.start_angle + omega * t
-        u, w = self.axes
-        radial = math.cos(angle) * u + math.sin(angle) * w
-        tangent = -math.sin(angle) * u + math.cos(angle) * w
+        u, w = self._axes
+        c, s = math.cos(angle), math.sin(angle)
+        radial = [c * u[i] + s * w[i] for i in range(3)]
+        tangent = [-s * u[i] + c * w[i] for i in range(3)]
         r = self.radius
-        turns = (radial, tangent, -radial, -tangent)  # the direction rotated by k π/2
-        derivatives = (r * omega**k * turns[k % 4] for k in range(1, order + 1))
-        return (self.centre + r * radial, *derivatives)
+        turns = (radial, tangent, [-x for x in radial], [-x for x in tangent])
+        rows = [[self._centre[i] + r * radial[i] for i in range(3)]]
+        for k in range(1, order + 1):
+            scale = r * omega**k
+            rows.append([scale * x for x in turns[k % 4]])
+        return np.array(rows)
+
+    @functools.cached_property
+    def _axes(self) -> tuple[list[float], list[float]]:
+        return self.axes[0].tolist(), self.axes[1].tolist()
+
+    @functools.cached_property
+    def _centre(self) -> list[float]:
+        return self.centre.tolist()

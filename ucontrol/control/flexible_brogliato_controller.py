@@ -101,6 +101,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+from ucontrol.control.compiled_function import CompiledFunction
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.phase_machine import DesiredState
@@ -195,13 +196,19 @@ class FlexibleBrogliatoController(BrogliatoController):
         q, X_d = ca.SX.sym("q", robot.nv), ca.SX.sym("X_d", task.m)
         X = ca.DM(task.A) @ position(q) - ca.DM(task.b)
         error = X - X_d  # [m]
-        self._newton_step = ca.Function(
-            "newton_step",
-            [ca.vertcat(q, X_d)],
-            [ca.vertcat(ca.solve(ca.jacobian(X, q), error), error)],
+        self._newton_step = CompiledFunction(
+            ca.Function(
+                "newton_step",
+                [ca.vertcat(q, X_d)],
+                [ca.vertcat(ca.solve(ca.jacobian(X, q), error), error)],
+            )
         )
-        self._reference_derivatives = _reference_derivatives(q, X)
-        self._law = _law_function(model, flexible, self.machine.coordinates, gains, X, q)
+        self._reference_derivatives = CompiledFunction(_reference_derivatives(q, X))
+        self._law = CompiledFunction(
+            _law_function(model, flexible, self.machine.coordinates, gains, X, q)
+        )
+        self._law_input = np.zeros(self._law.function.nnz_in(0))
+        self._newton_input = np.zeros(2 * robot.nv)
 
     def reset(self) -> None:
         """Forget the run, including the last link reference (Newton's starting point)."""
@@ -245,10 +252,18 @@ class FlexibleBrogliatoController(BrogliatoController):
 
     def _evaluate(self, t: float, state: Vector, desired: DesiredState) -> _LawValues:
         """The law at time ``t`` [s] and measured ``state`` = (q1, dq1, q2, dq2)."""
-        nv = self.robot.nv
+        nv, nf = self.robot.nv, self.flexible.nf
         q1d = self._link_reference(t, desired.target[0], state[:nv])
-        derivatives = self._reference_derivatives(np.concatenate([q1d, *desired.target[1:]]))
-        derivatives = np.asarray(derivatives).ravel()
+        x = self._law_input  # state, q1d and its 4 derivatives, force term (3, n), λ (2, n)
+        size = state.size
+        x[:size] = state
+        x[size : size + nv] = q1d
+        reference_input = x[size : size + 5 * nv]  # (q1d, X_d derivatives 1 to 4) in place
+        for k in range(1, 5):
+            reference_input[k * nv : (k + 1) * nv] = desired.target[k]
+        (derivatives,) = self._reference_derivatives(reference_input)
+        derivatives = derivatives.copy()
+        x[size + nv : size + 5 * nv] = derivatives
         # λ_d and its derivatives, (3, n): 0 unless held; the force λ used and its derivatives:
         # the measured value with the derivatives of λ_d, or λ_d where there is no valid
         # measurement.
@@ -257,11 +272,11 @@ class FlexibleBrogliatoController(BrogliatoController):
         measured = desired.constrained & self._persistent
         lambda_m[0, measured] = self.contact_force[measured]
         force_term = -lambda_d + self.gains.force_gain * (lambda_m - lambda_d)
-        out = self._law(
-            np.concatenate([state, q1d, derivatives, force_term.ravel(), lambda_m[:2].ravel()])
-        )
-        out = np.asarray(out).ravel()
-        nf = self.flexible.nf
+        start = size + 5 * nv
+        x[start : start + force_term.size] = force_term.ravel()
+        x[start + force_term.size :] = lambda_m[:2].ravel()
+        (out,) = self._law(x)
+        out = out.copy()
         return _LawValues(
             u=out[:nv],
             X=out[nv : 2 * nv],
@@ -288,8 +303,11 @@ class FlexibleBrogliatoController(BrogliatoController):
             d = self.link_desired
             q = d[0] + dt * (d[1] + dt / 2 * (d[2] + dt / 3 * (d[3] + dt / 4 * d[4])))
         nv = q.size
+        x = self._newton_input
+        x[nv:] = X_d
         for _ in range(NEWTON_ITERATIONS):
-            out = np.asarray(self._newton_step(np.concatenate([q, X_d]))).ravel()
+            x[:nv] = q
+            (out,) = self._newton_step(x)
             step = out[:nv]
             if not np.all(np.isfinite(step)):  # singular task Jacobian
                 break

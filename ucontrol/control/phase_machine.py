@@ -118,6 +118,8 @@ class PhaseMachine:
         self.cycle = cycle
         self.contacts = [phase.contact for phase in cycle.contact_phases]
         self.coordinates = np.array([task.names.index(name) for name in self.contacts])
+        self._coordinate_list = [int(j) for j in self.coordinates]
+        self._A_t = np.ascontiguousarray(task.A.T)  # (3, m)
         self.reset()
 
     def reset(self) -> None:
@@ -131,6 +133,11 @@ class PhaseMachine:
         self._takeoff_started = np.zeros(n)
         self._segments: list[TrajectorySegment] = [Nominal()] * self.task.m
         self._frozen = [False] * self.task.m
+
+    @property
+    def _all_nominal(self) -> bool:
+        """Whether every coordinate follows the nominal path (the free phase)."""
+        return all(type(segment) is Nominal for segment in self._segments)
 
     @property
     def phase(self) -> Phase:
@@ -150,21 +157,31 @@ class PhaseMachine:
     def desired(self, t: float) -> DesiredState:
         """The desired trajectory at time ``t`` [s] in the current phases."""
         order, task = self.order, self.task
-        path = self.cycle.path.derivatives(t, order)
-        nominal = (task.of_point(path[0]), *(task.of_vector(d) for d in path[1:]))
-        target = tuple(np.empty(task.m) for _ in range(order + 1))
-        for j, segment in enumerate(self._segments):
-            sample = segment(t, tuple(float(x[j]) for x in nominal))
-            for x, value in zip(target, sample, strict=True):
-                x[j] = value
-        reference = (target[0].copy(), target[1].copy())
+        path = self.cycle.path
+        if hasattr(path, "derivative_matrix"):
+            stack = path.derivative_matrix(t, order)
+        else:
+            stack = np.array(path.derivatives(t, order))
+        nominal = stack @ self._A_t  # (order + 1, m): task components of each derivative
+        nominal[0] -= task.b
+        if self._all_nominal:
+            target_rows = nominal
+        else:
+            columns = nominal.T.tolist()
+            target_rows = np.array(
+                [segment(t, tuple(columns[j])) for j, segment in enumerate(self._segments)]
+            ).T.copy()
+        target = tuple(target_rows)
+        reference = (target_rows[0].copy(), target_rows[1].copy())
         n = len(self.contacts)
         force = np.zeros(n)
         force_derivatives = tuple(np.zeros(n) for _ in range(order - 2))
         constrained = np.zeros(n, dtype=bool)
         for i, phase in enumerate(self.phases):
-            j = self.coordinates[i]
-            if phase in TRANSITION_PHASES and target[0][j] < 0.0:
+            if phase is Phase.FREE:
+                continue
+            j = self._coordinate_list[i]
+            if phase in TRANSITION_PHASES and target_rows[0, j] < 0.0:
                 reference[0][j] = reference[1][j] = 0.0
             elif phase is Phase.CONSTRAINED:
                 constrained[i] = True
@@ -189,6 +206,9 @@ class PhaseMachine:
         """
         cycle = self.cycle
         happened = False
+        for j, segment in enumerate(self._segments):  # an ended blend is the nominal path
+            if type(segment) is BlendToNominal and (t - segment.t0) / segment.duration >= 1.0:
+                self._segments[j] = Nominal()
         for i, phase in enumerate(self.phases):
             j = self.coordinates[i]
             event = Event.NONE

@@ -55,6 +55,7 @@ class RobotModel:
         first_actuated = 6 if floating_base else 0
         self.actuated = np.arange(first_actuated, model.nv)
         self.nu = self.actuated.size
+        self._lower = np.tril_indices(model.nv, -1)
 
     @classmethod
     def from_urdf(
@@ -167,8 +168,10 @@ class RobotModel:
 
     def mass_matrix(self, q: Vector) -> Vector:
         """Joint-space inertia matrix M(q) in [kg m²] (mixed units), shape (nv, nv)."""
-        M = pin.crba(self.model, self.data, q)
-        return np.triu(M) + np.triu(M, 1).T
+        M = pin.crba(self.model, self.data, q).copy()
+        lower = self._lower
+        M[lower] = M.T[lower]  # crba fills the upper triangle
+        return M
 
     def nonlinear_effects(self, q: Vector, v: Vector) -> Vector:
         """Coriolis, centrifugal and gravity generalized forces h(q, v), shape (nv,)."""

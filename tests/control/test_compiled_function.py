@@ -1,0 +1,133 @@
+"""Casadi laws compiled to C: same outputs as casadi's virtual machine and as the numpy law."""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from ucontrol.control.compiled_function import (
+    CACHE_ENV,
+    NO_COMPILE_ENV,
+    CompiledFunction,
+    cache_dir,
+    compilation_disabled,
+)
+from ucontrol.control.controller import ContactState
+from ucontrol.scene import Scene
+
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
+#: Compiled C against casadi's virtual machine / the numpy law: the same expressions.
+_TOLERANCE = 1e-12
+
+
+def _function() -> ca.Function:
+    x = ca.SX.sym("x", 3)
+    A = ca.SX.sym("A", 2, 3)  # a matrix input, column-major
+    return ca.Function("probe", [x, A], [ca.vertcat(ca.sin(x[0]) * x[1], A @ x), x[2] ** 2])
+
+
+def _reference(x: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return np.concatenate([[math.sin(x[0]) * x[1]], A @ x]), np.array([x[2] ** 2])
+
+
+def test_compiled_function_matches_analytic_values(tmp_path, monkeypatch):
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    rng = np.random.default_rng(0)
+    compiled, fallback = CompiledFunction(_function()), CompiledFunction(_function(), compile=False)
+    assert compiled.compiled and not fallback.compiled
+    assert compiled.library_path is not None and compiled.library_path.parent == cache_dir()
+    for _ in range(20):
+        x, A = rng.standard_normal(3), rng.standard_normal((2, 3))
+        expected = _reference(x, A)
+        for function in (compiled, fallback):
+            for out, ref in zip(function(x, A), expected, strict=True):
+                np.testing.assert_allclose(out, ref, rtol=0.0, atol=_TOLERANCE)
+
+
+def test_cache_is_built_once_by_concurrent_builders(tmp_path, monkeypatch):
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        functions = list(pool.map(lambda _: CompiledFunction(_function()), range(3)))
+    assert all(f.compiled for f in functions)
+    assert len({f.library_path for f in functions}) == 1
+    assert len(list(cache_dir().glob("*.so"))) == 1  # no partial or duplicate library
+    mtime = functions[0].library_path.stat().st_mtime_ns
+    assert CompiledFunction(_function()).library_path.stat().st_mtime_ns == mtime  # reused
+
+
+def test_fallback_without_compiler_or_when_disabled(tmp_path, monkeypatch):
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    missing = CompiledFunction(_function())
+    monkeypatch.delenv("CC")
+    monkeypatch.setenv(NO_COMPILE_ENV, "1")
+    assert compilation_disabled()
+    disabled = CompiledFunction(_function())
+    assert not missing.compiled and not disabled.compiled
+    x, A = np.array([0.3, -1.2, 2.0]), np.arange(6.0).reshape(2, 3)
+    for function in (missing, disabled):
+        for out, ref in zip(function(x, A), _reference(x, A), strict=True):
+            np.testing.assert_allclose(out, ref, rtol=0.0, atol=_TOLERANCE)
+
+
+def _inputs(scene: Scene, rng: np.random.Generator, steps: int):
+    """Random states around q0 and contact readings, at increasing times."""
+    names = scene.build_integrator().constraints.names
+    q0, v0 = scene.initial_state()
+    n = len(names)
+    for k in range(steps):
+        q = q0 + 0.05 * rng.standard_normal(q0.size)
+        v = v0 + 0.3 * rng.standard_normal(v0.size)
+        impulse = np.where(rng.random(n) < 0.5, rng.uniform(0.0, 0.02, n), 0.0)
+        contacts = ContactState(
+            names, rng.uniform(0.0, 0.1, n), rng.standard_normal(n), impulse, impulse > 0, 1e-3
+        )
+        yield 0.7 * k, q, v, contacts  # 0.7 s apart: the phases of the cycle are visited
+
+
+@pytest.mark.parametrize(
+    "name", ["two_link_flexible_one_constraint", "two_link_flexible_two_constraints"]
+)
+def test_flexible_law_compiled_equals_fallback(name, tmp_path, monkeypatch):
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    scene = Scene.from_toml(ROBOTS / f"{name}.toml")
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    compiled = scene.build_controller()
+    monkeypatch.setenv(NO_COMPILE_ENV, "1")
+    fallback = scene.build_controller()
+    assert compiled._law.compiled and not fallback._law.compiled
+    rng = np.random.default_rng(1)
+    for t, q, v, contacts in _inputs(scene, rng, 40):
+        u_compiled, u_fallback = compiled(t, q, v, contacts), fallback(t, q, v, contacts)
+        np.testing.assert_allclose(u_compiled, u_fallback, rtol=0.0, atol=_TOLERANCE)
+        assert compiled.V == pytest.approx(fallback.V, rel=0.0, abs=_TOLERANCE)
+        assert compiled.phase == fallback.phase
+
+
+@pytest.mark.parametrize(
+    "name", ["two_link_one_constraint", "two_link_two_constraints", "panda_table"]
+)
+def test_rigid_law_compiled_equals_numpy_law(name, tmp_path, monkeypatch):
+    """The compiled rigid law against the numpy law (an independent writing of the terms)."""
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    scene = Scene.from_toml(ROBOTS / f"{name}.toml")
+    compiled = scene.build_controller()
+    monkeypatch.setenv(NO_COMPILE_ENV, "1")
+    numpy_law = scene.build_controller()
+    assert compiled._compiled_law is not None and numpy_law._compiled_law is None
+    rng = np.random.default_rng(2)
+    for t, q, v, contacts in _inputs(scene, rng, 40):
+        u_compiled, u_numpy = compiled(t, q, v, contacts), numpy_law(t, q, v, contacts)
+        scale = max(1.0, float(np.max(np.abs(u_numpy))))
+        np.testing.assert_allclose(u_compiled, u_numpy, rtol=0.0, atol=_TOLERANCE * scale)
+        assert compiled.V1 == pytest.approx(numpy_law.V1, rel=1e-12, abs=1e-12)
+        assert compiled.V == pytest.approx(numpy_law.V, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(compiled.X, numpy_law.X, rtol=0.0, atol=1e-14)
+        assert compiled.phase == numpy_law.phase
