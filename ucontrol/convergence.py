@@ -25,8 +25,9 @@ A *variant* adds a curve: one integrator swept over its range with other setting
 Moreau–Jean with ``midpoint = True``), labelled in the tables and the figure.
 
 The wall time is the simulation loop's. :meth:`ConvergenceStudy.equal_error` puts each
-event-driven run beside the Moreau–Jean wall time at the same error, interpolated (or
-extrapolated, and flagged) along Moreau–Jean's power law of time against error.
+event-driven run beside the Moreau–Jean wall time at the same error, interpolated along
+Moreau–Jean's power law of time against error inside the range of errors its runs measured;
+outside it the markdown table says "not reached" and gives a bound from the nearest run.
 
 This module imports the simulation loop, so it is not re-exported by ``ucontrol.analysis``
 (whose summary the loop itself imports).
@@ -228,7 +229,15 @@ class ConvergenceStudy:
         return buffer.getvalue()
 
     def to_markdown(self) -> str:
-        """Runs, observed orders and the equal-error comparison as markdown tables."""
+        """Runs, observed orders and the equal-error comparison as markdown tables.
+
+        Consecutive runs of one curve whose errors agree at rounding level (relative
+        difference at most :data:`ERROR_AGREEMENT`) share one row that gives the range of their
+        parameter, wall time and steps. Moreau–Jean's time at an event-driven run's error is
+        given only inside the range of errors its runs measured; outside it the table says
+        "not reached" and bounds the ratio by Moreau–Jean's most accurate (or least accurate)
+        run instead of extrapolating its power law.
+        """
         lines = [
             f"Scene `{self.scene}`, {self.duration:g} s; error: {self.reference}.",
             "",
@@ -236,11 +245,9 @@ class ConvergenceStudy:
             "| steps | events |",
             "|---|---|---|---|---|---|---|---|",
         ]
-        lines += [
-            f"| {run.curve} | {run.parameter} | {run.value:.3g} | {run.dt:.3g} "
-            f"| {run.error:.3e} | {run.wall_time_s:.3g} | {run.steps} | {run.n_events} |"
-            for run in self.runs
-        ]
+        for curve in self.curves():
+            for group in _agreeing_groups(self.of(curve), lambda run: run.error):
+                lines.append(_run_row(curve, group))
         orders = self.orders()
         if orders:
             lines += ["", "| integrator | observed order | against |", "|---|---|---|"]
@@ -248,7 +255,8 @@ class ConvergenceStudy:
                 f"| {curve} | {_order_text(order)} | log {self.of(curve)[0].parameter} |"
                 for curve, order in orders.items()
             ]
-        best = min(self.of("moreau_jean"), key=lambda run: run.error, default=None)
+        moreau_jean = self.of("moreau_jean")
+        best = min(moreau_jean, key=lambda run: run.error, default=None)
         if best is not None and self.of("event_driven"):
             worst = max(self.of("event_driven"), key=lambda run: run.error)
             slowest = max(run.wall_time_s for run in self.of("event_driven"))
@@ -260,18 +268,92 @@ class ConvergenceStudy:
             ]
         equal = self.equal_error()
         if equal:
+            measured = [run for run in moreau_jean if run.error > 0.0]
+            most = min(measured, key=lambda run: run.error)
+            least = max(measured, key=lambda run: run.error)
             lines += [
                 "",
                 "| error | event_driven [s] | moreau_jean at equal error [s] | ratio |",
                 "|---|---|---|---|",
             ]
-            lines += [
-                f"| {row.error:.3e} | {row.event_driven_s:.3g} | {row.moreau_jean_s:.3g}"
-                f"{' (extrapolated)' if row.extrapolated else ''} "
-                f"| {row.moreau_jean_s / row.event_driven_s:.3g} |"
-                for row in equal
-            ]
+            for group in _agreeing_groups(equal, lambda row: row.error):
+                lines.append(_equal_error_row(group, most, least))
         return "\n".join(lines) + "\n"
+
+
+#: Largest relative difference of two errors printed as one (rounding level: the tables print
+#: four significant digits).
+ERROR_AGREEMENT = 5e-4
+
+
+def _agree(a: float, b: float) -> bool:
+    """Whether two errors agree at rounding level (:data:`ERROR_AGREEMENT`)."""
+    return abs(a - b) <= ERROR_AGREEMENT * max(abs(a), abs(b))
+
+
+def _agreeing_groups(items: Sequence[Any], error: Any) -> list[list[Any]]:
+    """``items`` cut into runs of consecutive items whose errors agree with the first one's."""
+    groups: list[list[Any]] = []
+    for item in items:
+        if groups and _agree(error(groups[-1][0]), error(item)):
+            groups[-1].append(item)
+        else:
+            groups.append([item])
+    return groups
+
+
+def _span(values: Sequence[float], fmt: str) -> str:
+    """``values`` as one number when they print alike, else as their range ``low–high``."""
+    low, high = format(min(values), fmt), format(max(values), fmt)
+    return low if low == high else f"{low}–{high}"
+
+
+def _run_row(curve: str, group: list[ConvergenceRun]) -> str:
+    """One row of the runs table: one run, or runs of one curve whose errors agree."""
+    first, last = group[0], group[-1]
+    if len(group) == 1:
+        value = f"{first.value:.3g}"
+    else:  # the parameter in run order, e.g. rtol 1e-04 … 1e-12
+        value = f"{first.value:.3g} … {last.value:.3g} ({len(group)} runs, same error)"
+    errors = [run.error for run in group]
+    return (
+        f"| {curve} | {first.parameter} | {value} | {_span([run.dt for run in group], '.3g')} "
+        f"| {_span(errors, '.3e')} | {_span([run.wall_time_s for run in group], '.3g')} "
+        f"| {_span([run.steps for run in group], 'd')} "
+        f"| {_span([run.n_events for run in group], 'd')} |"
+    )
+
+
+def _equal_error_row(group: list[EqualError], most: ConvergenceRun, least: ConvergenceRun) -> str:
+    """One row of the equal-error table; outside Moreau–Jean's measured errors, "not reached".
+
+    Args:
+        group: Event-driven runs whose errors agree.
+        most: Moreau–Jean's most accurate run (smallest error).
+        least: Moreau–Jean's least accurate run (largest error).
+    """
+    error = group[0].error
+    times = [row.event_driven_s for row in group]
+    event_driven = _span(times, ".3g")
+    if len(group) > 1:
+        event_driven += f" ({len(group)} runs)"
+    if not group[0].extrapolated:
+        moreau_jean = f"{group[0].moreau_jean_s:.3g}"
+        ratio = _span([group[0].moreau_jean_s / time for time in times], ".3g")
+    elif error < most.error:  # more accurate than any Moreau–Jean run: at least its cost
+        moreau_jean = (
+            f"not reached (its best, {most.error:.3e} at h = {most.value:.3g} s, "
+            f"took {most.wall_time_s:.3g} s)"
+        )
+        ratio = f"> {min(most.wall_time_s / time for time in times):.3g}"
+    else:  # less accurate than any Moreau–Jean run: at most the cost of its coarsest
+        moreau_jean = (
+            f"not reached (its coarsest, {least.error:.3e} at h = {least.value:.3g} s, "
+            f"took {least.wall_time_s:.3g} s)"
+        )
+        ratio = f"< {max(least.wall_time_s / time for time in times):.3g}"
+    errors = _span([row.error for row in group], ".3e")
+    return f"| {errors} | {event_driven} | {moreau_jean} | {ratio} |"
 
 
 def run_convergence(
