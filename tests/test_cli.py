@@ -67,3 +67,32 @@ def test_bad_scene_is_reported_without_a_traceback(tmp_path: Path, capsys) -> No
     (tmp_path / "ball.urdf").write_text((ROBOTS / "ball.urdf").read_text())
     assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 2
     assert "`dt` must be > 0, got -1" in capsys.readouterr().err
+
+
+def test_builtin_scenes_by_name_from_any_folder(tmp_path: Path) -> None:
+    """`ucontrol run ball`, `ucontrol scenes` and `--version` outside the repository."""
+
+    def ucontrol(*args: str) -> str:
+        return subprocess.run(
+            [sys.executable, "-m", "ucontrol.cli", *args],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=tmp_path,
+            timeout=300,
+        ).stdout
+
+    assert ucontrol("--version").strip() == "ucontrol 0.1.0"
+    listing = dict(line.split(maxsplit=1) for line in ucontrol("scenes").splitlines())
+    assert {"ball", "two_link_drop", "panda_table"} <= set(listing)
+    assert listing["ball"].startswith("A 1 kg ball dropped")
+    assert not any(name.endswith("_task") for name in listing)  # design tasks are no scenes
+    ucontrol("run", "ball", "--duration", "0.5", "--no-progress")
+    summary = json.loads((tmp_path / "runs" / "ball" / "summary.json").read_text())
+    assert summary["scene"] == "ball" and summary["steps"] == 500
+
+
+def test_unknown_scene_name_lists_the_builtin_ones(capsys) -> None:
+    assert main(["run", "no_such_scene"]) == 2
+    error = capsys.readouterr().err
+    assert "built-in scene 'no_such_scene'" in error and "two_link_drop" in error

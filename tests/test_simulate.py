@@ -99,7 +99,7 @@ def test_cli_reports_an_interrupt_in_one_line(monkeypatch, capsys) -> None:
     monkeypatch.setattr(cli, "simulate", interrupted)
     assert cli.main(["run", str(ROBOTS / "ball.toml"), "--out", "unused"]) == 130
     assert capsys.readouterr().err.strip() == (
-        "ucontrol: interrupted (a run keeps its log up to here)"
+        "ucontrol: interrupted by SIGINT; nothing was written"
     )
 
 

@@ -14,18 +14,25 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import signal
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from ucontrol import convergence
+from ucontrol import __version__, convergence
 from ucontrol.bench import bench_scene
+from ucontrol.campaign.command import add_sweep_parser, run_sweep
 from ucontrol.exceptions import OptionalDependencyError, UControlError
 from ucontrol.saved_run import SavedRun
-from ucontrol.scene import INTEGRATORS, Scene, load_scene
+from ucontrol.scene import INTEGRATORS, Scene, builtin_scenes, load_scene
 from ucontrol.simulate import simulate
+
+#: Scene benchmarked by ``ucontrol bench`` without a scene argument: four redundant feet on a
+#: table, which Pinocchio's ADMM and PGS solve too.
+BENCH_SCENE = "table_drop"
+_SCENE_HELP = "scene TOML file or built-in scene name (default: the built-in default scene)"
 
 if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
     from ucontrol.viz.live_viewer import LiveViewer
@@ -36,9 +43,11 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ucontrol", description="Robots under unilateral constraints: simulate and control."
     )
+    parser.add_argument("--version", action="version", version=f"ucontrol {__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
+    commands.add_parser("scenes", help="list the built-in scenes (run one by its name)")
     run = commands.add_parser("run", help="run a scene and write log.npz and summary.json")
-    run.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in scene)")
+    run.add_argument("scene", nargs="?", help=_SCENE_HELP)
     run.add_argument(
         "--out", type=Path, default=None, help="output directory (default: runs/<scene name>)"
     )
@@ -71,7 +80,7 @@ def _parser() -> argparse.ArgumentParser:
         "convergence",
         help="error against run time of each integrator: CSV, markdown, work-precision PNG",
     )
-    study.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in scene)")
+    study.add_argument("scene", nargs="?", help=_SCENE_HELP)
     study.add_argument(
         "--out",
         type=Path,
@@ -119,7 +128,12 @@ def _parser() -> argparse.ArgumentParser:
         "bench",
         help="time a scene's step against Pinocchio's ADMM and PGS loops (markdown table)",
     )
-    bench.add_argument("scene", nargs="?", help="scene TOML file (default: the built-in scene)")
+    bench.add_argument(
+        "scene",
+        nargs="?",
+        help=f"scene TOML file or built-in scene name (default: {BENCH_SCENE}, which has the "
+        "Pinocchio comparison)",
+    )
     bench.add_argument("--steps", type=int, default=2000, help="steps per timed run")
     bench.add_argument("--repeats", type=int, default=5, help="timed runs, the fastest kept")
     bench.add_argument("--warmup", type=int, default=100, help="untimed steps before them")
@@ -148,7 +162,14 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument(
         "--out", type=Path, default=None, help="folder of the figures (default: DIR/figures)"
     )
+    add_sweep_parser(commands)
     return parser
+
+
+def _scenes(args: argparse.Namespace) -> int:
+    for name, summary in builtin_scenes().items():
+        print(f"{name:36s} {summary}")
+    return 0
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -260,7 +281,9 @@ def _convergence(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    scene = load_scene(args.scene)
+    if args.scene is None:
+        print(f"benchmarking the built-in scene {BENCH_SCENE} (it has the Pinocchio comparison)")
+    scene = load_scene(BENCH_SCENE if args.scene is None else args.scene)
     report = bench_scene(
         scene, steps=args.steps, repeats=args.repeats, warmup=args.warmup, dt=args.dt
     )
@@ -273,9 +296,35 @@ def _bench(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Signalled(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, handled like Ctrl-C (a run keeps its log)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _interrupt_on_signals() -> dict[int, Any]:
+    """Make SIGTERM and SIGHUP raise :class:`_Signalled`; returns the previous handlers."""
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise _Signalled(signum)
+
+    previous = {}
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        previous[signum] = signal.signal(signum, interrupt)
+    return previous
+
+
+def _restore_signals(previous: dict[int, Any]) -> None:
+    for signum, handler in previous.items():
+        signal.signal(signum, handler)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``ucontrol`` command; returns the exit status."""
     args = _parser().parse_args(argv)
+    previous = _interrupt_on_signals()
     try:
         commands = {
             "run": _run,
@@ -283,14 +332,26 @@ def main(argv: Sequence[str] | None = None) -> int:
             "bench": _bench,
             "view": _view,
             "plot": _plot,
+            "scenes": _scenes,
+            "sweep": run_sweep,
         }
         return commands[args.command](args)
     except UControlError as error:
         print(f"ucontrol: error: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # Ctrl-C: one line, the conventional status of SIGINT
-        print("ucontrol: interrupted (a run keeps its log up to here)", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as interrupt:  # Ctrl-C, SIGTERM, SIGHUP: one line
+        signum = getattr(interrupt, "signum", signal.SIGINT)
+        name = signal.Signals(signum).name
+        if hasattr(interrupt, "log_path"):
+            done = f"the log up to t = {interrupt.time:.6g} s is in {interrupt.log_path}"
+        elif hasattr(interrupt, "time"):
+            done = f"stopped at t = {interrupt.time:.6g} s, nothing written"
+        else:
+            done = "nothing was written"
+        print(f"ucontrol: interrupted by {name}; {done}", file=sys.stderr)
+        return 128 + signum  # the conventional status of a process ended by that signal
+    finally:
+        _restore_signals(previous)
 
 
 if __name__ == "__main__":

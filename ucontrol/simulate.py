@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -78,7 +79,8 @@ def simulate(
             Rounded to a whole number of steps.
         out: Directory for ``log.npz`` and ``summary.json``; the log is also checkpointed there
             during long runs and saved when a run fails or is interrupted (Ctrl-C).
-        progress: Show a progress bar; default for runs of at least 20 000 steps.
+        progress: Show a progress bar; default for runs of at least 20 000 steps when standard
+            error is a terminal.
         observer: Called with the log each time a row is complete (after every step and
             at the end), e.g. a live viewer (:class:`ucontrol.viz.live_viewer.LiveViewer`);
             its last row is the newest.
@@ -86,6 +88,8 @@ def simulate(
     Raises:
         InitialPenetrationError: The initial configuration violates a constraint.
         SimulationError: The run failed part-way; its ``log`` holds every sample up to then.
+        KeyboardInterrupt: Ctrl-C; it carries ``time`` (the last sample's, in [s]) and, with
+            ``out``, ``log_path`` (the log written up to then).
     """
     integrator = scene.build_integrator(dt=dt)
     h = integrator.dt
@@ -111,10 +115,11 @@ def simulate(
             if k % 1000 == 0:
                 last_checkpoint = _report_progress(bar, n_steps, log, out_dir, last_checkpoint)
         loop.finish()
-    except KeyboardInterrupt:  # the user's Ctrl-C: keep what ran, then stop as asked
+    except KeyboardInterrupt as interrupt:  # Ctrl-C (or a signal): keep what ran, then stop
         loop.close_row()
+        interrupt.time = float(log.t[len(log) - 1]) if len(log) else 0.0  # type: ignore[attr-defined]
         if out_dir is not None:
-            log.save(out_dir / "log.npz")
+            interrupt.log_path = str(log.save(out_dir / "log.npz"))  # type: ignore[attr-defined]
         raise
     except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
         loop.close_row()  # the state at t_k is stored, its step is not: close the row
@@ -398,7 +403,10 @@ def _as_array(value: Any) -> np.ndarray:
 
 
 def _progress_bar(n_steps: int, progress: bool | None) -> Any:
-    if progress is False or (progress is None and n_steps < PROGRESS_MIN_STEPS):
+    """A progress bar when asked, or by default for long runs on a terminal."""
+    if progress is False or (
+        progress is None and (n_steps < PROGRESS_MIN_STEPS or not sys.stderr.isatty())
+    ):
         return None
     from tqdm import tqdm
 

@@ -12,9 +12,16 @@ from ucontrol.control.brogliato_controller import BrogliatoController, Brogliato
 from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.controller import ContactState, Controller, LoggingController
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle, NominalPath
+from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
+from ucontrol.control.impedance_table import impedance_from_table
 from ucontrol.control.joint_pd import JointPD
+from ucontrol.control.path_reach import check_reach
+from ucontrol.control.path_table import PATH_TYPES, path_from_table
 from ucontrol.control.phase import Event, Phase
 from ucontrol.control.phase_machine import DesiredState, PhaseMachine
+from ucontrol.control.polyline_path import PolylinePath
+from ucontrol.control.segment_path import SegmentPath
+from ucontrol.control.spline_path import SplinePath
 from ucontrol.control.task_coordinates import TaskCoordinates, TaskState
 from ucontrol.control.zero_torque import ZeroTorque
 
@@ -22,6 +29,7 @@ if TYPE_CHECKING:
     from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
 
 __all__ = [
+    "PATH_TYPES",
     "BrogliatoController",
     "BrogliatoGains",
     "CirclePath",
@@ -32,14 +40,22 @@ __all__ = [
     "DesiredState",
     "Event",
     "FlexibleBrogliatoController",
+    "ImpedanceController",
+    "ImpedanceGains",
     "JointPD",
     "LoggingController",
     "NominalPath",
     "Phase",
     "PhaseMachine",
+    "PolylinePath",
+    "SegmentPath",
+    "SplinePath",
     "TaskCoordinates",
     "TaskState",
     "ZeroTorque",
+    "check_reach",
+    "impedance_from_table",
+    "path_from_table",
 ]
 
 

@@ -7,7 +7,7 @@ one builder per name (:mod:`~ucontrol.scene.integrator_builders`,
 """
 
 from ucontrol.integrators.methods import INTEGRATORS
-from ucontrol.scene.builtin_scenes import DEFAULT_SCENE, builtin_scene, load_scene
+from ucontrol.scene.builtin_scenes import DEFAULT_SCENE, builtin_scene, builtin_scenes, load_scene
 from ucontrol.scene.controller_builders import CONTROLLERS
 from ucontrol.scene.integrator_settings import IntegratorSettings
 from ucontrol.scene.scene import Scene
@@ -21,5 +21,6 @@ __all__ = [
     "IntegratorSettings",
     "Scene",
     "builtin_scene",
+    "builtin_scenes",
     "load_scene",
 ]

@@ -1,0 +1,93 @@
+"""SIGINT, SIGTERM and SIGHUP end `ucontrol run` in one line and keep the log to that time."""
+
+from __future__ import annotations
+
+import os
+import re
+import select
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ucontrol.log import Log
+
+#: Bound on each wait for the child, in [s] (a loaded machine imports slowly).
+DEADLINE_S = 120.0
+
+
+def _run_until_progress(out: Path, progress_steps: int) -> subprocess.Popen[bytes]:
+    """`ucontrol run ball` for 1000 s simulated, once its progress bar passed N steps."""
+    command = ["run", "ball", "--duration", "1000", "--out", str(out), "--dt", "1e-3"]
+    child = subprocess.Popen(
+        [sys.executable, "-m", "ucontrol.cli", *command, "--progress"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+    assert child.stderr is not None
+    seen, end = b"", time.monotonic() + DEADLINE_S
+    while time.monotonic() < end:  # tqdm reports every 1000 steps: "2.00k/1.00M"
+        ready, _, _ = select.select([child.stderr], [], [], 1.0)
+        if ready:
+            seen += os.read(child.stderr.fileno(), 4096)
+            counts = re.findall(rb"([\d.]+)(k?)/1\.00M", seen)
+            done = [float(n) * (1000 if k else 1) for n, k in counts]
+            if done and max(done) >= progress_steps:
+                return child
+        if child.poll() is not None:
+            break
+    os.killpg(child.pid, signal.SIGKILL)
+    pytest.fail(f"the run did not start within {DEADLINE_S} s: {seen[-500:]!r}")
+
+
+@pytest.mark.parametrize(
+    ("signum", "status"),
+    [(signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGINT, 130)],
+)
+def test_a_signal_keeps_the_log_up_to_its_time(
+    tmp_path: Path, signum: signal.Signals, status: int
+) -> None:
+    child = _run_until_progress(tmp_path, 2000)
+    child.send_signal(signum)
+    try:
+        _, err = child.communicate(timeout=DEADLINE_S)
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+    assert child.returncode == status, err
+    message = err.decode().strip().splitlines()[-1]
+    match = re.fullmatch(
+        rf"ucontrol: interrupted by {signum.name}; the log up to t = ([\d.e+-]+) s is in (.*)",
+        message,
+    )
+    assert match is not None, message
+    log = Log.load(match.group(2))
+    assert log.t[-1] == pytest.approx(float(match.group(1)), abs=1e-9)
+    assert log.t[-1] >= 2.0  # the run had passed 2000 steps of 1 ms
+    np.testing.assert_allclose(np.diff(log.t), 1e-3, rtol=1e-9)  # every row up to it
+    assert np.all(np.isfinite(log.q)) and not (tmp_path / "summary.json").exists()
+
+
+def test_sigterm_after_a_checkpoint_keeps_the_rows_since(tmp_path: Path) -> None:
+    """The periodic checkpoint (every 10 s of wall time) does not cap what a signal keeps."""
+    child = _run_until_progress(tmp_path, 1000)
+    end = time.monotonic() + DEADLINE_S
+    while not (tmp_path / "log.npz").exists() and time.monotonic() < end:
+        time.sleep(0.2)
+    checkpoint = Log.load(tmp_path / "log.npz")
+    time.sleep(1.0)
+    child.send_signal(signal.SIGTERM)
+    try:
+        _, err = child.communicate(timeout=DEADLINE_S)
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+    assert child.returncode == 143, err
+    log = Log.load(tmp_path / "log.npz")
+    assert log.t[-1] > checkpoint.t[-1]  # the rows after the checkpoint are kept
+    np.testing.assert_array_equal(log.q[: len(checkpoint)], checkpoint.q[: len(checkpoint)])
