@@ -41,8 +41,10 @@ class ReplayResult:
         v: Plant's joint velocities at the nodes, shape (n, nv).
         q_error: Largest |q_plant - q_design| over nodes and joints, in [rad] (or [m]).
         v_error: Largest |v_plant - v_design| over nodes that are not impacts, in [rad/s].
-        impact_times: Plant's impact times of the contact in [s], one per design impact.
-        impact_time_errors: |plant - design| impact times in [s].
+        impact_times: Plant's impact times of the contact in [s], one per design impact
+            (NaN for a soft landing, slower than 100 ``zeno_velocity``: its time is
+            ill-conditioned).
+        impact_time_errors: |plant - design| impact times in [s] (NaN for soft landings).
         landing_speeds: Design's normal speed before each impact in [m/s].
     """
 
@@ -78,7 +80,6 @@ def replay_open_loop(
     scene = task.scene
     robot = scene.robot
     constraints = scene.constraints
-    index = constraints.names.index(cycle.contact)
     first = cycle.phases[0]
     integrator = EventDriven(
         robot,
@@ -91,8 +92,13 @@ def replay_open_loop(
     q, v = first.q[0].copy(), first.v[0].copy()
     times, qs, vs = [first.t[0]], [q.copy()], [v.copy()]
     q_error, v_error = 0.0, 0.0
-    impact_times, speeds = [], []
     contact = task.contact
+    speeds = [
+        -_normal_velocity(robot, contact, phase.q[-1], phase.v[-1]) for phase in cycle.phases[:-1]
+    ]
+    # a soft landing (slower than 100 zeno_velocity) has no well-conditioned time: not timed
+    timed = [speed > 100.0 * task.zeno_velocity for speed in speeds]
+    impact_times = [np.nan] * len(speeds)
     for p, phase in enumerate(cycle.phases):
         h = phase.duration / (len(phase.t) - 1)
         integrator.dt = h  # the control period of this phase
@@ -101,9 +107,9 @@ def replay_open_loop(
                 q, v = phase.q[k].copy(), phase.v[k].copy()
             state = integrator.evaluate(q, v)
             outcome = integrator.step(state, phase.tau[k])
-            expecting = len(impact_times) < len(cycle.phases) - 1
-            if expecting and outcome.impulse[index] > 0.0 and len(impact_times) <= p:
-                impact_times.append(_impact_time(robot, contact, q, v, phase.tau[k], phase.t[k], h))
+            last = k == len(phase.t) - 2 and p < len(speeds)
+            if last and timed[p]:  # the step ending at the design's impact
+                impact_times[p] = _impact_time(robot, contact, q, v, phase.tau[k], phase.t[k], h)
             q, v = outcome.q, outcome.v
             times.append(phase.t[k + 1])
             qs.append(q.copy())
@@ -112,9 +118,7 @@ def replay_open_loop(
             at_impact = k == len(phase.t) - 2 and p < len(cycle.phases) - 1
             if not at_impact:
                 v_error = max(v_error, float(np.max(np.abs(v - phase.v[k + 1]))))
-        if p < len(cycle.phases) - 1:
-            speeds.append(-float(_normal_velocity(robot, contact, phase.q[-1], phase.v[-1])))
-    design_times = cycle.impact_times[: len(impact_times)]
+    design_times = cycle.impact_times
     return ReplayResult(
         t=np.array(times),
         q=np.array(qs),

@@ -1,0 +1,92 @@
+"""``ucontrol design TASK.toml --out DIR``: design a cycle, write it, its report and figures.
+
+Wire it into the CLI with ``add_design_parser(commands)`` on the subparsers and dispatch
+``args.command == "design"`` to ``run_design(args)``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ucontrol.design.cycle_transcription import design_cycle
+from ucontrol.design.design_figures import save_design_figures
+from ucontrol.design.design_task import DesignTask
+from ucontrol.design.open_loop_replay import replay_open_loop
+from ucontrol.exceptions import InfeasibleDesignError
+
+
+def add_design_parser(commands: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+    """Add the ``design`` subcommand to ``commands`` (the CLI's subparsers)."""
+    design = commands.add_parser(
+        "design", help="design a desired cycle by optimal control (casadi, IPOPT) from a task file"
+    )
+    design.add_argument("task", type=Path, help="task TOML file (see docs/design.md)")
+    design.add_argument(
+        "--out", type=Path, default=None, help="output directory (default: runs/design_<task>)"
+    )
+    design.add_argument(
+        "--no-figures", dest="figures", action="store_false", help="skip the figures"
+    )
+    design.add_argument(
+        "--no-replay",
+        dest="replay",
+        action="store_false",
+        help="skip the open-loop replay of the torques in the event-driven plant",
+    )
+    return design
+
+
+def run_design(args: argparse.Namespace) -> int:
+    """Run ``ucontrol design``; returns the exit status (0 designed, 1 infeasible)."""
+    task = DesignTask.from_toml(args.task)
+    out = args.out if args.out is not None else Path("runs") / f"design_{Path(args.task).stem}"
+    out.mkdir(parents=True, exist_ok=True)
+
+    def progress(iteration: int, objective: float, inf_pr: float, inf_du: float) -> None:
+        print(
+            f"ipopt iteration {iteration:4d}: objective {objective:.6g}, "
+            f"inf_pr {inf_pr:.2e}, inf_du {inf_du:.2e}",
+            flush=True,
+        )
+
+    try:
+        cycle, report = design_cycle(task, progress=progress)
+    except InfeasibleDesignError as error:
+        if error.best is not None:
+            error.best.save(out / "best_iterate")
+        if error.report is not None:
+            error.report.save(out / "report.json")
+            (out / "report.md").write_text(error.report.markdown())
+        print(f"ucontrol design: {error}", file=sys.stderr)
+        print(f"best iterate and report written to {out}", file=sys.stderr)
+        return 1
+    cycle.save(out / "cycle")
+    table = report.to_dict()
+    if args.replay and cycle.friction == 0.0:
+        replay = replay_open_loop(task, cycle, restart=True)
+        table["replay"] = {
+            "q_error_rad": replay.q_error,
+            "v_error_rad_s": replay.v_error,
+            "impact_time_errors_s": replay.impact_time_errors.tolist(),
+        }
+    import json
+
+    (out / "report.json").write_text(json.dumps(table, indent=2, default=float) + "\n")
+    markdown = report.markdown()
+    if "replay" in table:
+        markdown += (
+            "\n## Open-loop replay (event-driven plant, each interval from the design's state)"
+            f"\n\n- max |q error|: {table['replay']['q_error_rad']:.3g} rad"
+            f"\n- impact time errors: {table['replay']['impact_time_errors_s']} s\n"
+        )
+    (out / "report.md").write_text(markdown)
+    if args.figures:
+        save_design_figures(cycle, task.torque_limit, task.scene.robot.joint_names, out)
+    print(
+        f"designed cycle: {report.status} after {report.iterations} iterations, cost "
+        f"{report.cost:.6g}, period {cycle.period:.4g} s, landing at {cycle.landing_time:.4g} s; "
+        f"written to {out}"
+    )
+    return 0
