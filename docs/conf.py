@@ -25,7 +25,7 @@ extensions = [
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
 # The tables beside the figures are data written by experiments/, shown by the pages.
-exclude_patterns = ["_build", "figures/*.md"]
+exclude_patterns = ["_build", "figures/*.md", "figures/**/*.md"]
 autosummary_generate = True  # docs/_autosummary/: one page per module, written at build time
 
 myst_enable_extensions = ["dollarmath", "amsmath"]

@@ -116,7 +116,7 @@ class ActuatorSettings:
     as ``commanded_u``.
 
     Attributes:
-        torque_limit: Largest |u| per input in [N m] or [N]: ``"urdf"`` (the joints'
+        torque_limit: Largest magnitude of u per input in [N m] or [N]: ``"urdf"`` (the joints'
             ``effort`` limits), one number, or one per input (nu,); None: no saturation.
         rate_limit: Largest change of the torque in [N m/s] (or [N/s]), one number or one per
             input; None: no limit. Applied per control period, from zero torque at t = 0.
