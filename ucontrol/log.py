@@ -9,6 +9,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.exceptions import InvalidParameterError, NotFoundError
+
 #: Per-sample arrays of a log, with their shape after the sample axis (see docs/outputs.md).
 SAMPLE_FIELDS: dict[str, str] = {
     "t": "()",
@@ -101,6 +103,58 @@ class Log:
     def fields(self) -> list[str]:
         """Names of the per-sample arrays held."""
         return [*self._arrays, *self._extras]
+
+    def constraint_index(self, name: str) -> int:
+        """Column of constraint ``name`` in ``gap``, ``impulse``, ``active``, ...
+
+        Raises:
+            NotFoundError: No constraint has that name (the message lists them).
+        """
+        if name not in self.constraint_names:
+            raise NotFoundError("constraint", name, self.constraint_names)
+        return self.constraint_names.index(name)
+
+    def gap_of(self, name: str) -> NDArray[np.float64]:
+        """Gap of constraint ``name`` at every sample, in [m] (or [rad]), shape (N,)."""
+        return self.gap[:, self.constraint_index(name)]
+
+    def impulse_of(self, name: str) -> NDArray[np.float64]:
+        """Normal impulse of constraint ``name`` over each step, in [N s], shape (N,).
+
+        Row k is the impulse over [t_k, t_k+1]; the last row has no step after it and holds 0.
+        """
+        return self.impulse[:, self.constraint_index(name)]
+
+    def force_of(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Mean normal force of constraint ``name`` over each step, and the steps' start times.
+
+        The last row, which has no step after it, is left out (its impulse is 0 by
+        convention), so the mean of the force is the true mean over the run; impacts appear as
+        impulse / h peaks.
+
+        Returns:
+            The force in [N] and the times t_k in [s], each of shape (N - 1,).
+        """
+        impulse = self.impulse_of(name)[:-1]
+        return impulse / np.diff(self.t), self.t[:-1]
+
+    def row_at(self, t: float) -> int:
+        """The row of the last sample at or before ``t`` [s] (values held until the next).
+
+        Raises:
+            InvalidParameterError: ``t`` is before the first sample or after the last.
+        """
+        times = self.t
+        if not len(times) or not times[0] - 1e-12 <= t <= times[-1] + 1e-12:
+            span = f"[{times[0]:g}, {times[-1]:g}] s" if len(times) else "an empty log"
+            raise InvalidParameterError("t", t, f"a time in {span}")
+        return int(np.searchsorted(times, t + 1e-12, side="right") - 1)
+
+    def at(self, field: str, t: float) -> Any:
+        """The value of ``field`` (e.g. ``"phase"``, ``"q"``) in the row of time ``t`` [s]."""
+        if field not in self.fields:
+            raise NotFoundError("log field", field, self.fields)
+        return getattr(self, field)[self.row_at(t)]
 
     def add_field(self, name: str, shape: tuple[int, ...], dtype: Any = float) -> None:
         """Add a per-sample array, e.g. a controller's phase, of shape ``(capacity, *shape)``."""
