@@ -55,7 +55,7 @@ def main() -> None:
         if substeps == base.grid.substeps:
             args.out.mkdir(parents=True, exist_ok=True)
             save_design_figures(cycle, task.torque_limit, task.scene.robot.joint_names, args.out)
-            (args.out / "report.md").write_text(report.markdown())
+            report.save(args.out / "report.json")
 
 
 if __name__ == "__main__":

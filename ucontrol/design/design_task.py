@@ -268,7 +268,7 @@ class DesignTask:
         period_min: Shortest period in [s].
         period_max: Longest period in [s].
         bounces: Bounce flights between the first landing and the constrained phase.
-        torque_limit: Largest |τ_i| in [N m] (or [N]), shape (nv,).
+        torque_limit: Largest absolute torque of each joint in [N m] (or [N]), shape (nv,).
         joint_limits: Lower and upper joint positions, shape (2, nv), or None.
         impact_velocity: Largest normal speed at an impact in [m/s] (inf: none).
         impact_impulse: Largest impact impulse in [N s] (inf: none).

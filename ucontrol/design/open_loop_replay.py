@@ -39,12 +39,15 @@ class ReplayResult:
         t: Node times in [s], shape (n,).
         q: Plant's joint positions at the nodes, shape (n, nv).
         v: Plant's joint velocities at the nodes, shape (n, nv).
-        q_error: Largest |q_plant - q_design| over nodes and joints, in [rad] (or [m]).
-        v_error: Largest |v_plant - v_design| over nodes that are not impacts, in [rad/s].
+        q_error: Largest absolute difference of plant and design joint positions over the
+            nodes and joints, in [rad] (or [m]).
+        v_error: Largest absolute difference of the velocities over the nodes that are not
+            impacts, in [rad/s].
         impact_times: Plant's impact times of the contact in [s], one per design impact
             (NaN for a soft landing, slower than 100 ``zeno_velocity``: its time is
             ill-conditioned).
-        impact_time_errors: |plant - design| impact times in [s] (NaN for soft landings).
+        impact_time_errors: Absolute differences of plant and design impact times in [s]
+            (NaN for soft landings).
         landing_speeds: Design's normal speed before each impact in [m/s].
     """
 
