@@ -1,0 +1,75 @@
+"""``ucontrol design``: files written, progress lines, exit status."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ucontrol.design import DesignedCycle
+from ucontrol.design.command import add_design_parser, run_design
+from ucontrol.exceptions import InfeasibleDesignError
+
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
+
+
+def _parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="ucontrol")
+    add_design_parser(parser.add_subparsers(dest="command", required=True))
+    return parser.parse_args(argv)
+
+
+def _write_task(path: Path, **changes: object) -> Path:
+    table = tomllib.loads((ROBOTS / "two_link_one_constraint_task.toml").read_text())
+    lines = [f'scene = "{ROBOTS / "two_link_one_constraint.toml"}"']
+    table.pop("scene")
+    table["grid"] = {"flight_intervals": 10, "contact_intervals": 10, "substeps": 2}
+    table["solver"]["progress_every"] = 5
+    for key, value in changes.items():
+        table["contact_phases"][0][key] = value
+    for key in ("frame", "period", "bounces"):
+        lines.append(f"{key} = {json.dumps(table.pop(key))}")
+    phase = table.pop("contact_phases")[0]
+    lines.append("[[contact_phases]]")
+    lines += [f"{key} = {json.dumps(value)}" for key, value in phase.items()]
+    for section, entries in table.items():
+        lines.append(f"[{section}]")
+        lines += [f"{key} = {json.dumps(value)}" for key, value in entries.items()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_design_writes_cycle_report_and_figures(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    task = _write_task(tmp_path / "task.toml")
+    out = tmp_path / "out"
+    assert run_design(_parse(["design", str(task), "--out", str(out)])) == 0
+    printed = capsys.readouterr().out
+    assert "ipopt iteration    0" in printed and "ipopt iteration    5" in printed
+    for name in ("cycle.npz", "cycle.json", "report.json", "report.md", "joints.png", "task.png"):
+        assert (out / name).is_file(), name
+    report = json.loads((out / "report.json").read_text())
+    assert report["success"] and report["period"] == pytest.approx(10.0)
+    assert report["replay"]["q_error_rad"] < 1e-3  # a coarse grid: 2 RK4 steps of 0.2 s and more
+    cycle = DesignedCycle.load(out / "cycle")
+    np.testing.assert_allclose(cycle.phase("flight").position[-1], [0.55, 0.0, 0.0], atol=1e-8)
+
+
+def test_infeasible_task_exits_with_1_and_names_the_limit(tmp_path, capsys, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # the solve itself is tested in test_cycle_design.py; here only what the command does
+    import ucontrol.design.command as command
+
+    binding = [("torque limit of joint 'shoulder' (|tau| <= 100 N m)", 116.6)]
+
+    def infeasible(task, progress=None):  # type: ignore[no-untyped-def]
+        raise InfeasibleDesignError(binding)
+
+    monkeypatch.setattr(command, "design_cycle", infeasible)
+    task = _write_task(tmp_path / "task.toml", force_min=400.0, force_max=500.0)
+    out = tmp_path / "out"
+    assert run_design(_parse(["design", str(task), "--out", str(out), "--no-figures"])) == 1
+    assert "torque limit of joint 'shoulder'" in capsys.readouterr().err
+    assert not (out / "cycle.npz").exists()
