@@ -1,8 +1,9 @@
 """Closed loop: the designed cycle vs the hand-made one, both tracked by the Brogliato law.
 
-The two-link one-constraint scene runs in Moreau–Jean for ``--cycles`` periods (plus 1 s, to see the last takeoff) with the
-scene's Brogliato controller, once with its hand-made circle and once with the cycle designed
-from robots/two_link_one_constraint_task.toml (same gains, same transition settings). Prints
+The two-link one-constraint scene runs in Moreau–Jean for ``--cycles`` periods (plus 1 s, to
+see the last takeoff) with the scene's Brogliato controller, once with its hand-made circle
+and once with the cycle designed from robots/two_link_one_constraint_task.toml (same gains,
+same transition settings). Prints
 the peak joint torque, the first impact's impulse, impacts and V(tau0) per cycle, and the
 ratios designed / hand-made.
 
