@@ -58,7 +58,8 @@ def _figures(log, contact: int, period: float, cycles: int) -> dict[str, float]:
     }
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> dict[str, dict]:  # type: ignore[type-arg]
+    """Run both cycles; returns their figures and the ratios designed / hand-made."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--task", type=Path, default=ROOT / "robots/two_link_one_constraint_task.toml"
@@ -68,7 +69,7 @@ def main() -> None:
     parser.add_argument(
         "--V-floor", type=float, default=1e-9, help="V(tau0) level in [J] taken as converged"
     )
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     task = DesignTask.from_toml(args.task)
     scene = task.scene
     designed, report = design_cycle(task)
@@ -107,6 +108,8 @@ def main() -> None:
     for key in ("peak_torque", "first_impact_impulse"):
         ratio = results["designed"][key] / results["hand-made"][key]
         print(f"{key}: designed / hand-made = {ratio:.3f}")
+        results.setdefault("ratios", {})[key] = ratio
+    return results
 
 
 if __name__ == "__main__":

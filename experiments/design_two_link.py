@@ -24,7 +24,8 @@ from ucontrol.design.open_loop_replay import replay_open_loop
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> dict[int, dict[str, float]]:
+    """Run the study; returns per number of substeps the measured figures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--task", type=Path, default=ROOT / "robots/two_link_one_constraint_task.toml"
@@ -32,8 +33,9 @@ def main() -> None:
     parser.add_argument("--substeps", type=int, nargs="+", default=[2, 4, 8])
     parser.add_argument("--horizon", type=float, default=1.0, help="open-loop horizon in [s]")
     parser.add_argument("--out", type=Path, default=ROOT / "docs/figures/design")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     base = DesignTask.from_toml(args.task)
+    rows: dict[int, dict[str, float]] = {}
     print(
         "| substeps | IPOPT status | iterations | cost | landing [s] | max q defect [rad] "
         "| impact time error [s] | open-loop q error at horizon [rad] |"
@@ -52,10 +54,17 @@ def main() -> None:
             f"{cycle.landing_time:.6g} | {restarted.q_error:.2e} | "
             f"{np.max(restarted.impact_time_errors, initial=0.0):.2e} | {horizon_error:.2e} |"
         )
+        rows[substeps] = {
+            "q_defect": restarted.q_error,
+            "horizon_error": horizon_error,
+            "landing_time": cycle.landing_time,
+            "success": float(report.success),
+        }
         if substeps == base.grid.substeps:
             args.out.mkdir(parents=True, exist_ok=True)
             save_design_figures(cycle, task.torque_limit, task.scene.robot.joint_names, args.out)
             report.save(args.out / "report.json")
+    return rows
 
 
 if __name__ == "__main__":
