@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,12 @@ def chromium() -> str:
 
 
 def screenshot(
-    url: str, out: Path, *, virtual_time_ms: int = 1500, offline: bool = False
+    url: str,
+    out: Path,
+    *,
+    virtual_time_ms: int = 1500,
+    offline: bool = False,
+    min_pixels: int = 0,
 ) -> np.ndarray:
     """Load ``url`` in headless Chromium and return the screenshot as RGB, shape (H, W, 3).
 
@@ -37,13 +43,31 @@ def screenshot(
         out: PNG file to write.
         virtual_time_ms: Virtual time the page runs before the shot (animations advance).
         offline: Route every network request to a closed port: the page must need none.
+        min_pixels: Fewest robot pixels (:func:`orange_mask`) of a shot of a page whose scene
+            has arrived; a shot with fewer is taken again (a bounded number of times).
     """
     chromium()
     path = write_screenshot(
-        url, out, width=WIDTH, height=HEIGHT, virtual_time_ms=virtual_time_ms, offline=offline
+        url,
+        out,
+        width=WIDTH,
+        height=HEIGHT,
+        virtual_time_ms=virtual_time_ms,
+        offline=offline,
+        ready=_robot_drawn(min_pixels) if min_pixels else None,
     )
     with Image.open(path) as image:
         return np.asarray(image.convert("RGB")).astype(int)
+
+
+def _robot_drawn(min_pixels: int) -> Callable[[Path], bool]:
+    """Check of a screenshot file: more than ``min_pixels`` robot pixels."""
+
+    def ready(path: Path) -> bool:
+        with Image.open(path) as image:
+            return int(orange_mask(np.asarray(image.convert("RGB")).astype(int)).sum()) > min_pixels
+
+    return ready
 
 
 def orange_mask(image: np.ndarray) -> np.ndarray:

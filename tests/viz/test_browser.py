@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import dataclasses
 import re
-import signal
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from child_process import Child
 from chromium_shot import chromium, near_fraction, orange_mask, project, screenshot
 
 from ucontrol.exceptions import URDFError
@@ -31,6 +30,8 @@ from ucontrol.viz.scene_drawing import SceneDrawing
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 #: Fewest robot pixels in a screenshot (the two-link arm covers ~6000 of 480 000).
 MIN_PIXELS = 1500
+#: Each test is bounded: a few browser launches of at most 60 s each, and a meshcat server.
+pytestmark = pytest.mark.timeout(600)
 
 
 def _arm_points(scene: Scene, q: np.ndarray, n: int = 6) -> np.ndarray:
@@ -50,40 +51,17 @@ def _centroid(mask: np.ndarray) -> np.ndarray:
     return np.array([xs.mean(), ys.mean()])
 
 
-def _url(process: subprocess.Popen[str], pattern: str) -> str:
-    """The viewer address printed by a ``ucontrol`` subprocess on the line with ``pattern``."""
-    assert process.stdout is not None
-    for line in process.stdout:
-        if pattern in line:
-            match = re.search(r"http://\S+/static/", line)
-            assert match is not None, line
-            return match.group(0)
-    raise AssertionError(f"no {pattern!r} line; stderr: {process.communicate()[1]}")
-
-
-def _interrupt(process: subprocess.Popen[str], pattern: str) -> str:
-    """Wait for the line with ``pattern``, send Ctrl-C and return the rest of the output."""
-    assert process.stdout is not None
-    lines = []
-    for line in process.stdout:
-        lines.append(line)
-        if pattern in line:
-            break
-    process.send_signal(signal.SIGINT)
-    out, err = process.communicate(timeout=60)
-    assert process.returncode == 0, err
-    return "".join(lines) + out
-
-
 def test_live_view_draws_the_robot_where_it_stands_and_moves_it(tmp_path: Path) -> None:
     chromium()
     scene = load_scene(ROBOTS / "two_link_drop.toml")
     q1 = np.array([1.6, -1.9])  # elbow up above the shoulder, still in the view
     with MeshcatServer() as server:
         drawing = SceneDrawing(scene, server.viewer)
-        first = orange_mask(screenshot(server.url, tmp_path / "q0.png"))
+        # A live page gets its scene through a websocket: a shot taken before it arrived
+        # shows no robot and is taken again.
+        first = orange_mask(screenshot(server.url, tmp_path / "q0.png", min_pixels=MIN_PIXELS))
         drawing.place(server.viewer, q1, np.zeros(scene.constraints.size))
-        second = orange_mask(screenshot(server.url, tmp_path / "q1.png"))
+        second = orange_mask(screenshot(server.url, tmp_path / "q1.png", min_pixels=MIN_PIXELS))
     arm0 = project(drawing, _arm_points(scene, scene.q0))
     arm1 = project(drawing, _arm_points(scene, q1))
     assert first.sum() > MIN_PIXELS and second.sum() > MIN_PIXELS
@@ -159,15 +137,18 @@ def test_ucontrol_view_replays_a_saved_run(tmp_path: Path) -> None:
     chromium()
     scene = load_scene(ROBOTS / "ball.toml")
     result = simulate(scene, duration=1.0, out=tmp_path / "run")
-    command = [sys.executable, "-m", "ucontrol.cli", "view", str(tmp_path / "run")]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    child = Child([sys.executable, "-m", "ucontrol.cli", "view", str(tmp_path / "run")])
     try:
-        url = _url(process, "replay of")
-        mask = orange_mask(screenshot(url, tmp_path / "replay.png", virtual_time_ms=300))
+        url = child.url("replay of")
+        mask = orange_mask(
+            screenshot(
+                url, tmp_path / "replay.png", virtual_time_ms=300, min_pixels=MIN_PIXELS // 3
+            )
+        )
+        status = child.interrupt()
     finally:
-        process.send_signal(signal.SIGINT)
-        process.communicate(timeout=60)
-    assert process.returncode == 0
+        child.stop()
+    assert status == 0, "".join(child.stderr)
     with MeshcatServer() as server:
         drawing = SceneDrawing(scene, server.viewer, configurations=result.log.q)
     path = project(drawing, _ball_points(scene, np.linspace(0.1, 1.1, 30)))  # the ball's line
@@ -191,13 +172,14 @@ def test_ucontrol_run_view_draws_live_and_still_writes_the_log(tmp_path: Path) -
         str(out),
         "--view",
     ]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    child = Child(command)
     try:
-        url = _url(process, "open")  # the run starts once the browser has the page
-        mask = orange_mask(screenshot(url, tmp_path / "live.png"))
-        output = _interrupt(process, "Ctrl-C")
+        url = child.url("open")  # the run starts once the browser has the page
+        mask = orange_mask(screenshot(url, tmp_path / "live.png", min_pixels=MIN_PIXELS))
+        child.wait_for("Ctrl-C")
+        status = child.interrupt()
     finally:
-        if process.poll() is None:
-            process.kill()
-    assert "1000 steps" in output and (out / "log.npz").is_file()
+        child.stop()
+    assert status == 0, "".join(child.stderr)
+    assert "1000 steps" in child.output and (out / "log.npz").is_file()
     assert mask.sum() > MIN_PIXELS

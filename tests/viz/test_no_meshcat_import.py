@@ -11,7 +11,8 @@ ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 PROGRAM = """
 import sys
 import ucontrol, ucontrol.simulate
-from ucontrol import load_scene, simulate
+from ucontrol import load_scene
+from ucontrol.simulate import simulate  # the function (ucontrol.simulate is also a module)
 from ucontrol.cli import main
 
 simulate(load_scene(sys.argv[1]), duration=0.05)

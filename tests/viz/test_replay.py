@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +64,25 @@ def test_animation_shows_the_logged_configurations_at_the_frame_rows() -> None:
     assert len(heights) == 21
 
 
-def test_live_viewer_draws_one_frame_per_period_and_keeps_real_time() -> None:
+class _SimulatedClock:
+    """A wall clock that only advances when slept on, or by ``work`` [s] at each reading."""
+
+    def __init__(self, work: float = 0.0) -> None:
+        self.now = 100.0  # [s], an arbitrary origin
+        self.work = work
+        self.sleeps: list[float] = []
+
+    def __call__(self) -> float:
+        self.now += self.work  # the simulation's own cost between two readings
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        assert seconds >= 0.0
+        self.sleeps.append(seconds)
+        self.now += seconds
+
+
+def test_live_viewer_draws_one_frame_per_period() -> None:
     scene = load_scene(ROBOTS / "ball.toml")
     viewer, window = recording_viewer()
     live = LiveViewer(scene, viewer, fps=30.0, speed=None)
@@ -73,10 +90,34 @@ def test_live_viewer_draws_one_frame_per_period_and_keeps_real_time() -> None:
     assert live.frames == 16  # t = 0, 1/30, ..., 15/30 s
     drawn = _ball_transforms(window)[-16:]  # after the drawing's own placements at q0
     np.testing.assert_allclose(drawn, log.q[frame_rows(log.t, 30.0)[:16], 0], atol=1e-12)
-    paced = LiveViewer(scene, viewer, speed=2.0)
-    start = time.perf_counter()
+
+
+@pytest.mark.parametrize("work", [0.0, 1e-3, 0.1])  # [s] of computation per clock reading
+def test_live_viewer_paces_frames_to_speed_times_the_wall_clock(work: float) -> None:
+    scene = load_scene(ROBOTS / "ball.toml")
+    viewer, _ = recording_viewer()
+    clock = _SimulatedClock(work)
+    drawn_at: list[tuple[float, float]] = []  # (simulated time [s], wall time [s]) per frame
+
+    class _Paced(LiveViewer):
+        def show(self, log: object, row: int = -1) -> None:
+            drawn_at.append((float(log.t[row]), clock.now))  # type: ignore[attr-defined]
+            super().show(log, row)  # type: ignore[arg-type]
+
+    speed = 2.0
+    paced = _Paced(scene, viewer, fps=30.0, speed=speed, clock=clock, sleep=clock.sleep)
     simulate(scene, duration=0.4, observer=paced)
-    assert time.perf_counter() - start >= 0.4 / 2.0 - 0.02  # [s]: not faster than 2x
+    t, wall = np.array(drawn_at).T
+    assert len(t) == 13  # frames at 0, 1/30, ..., 12/30 s
+    # Each frame is drawn once the wall clock has run t / speed since the first one, up to
+    # one reading of the clock (``work``; round-off 1e-12 s).
+    late = (wall - wall[0]) - (t - t[0]) / speed  # [s]
+    assert np.all(late >= -work - 1e-12)
+    if work == 0.0:  # a free simulation: the pacing alone sets the wall time, exactly
+        np.testing.assert_allclose(late, 0.0, atol=1e-12)
+        assert wall[-1] - wall[0] == pytest.approx(0.4 / speed, abs=1e-12)
+    elif work >= 1 / 30 / speed:  # slower than the pace: it never waits, it only falls behind
+        assert sum(clock.sleeps) == 0.0 and np.all(np.diff(late) > 0.0)
 
 
 def test_html_export_embeds_the_viewer_and_the_animation(tmp_path: Path) -> None:

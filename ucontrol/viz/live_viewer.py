@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import meshcat
 import numpy as np
@@ -32,6 +33,8 @@ class LiveViewer:
         phases: Draw the label of the controller's phase.
         force_scale: Arrow length per unit of contact force in [m/N]; default see
             :class:`SceneDrawing`.
+        clock: Wall clock in [s] that paces the frames (tests inject a simulated one).
+        sleep: Waits the given time in [s] of ``clock``.
     """
 
     def __init__(
@@ -43,6 +46,8 @@ class LiveViewer:
         speed: float | None = 1.0,
         phases: bool = False,
         force_scale: float | None = None,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] = time.sleep,
     ) -> None:
         self.drawing = SceneDrawing(scene, viewer, phases=phases, force_scale=force_scale)
         self._viewer = viewer
@@ -51,6 +56,8 @@ class LiveViewer:
         self._next = 0.0
         self._last_row = 0
         self._start: float | None = None
+        self._clock = clock
+        self._sleep = sleep
         self.frames = 0
 
     def __call__(self, log: Log) -> None:
@@ -58,12 +65,12 @@ class LiveViewer:
         row = len(log) - 1
         t = float(log.t[row])
         if self._start is None:
-            self._start = time.perf_counter() - (0.0 if self._speed is None else t / self._speed)
+            self._start = self._clock() - (0.0 if self._speed is None else t / self._speed)
         if t + 1e-9 < self._next:
             return
         self._next = (np.floor(t * self._fps + 1e-9) + 1.0) / self._fps  # [s], next frame
         if self._speed is not None:
-            time.sleep(max(0.0, t / self._speed - (time.perf_counter() - self._start)))
+            self._sleep(max(0.0, t / self._speed - (self._clock() - self._start)))
         self.show(log, row)
 
     def show(self, log: Log, row: int = -1) -> None:

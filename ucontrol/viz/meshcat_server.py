@@ -5,6 +5,8 @@ from __future__ import annotations
 import atexit
 import contextlib
 import io
+import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -14,9 +16,21 @@ from types import TracebackType
 import meshcat
 
 from ucontrol.exceptions import ViewerError
+from ucontrol.viz.browser_screenshot import kill_group
 
 #: Longest wait for the server to print its addresses, in [s].
 START_TIMEOUT = 30.0
+#: The server's program: the bridge, plus a thread that ends the process when its standard
+#: input closes, i.e. when the process that started it exits, even killed (SIGKILL runs no
+#: ``atexit``), so that no server outlives its client.
+_LAUNCHER = """\
+import os, runpy, sys, threading
+def _watch_parent():
+    sys.stdin.buffer.read()  # returns at end of file: the parent has gone
+    os._exit(0)
+threading.Thread(target=_watch_parent, daemon=True).start()
+runpy.run_module("ucontrol.viz.meshcat_bridge", run_name="__main__", alter_sys=True)
+"""
 
 
 class MeshcatServer:
@@ -24,8 +38,10 @@ class MeshcatServer:
 
     The server is :mod:`ucontrol.viz.meshcat_bridge` (meshcat's own, with two fixes) in a
     subprocess; it runs until :meth:`close`, the end of a ``with`` block or the end of the
-    process. Browsers open :attr:`url`; the server sends them the current scene when they
-    connect. Its ports are the first free ones from 6000 (zmq) and 7000 (web).
+    process (however it ends: the server watches its standard input, a pipe from this
+    process). It runs in a process group of its own, killed as a whole. Browsers open
+    :attr:`url`; the server sends them the current scene when they connect. Its ports are the
+    first free ones from 6000 (zmq) and 7000 (web).
 
     Attributes:
         viewer: The meshcat client (``meshcat.Visualizer``) drawing in the server's scene.
@@ -38,14 +54,19 @@ class MeshcatServer:
     def __init__(self) -> None:
         self._errors = tempfile.TemporaryFile(mode="w+")
         self._process = subprocess.Popen(
-            [sys.executable, "-u", "-m", "ucontrol.viz.meshcat_bridge"],
+            [sys.executable, "-u", "-c", _LAUNCHER],
+            stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=self._errors,
             text=True,
             start_new_session=True,  # Ctrl-C in a terminal stops the client, close() the server
         )
         atexit.register(self.close)
-        addresses = self._addresses()
+        try:
+            addresses = self._addresses()
+        except BaseException:
+            self.close()
+            raise
         # Drain what the server prints later, so that it never blocks on a full pipe.
         threading.Thread(target=self._process.stdout.read, daemon=True).start()  # type: ignore[union-attr]
         with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL itself
@@ -55,7 +76,7 @@ class MeshcatServer:
     def _addresses(self) -> dict[str, str]:
         """The ``zmq_url`` and ``web_url`` lines the server prints when it listens."""
         addresses: dict[str, str] = {}
-        timer = threading.Timer(START_TIMEOUT, self._process.kill)
+        timer = threading.Timer(START_TIMEOUT, self._kill_group)
         timer.start()
         try:
             while len(addresses) < 2:
@@ -82,11 +103,20 @@ class MeshcatServer:
         html: str = self.viewer.static_html()
         return html
 
+    def _kill_group(self) -> None:
+        """SIGKILL the server's process group (a read of its output then ends)."""
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(self._process.pid, signal.SIGKILL)
+
     def close(self) -> None:
-        """Stop the server."""
-        if self._process.poll() is None:
-            self._process.kill()
-            self._process.wait()
+        """Stop the server and every process of its group, and wait until they are gone."""
+        atexit.unregister(self.close)
+        if self._process.stdin is not None and not self._process.stdin.closed:
+            with contextlib.suppress(OSError):
+                self._process.stdin.close()
+        kill_group(self._process)
+        if not self._errors.closed:
+            self._errors.close()
 
     def __enter__(self) -> MeshcatServer:
         return self
