@@ -130,10 +130,71 @@ def test_command_prints_the_table_and_writes_it(tmp_path: Path, capsys) -> None:
 
 def test_command_without_a_scene_benches_the_default(capsys) -> None:
     assert main(["bench", "--steps", "20", "--repeats", "1", "--warmup", "0"]) == 0
-    assert capsys.readouterr().out.startswith("two_link_drop: dt = 0.001 s, 20 steps")
+    printed = capsys.readouterr().out
+    assert printed.startswith("benchmarking the built-in scene table_drop")
+    assert "table_drop: dt = 0.001 s, 20 steps" in printed and "| pin PGS |" in printed
 
 
 def test_command_reports_a_bad_argument_in_one_line(capsys) -> None:
     assert main(["bench", str(ROBOTS / "ball.toml"), "--steps", "0"]) == 2
     error = capsys.readouterr().err
     assert error == "ucontrol: error: `steps` must be an integer >= 1, got 0\n"
+
+
+# --- closed loop (bench_closed_loop) ------------------------------------------------------
+
+#: 0.3 s of the two-link tracking scene: 300 steps of the rigid law in its free phase.
+CLOSED_LOOP_DURATION = 0.3
+
+
+@pytest.fixture(scope="module")
+def two_link_closed_loop():
+    from ucontrol.bench import bench_closed_loop
+
+    scene = load_scene(ROBOTS / "two_link_one_constraint.toml")
+    return scene, bench_closed_loop(scene, duration=CLOSED_LOOP_DURATION, repeats=2)
+
+
+def test_closed_loop_split_sums_to_the_total(two_link_closed_loop) -> None:
+    _, result = two_link_closed_loop
+    parts = (result.controller_us, result.plant_us, result.solver_us, result.loop_us)
+    assert sum(parts) == pytest.approx(result.total_us, rel=1e-9)
+    assert result.total_us > 0.0 and result.controller_us > 0.0 and result.plant_us > 0.0
+    assert result.solver_us >= 0.0
+
+
+def test_closed_loop_counts_and_real_time_factor(two_link_closed_loop) -> None:
+    scene, result = two_link_closed_loop
+    assert result.scene == scene.name
+    assert result.dt == scene.integrator.dt
+    assert result.steps == round(CLOSED_LOOP_DURATION / scene.integrator.dt)
+    assert (result.nv, result.n_constraints, result.repeats) == (2, 5, 2)  # 1 contact, 4 stops
+    assert result.real_time_factor == pytest.approx(1e6 * result.dt / result.total_us)
+
+
+def test_closed_loop_solver_time_is_the_logs(two_link_closed_loop) -> None:
+    """The contact-solve share is the log's own solver_time: a run with contacts has some."""
+    from ucontrol.bench import bench_closed_loop
+
+    result = bench_closed_loop(load_scene(ROBOTS / "table_drop.toml"), duration=0.2, repeats=1)
+    assert result.solver_us > 0.0
+    parts = (result.controller_us, result.plant_us, result.solver_us, result.loop_us)
+    assert sum(parts) == pytest.approx(result.total_us, rel=1e-9)
+
+
+def test_closed_loop_markdown_has_one_row_per_result(two_link_closed_loop) -> None:
+    from ucontrol.bench import CLOSED_LOOP_HEADER, closed_loop_markdown
+
+    _, result = two_link_closed_loop
+    text = closed_loop_markdown([result, result])
+    assert text.startswith(CLOSED_LOOP_HEADER)
+    rows = text.splitlines()[2:]
+    assert len(rows) == 2 and rows[0].startswith(f"| {result.scene} | 2 | 5 |")
+    assert rows[0].count("|") == CLOSED_LOOP_HEADER.splitlines()[0].count("|")
+
+
+def test_closed_loop_bad_repeats_raise_a_typed_error() -> None:
+    from ucontrol.bench import bench_closed_loop
+
+    with pytest.raises(InvalidParameterError, match="repeats"):
+        bench_closed_loop(load_scene(ROBOTS / "ball.toml"), repeats=0)

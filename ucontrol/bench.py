@@ -381,3 +381,198 @@ def _as_count(name: str, value: Any, minimum: int) -> int:
     if count < minimum:
         raise InvalidParameterError(name, value, expected)
     return count
+
+
+@dataclass(frozen=True)
+class ClosedLoopResult:
+    r"""Cost of one scene's closed loop (:func:`bench_closed_loop`), split by stage.
+
+    All times are per step in [µs/step], from one run (the median of the timed runs by total):
+    ``total`` is the run's loop wall time (``summary["wall_time_s"]`` of
+    :func:`ucontrol.simulate`, the set-up and the summary excluded), ``controller`` the time
+    inside the controller's calls, ``plant`` the time inside the integrator's ``evaluate`` and
+    ``step`` less the contact solves, ``solver`` the contact solves (the log's
+    ``solver_time``), and ``loop`` the rest (logging, sensors, the loop itself):
+    ``controller + plant + solver + loop = total`` by definition.
+
+    Attributes:
+        scene: Scene name.
+        dt: Time step in [s].
+        steps: Steps per run.
+        repeats: Timed runs (after one untimed warm-up run).
+        nv: Velocity size of the plant (links and motors).
+        n_constraints: Unilateral constraints of the plant (contacts and stops).
+        total_us: Loop wall time per step.
+        controller_us: Controller time per step.
+        plant_us: Integrator time per step, contact solves excluded.
+        solver_us: Contact-solve time per step.
+        loop_us: The rest per step.
+    """
+
+    scene: str
+    dt: float
+    steps: int
+    repeats: int
+    nv: int
+    n_constraints: int
+    total_us: float
+    controller_us: float
+    plant_us: float
+    solver_us: float
+    loop_us: float
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated time over wall time (> 1: faster than real time)."""
+        return 1e6 * self.dt / self.total_us
+
+    def row(self) -> str:
+        """This result as a row of :func:`closed_loop_markdown`'s table."""
+        return (
+            f"| {self.scene} | {self.nv} | {self.n_constraints} | {self.total_us:.1f} "
+            f"| {self.real_time_factor:.1f}× | {self.controller_us:.1f} | {self.plant_us:.1f} "
+            f"| {self.solver_us:.1f} | {self.loop_us:.1f} |"
+        )
+
+
+#: Header of the closed-loop table.
+CLOSED_LOOP_HEADER = (
+    "| scene | nv | constraints | total [µs/step] | real time | controller | plant "
+    "| contact solve | log + loop |\n|:---|---:|---:|---:|---:|---:|---:|---:|---:|"
+)
+
+
+def closed_loop_markdown(results: list[ClosedLoopResult]) -> str:
+    """The closed-loop results as one markdown table (times in [µs/step])."""
+    return "\n".join([CLOSED_LOOP_HEADER, *(result.row() for result in results)])
+
+
+def bench_closed_loop(
+    scene: Scene,
+    *,
+    duration: float | None = None,
+    repeats: int = 3,
+    dt: float | None = None,
+) -> ClosedLoopResult:
+    """Time the scene's closed loop (its own controller), split by stage.
+
+    Each run builds a fresh controller (:meth:`Scene.build_controller`; compiled laws are
+    built before the timing) and calls :func:`ucontrol.simulate` with the controller and the
+    integrator wrapped in timers; the first run is untimed (warm-up).
+
+    Args:
+        scene: The scene.
+        duration: Simulated time per run in [s]; default the scene's.
+        repeats: Timed runs, >= 1; the one of median total time is reported.
+        dt: Time step in [s]; default the scene's.
+
+    Raises:
+        InvalidParameterError: ``repeats`` is not an integer >= 1, ``duration`` or ``dt`` not
+            > 0.
+        SimulationError: A run failed.
+    """
+    repeats = _as_count("repeats", repeats, 1)
+    if duration is not None:
+        duration = as_positive("duration", duration)
+    runs = []
+    for k in range(repeats + 1):
+        timers = _Timers()
+        controller = _TimedController(scene.build_controller(), timers)
+        timed_scene = _TimedScene(scene, timers)
+        result = simulate(timed_scene, controller, duration, dt=dt, progress=False)  # type: ignore[arg-type]
+        if k == 0:
+            continue  # warm-up
+        log = result.log
+        steps = len(log) - 1
+        total = float(result.summary["wall_time_s"])
+        solver = float(np.sum(log.solver_time))
+        runs.append((total, steps, timers, solver, float(log.metadata["dt"])))
+    runs.sort(key=operator.itemgetter(0))
+    total, steps, timers, solver, h = runs[len(runs) // 2]
+    per_step = 1e6 / max(steps, 1)  # [µs/s per step]
+    plant = timers.plant - solver
+    loop = total - timers.controller - timers.plant
+    return ClosedLoopResult(
+        scene=scene.name,
+        dt=h,
+        steps=steps,
+        repeats=repeats,
+        nv=int(timers.nv),
+        n_constraints=int(timers.n_constraints),
+        total_us=total * per_step,
+        controller_us=timers.controller * per_step,
+        plant_us=plant * per_step,
+        solver_us=solver * per_step,
+        loop_us=loop * per_step,
+    )
+
+
+class _Timers:
+    """Seconds spent in the controller and in the integrator, accumulated over a run."""
+
+    def __init__(self) -> None:
+        self.controller = 0.0
+        self.plant = 0.0
+        self.nv = 0
+        self.n_constraints = 0
+
+
+class _TimedController:
+    """A controller whose calls are timed; anything else goes to the controller itself.
+
+    It is a :class:`~ucontrol.control.LoggingController` exactly when the controller is
+    (``prepare_log`` and ``record`` are looked up on the controller).
+    """
+
+    def __init__(self, controller: Any, timers: _Timers) -> None:
+        self._controller = controller
+        self._timers = timers
+
+    def __call__(self, t: float, q: Vector, v: Vector, contacts: Any) -> Any:
+        start = time.perf_counter()
+        u = self._controller(t, q, v, contacts)
+        self._timers.controller += time.perf_counter() - start
+        return u
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._controller, name)
+
+
+class _TimedScene:
+    """The scene, except that its integrator is timed."""
+
+    def __init__(self, scene: Scene, timers: _Timers) -> None:
+        self._scene = scene
+        self._timers = timers
+
+    def build_integrator(self, dt: float | None = None) -> _TimedIntegrator:
+        integrator = self._scene.build_integrator(dt=dt)
+        self._timers.nv = integrator.evaluate(*self._scene.initial_state()).v.size
+        self._timers.n_constraints = integrator.constraints.size
+        return _TimedIntegrator(integrator, self._timers)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._scene, name)
+
+
+class _TimedIntegrator:
+    """An integrator whose ``evaluate`` and ``step`` are timed."""
+
+    def __init__(self, integrator: Any, timers: _Timers) -> None:
+        self._integrator = integrator
+        self._timers = timers
+
+    def evaluate(self, q: Vector, v: Vector) -> Any:
+        start = time.perf_counter()
+        state = self._integrator.evaluate(q, v)
+        self._timers.plant += time.perf_counter() - start
+        return state
+
+    def step(self, state: Any, tau: Vector) -> Any:
+        start = time.perf_counter()
+        outcome = self._integrator.step(state, tau)
+        self._timers.plant += time.perf_counter() - start
+        return outcome
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._integrator, name)

@@ -158,7 +158,10 @@ class BrogliatoController:
         self._compiled_law: CompiledFunction | None = None
         if type(self)._order == 2:  # the rigid law (subclasses bring their own)
             law = CompiledFunction(_rigid_law_function(robot.nv, task, gains, self._redundant))
-            self._compiled_law = law if law.compiled else None
+            if law.compiled:  # M, C and h read in place from the Pinocchio data
+                for i, name in enumerate(("M", "C", "nle")):
+                    law.bind_input(i, getattr(self._data, name))
+                self._compiled_law = law
         self._force_input = np.zeros(task.m)
         self.reset()
 
@@ -309,7 +312,7 @@ class BrogliatoController:
         J6 = pin.getFrameJacobian(model, data, frame_id, _LWA)
         dJ6 = pin.getFrameJacobianTimeVariation(model, data, frame_id, _LWA)
         posture = pin.difference(model, self.posture, q) if self._redundant else None
-        kinematics = (data.M, data.C, data.nle, J6, dJ6, data.oMf[frame_id].translation, v)
+        kinematics = (None, None, None, J6, dJ6, data.oMf[frame_id].translation, v)
         machine = self.machine
         desired = machine.desired(t)
         out = self._compiled_values(kinematics, posture, desired)

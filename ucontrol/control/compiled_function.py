@@ -132,6 +132,30 @@ class CompiledFunction:
             raise RuntimeError(f"compiled casadi function {self.name} returned {status}")
         return tuple(self._outputs)
 
+    def bind_input(self, i: int, array: NDArray[np.float64]) -> None:
+        """Read input ``i`` from ``array``'s memory at every call, without a copy.
+
+        For buffers whose memory stays put (e.g. the matrices of a ``pinocchio.Data``): pass
+        None for that input at each call. ``array`` is kept alive by this object.
+
+        Raises:
+            ValueError: ``array`` is not a column-major float64 array of the input's size.
+        """
+        flat = np.ravel(array, order="F")
+        if (
+            array.dtype != np.float64
+            or flat.size != self._in_sizes[i]
+            or not np.shares_memory(flat, array)
+        ):
+            raise ValueError(
+                f"input {i} of {self.name} needs a column-major float64 array of "
+                f"{self._in_sizes[i]} values, got {array.dtype} {array.shape}"
+            )
+        self._in_buffers[i] = flat
+        self._in_views[i] = array
+        if self.compiled:
+            self._arg[i] = flat.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
     def input_buffer(self, i: int) -> Vector:
         """The buffer of input ``i`` (shape (nnz,), column-major), to be written in place."""
         return self._in_buffers[i]

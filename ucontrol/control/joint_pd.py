@@ -15,9 +15,10 @@ from ucontrol.model.robot_model import RobotModel
 class JointPD:
     r"""Regulate the actuated joints to ``q_ref``: :math:`u = K_p (q_{ref} - q) - K_d v + g(q)`.
 
-    Defined for robots whose actuated joints have nq = nv (revolute, prismatic). With flexible
-    joints the feedback is collocated, on the motors, with the gravity of the target (Tomei's
-    law): :math:`u = K_p (q_{2,ref} - q_2) - K_d \dot q_2 + g(q_{ref})`, the motor target
+    Defined for robots whose actuated joints have one configuration coordinate each (revolute,
+    prismatic), on a fixed or a free-flyer base (whose 6 coordinates are not actuated). With
+    flexible joints the feedback is collocated, on the motors, with the gravity of the target
+    (Tomei's law): :math:`u = K_p (q_{2,ref} - q_2) - K_d \dot q_2 + g(q_{ref})`, the motor target
     :math:`q_{2,ref} = q_{ref} + K^{-1} g(q_{ref})` holding the links at :math:`q_{ref}` at rest.
 
     Args:
@@ -39,8 +40,18 @@ class JointPD:
         gravity_compensation: bool = True,
         flexible: FlexibleJoints | None = None,
     ) -> None:
-        if robot.nq != robot.nv:
-            raise InvalidParameterError("robot", robot.name, "a robot with nq = nv for JointPD")
+        q_of_v = {  # configuration index of each one-coordinate joint's velocity index
+            int(joint.idx_v): int(joint.idx_q)
+            for joint in robot.model.joints[1:]
+            if joint.nq == 1 and joint.nv == 1
+        }
+        if any(int(i) not in q_of_v for i in robot.actuated):
+            raise InvalidParameterError(
+                "robot",
+                robot.name,
+                "a robot whose actuated joints have one configuration coordinate each "
+                "(revolute or prismatic; a free-flyer base is allowed) for JointPD",
+            )
         self._model = robot.model
         self._data = robot.model.createData()
         self._actuated = robot.actuated
@@ -49,8 +60,10 @@ class JointPD:
         self.kd = _gain("kd", kd, robot.nu)
         self.gravity_compensation = gravity_compensation
         self._flexible = flexible
-        self._target = self.q_ref[self._actuated]  # of the measured positions [rad]
-        self._measured_q = self._measured_v = self._actuated  # indices in the plant's q, v
+        actuated_q = np.array([q_of_v[int(i)] for i in self._actuated], dtype=np.int64)
+        self._target = self.q_ref[actuated_q]  # of the measured positions [rad]
+        self._measured_q = actuated_q  # indices in the plant's q
+        self._measured_v = self._actuated  # and v
         if flexible is not None:
             self._gravity_at_target = pin.computeGeneralizedGravity(
                 self._model, self._data, self.q_ref
@@ -62,7 +75,7 @@ class JointPD:
                 if gravity_compensation
                 else 0.0
             )
-            self._measured_q = self._actuated.copy()
+            self._measured_q = actuated_q.copy()
             self._measured_q[motors] = robot.nq + np.arange(flexible.nf)
             self._measured_v = flexible.input_coordinates(self._actuated)
 

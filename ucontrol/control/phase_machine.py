@@ -120,6 +120,8 @@ class PhaseMachine:
         self.coordinates = np.array([task.names.index(name) for name in self.contacts])
         self._coordinate_list = [int(j) for j in self.coordinates]
         self._A_t = np.ascontiguousarray(task.A.T)  # (3, m)
+        # the path's derivatives as one (order + 1, 3) array when it offers them so
+        self._derivative_matrix = getattr(cycle.path, "derivative_matrix", None)
         self.reset()
 
     def reset(self) -> None:
@@ -157,11 +159,10 @@ class PhaseMachine:
     def desired(self, t: float) -> DesiredState:
         """The desired trajectory at time ``t`` [s] in the current phases."""
         order, task = self.order, self.task
-        path = self.cycle.path
-        if hasattr(path, "derivative_matrix"):
-            stack = path.derivative_matrix(t, order)
+        if self._derivative_matrix is not None:
+            stack = self._derivative_matrix(t, order)
         else:
-            stack = np.array(path.derivatives(t, order))
+            stack = np.array(self.cycle.path.derivatives(t, order))
         nominal = stack @ self._A_t  # (order + 1, m): task components of each derivative
         nominal[0] -= task.b
         if self._all_nominal:
@@ -172,7 +173,8 @@ class PhaseMachine:
                 [segment(t, tuple(columns[j])) for j, segment in enumerate(self._segments)]
             ).T.copy()
         target = tuple(target_rows)
-        reference = (target_rows[0].copy(), target_rows[1].copy())
+        reference_rows = target_rows[:2].copy()
+        reference = (reference_rows[0], reference_rows[1])
         n = len(self.contacts)
         force = np.zeros(n)
         force_derivatives = tuple(np.zeros(n) for _ in range(order - 2))
