@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 from ucontrol.scene import Scene, load_scene
@@ -36,6 +37,17 @@ def ball_scene(restitution: float, **changes: object) -> Scene:
     scene = load_scene(ROBOTS / "ball.toml")
     contact = dataclasses.replace(scene.contacts[0], restitution=restitution)
     return dataclasses.replace(scene, contacts=(contact,), **changes)
+
+
+@pytest.fixture
+def rng(request: pytest.FixtureRequest) -> np.random.Generator:
+    """A generator of its own for each test, seeded from the test's id.
+
+    A test's inputs then never depend on which other tests ran before it (a module-level
+    generator shared by a module's tests does), and each test keeps the same inputs from run
+    to run and when run alone.
+    """
+    return np.random.default_rng(list(request.node.nodeid.encode()))  # every byte seeds it
 
 
 @pytest.fixture
