@@ -266,3 +266,15 @@ def test_wilson_interval_matches_its_closed_form_and_covers():
     k = rng.binomial(n, p, size=trials)
     covered = np.mean([lo <= p <= hi for lo, hi in (wilson_interval(int(x), n) for x in k)])
     assert 0.92 < covered < 0.98
+
+
+def test_scene_with_overrides_sets_the_keys(tmp_path):
+    from ucontrol.campaign.overrides import scene_with_overrides
+    from ucontrol.scene import builtin_scene
+
+    path = builtin_scene("ball.toml")
+    scene = scene_with_overrides(path, ["contacts.0.restitution=0.25", "robot.q0=[0.5]"])
+    assert scene.contacts[0].restitution == 0.25 and scene.q0.tolist() == [0.5]
+    assert scene.source == path.resolve() and scene.name == "ball"
+    with pytest.raises(UControlError, match="restitutio"):
+        scene_with_overrides(path, ["contacts.0.restitutio=0.25"])

@@ -76,13 +76,14 @@ def parse_criterion(expression: str) -> Criterion:
     """
     if not isinstance(expression, str) or not expression.strip():
         raise CriterionError(str(expression), "must be a non-empty string")
+    expression = " ".join(expression.split())  # a criterion may span lines in TOML
     try:
-        tree = ast.parse(expression.strip(), mode="eval")
+        tree = ast.parse(expression, mode="eval")
     except SyntaxError as error:
         raise CriterionError(expression, f"syntax error: {error.msg}") from error
     names: list[str] = []
     _check(tree.body, expression, names)
-    return Criterion(expression.strip(), tuple(dict.fromkeys(names)))
+    return Criterion(expression, tuple(dict.fromkeys(names)))
 
 
 def _check(node: ast.AST, text: str, names: list[str]) -> None:

@@ -85,7 +85,9 @@ def worst_cases(directory: str | Path, n: int = N_WORST) -> Any:
     )
     chosen = frame.iloc[order[:n]].copy()
     chosen["rerun"] = [_rerun(info, row) for _, row in chosen.iterrows()]
-    return chosen.reset_index(drop=True)
+    chosen = chosen.reset_index(drop=True)
+    chosen.attrs["worst"] = None if worst is None else worst.removeprefix("-")
+    return chosen
 
 
 def write_worst(worst: Any, out: Path) -> list[Path]:
@@ -105,13 +107,27 @@ def worst_markdown(worst: Any) -> str:
         else:
             state = "passed" if row["success"] else "completed, success criterion not met"
         error = f": {row['error']}" if row["error"] else ""
-        lines.append(f"- `{row['run_id']}` {state}{error}")
+        metric = worst.attrs.get("worst")
+        value = f", {metric} = {row[metric]:.4g}" if metric and _finite(row[metric]) else ""
+        lines.append(f"- `{row['run_id']}` {state}{value}{error}")
         lines.append(f"  `{row['rerun']}`")
     return "\n".join(lines) if lines else "(no finished runs)"
 
 
+def _short_path(path: str) -> str:
+    """``path`` relative to the working directory when it lies inside it."""
+    try:
+        return str(Path(path).resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return path
+
+
+def _finite(value: Any) -> bool:
+    return math.isfinite(_as_number(value))
+
+
 def _rerun(info: dict[str, Any], row: Any) -> str:
-    words = ["ucontrol", "run", info.get("scene_path", "SCENE")]
+    words = ["ucontrol", "run", _short_path(info.get("scene_path", "SCENE"))]
     if info.get("duration") is not None:
         words += ["--duration", repr(info["duration"])]
     if info.get("dt") is not None:
@@ -226,6 +242,7 @@ def _histograms(frame: Any, metrics: list[str], out: Path) -> Path:
         ax.hist(data, bins=15, stacked=True, color=["tab:green", "tab:red"], label=["pass", "fail"])
         ax.set_title(name, fontsize=9)
         ax.tick_params(labelsize=8)
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
     for ax in list(axes.flat)[len(metrics) :]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=8)

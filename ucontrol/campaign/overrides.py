@@ -9,7 +9,8 @@ being left untouched, so one base table serves every run of a campaign.
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 from ucontrol.campaign.errors import ParameterKeyError
@@ -143,3 +144,38 @@ def _toml_value(value: Any) -> str:
     if isinstance(value, list | tuple):
         return "[" + ", ".join(_toml_value(item) for item in value) + "]"
     return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def scene_with_overrides(path: str | Path, assignments: Sequence[str]) -> Any:
+    """Load a scene file with ``KEY=VALUE`` overrides (``ucontrol run --set``).
+
+    Args:
+        path: The scene TOML file.
+        assignments: ``KEY=VALUE`` texts (:func:`parse_assignment`), applied in order.
+
+    Returns:
+        The :class:`ucontrol.scene.Scene`, its ``source`` the file.
+
+    Raises:
+        ParameterKeyError: A malformed assignment or a key that does not walk the table.
+        SceneError: The file is missing or not TOML; UnknownKeyError and the scene's other
+            errors for keys or values it rejects.
+    """
+    import dataclasses
+    import tomllib
+
+    from ucontrol.exceptions import SceneError
+    from ucontrol.scene import Scene
+
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"scene file {str(path)!r} does not exist")
+    try:
+        table = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {error}") from error
+    overrides = dict(parse_assignment(text) for text in assignments)
+    scene = Scene.from_dict(
+        apply_overrides(table, overrides), base_dir=path.parent, default_name=path.stem
+    )
+    return dataclasses.replace(scene, source=path.resolve())
