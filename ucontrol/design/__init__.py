@@ -11,6 +11,7 @@ from ucontrol.design.cycle_transcription import CycleTranscription, design_cycle
 from ucontrol.design.design_report import DesignReport
 from ucontrol.design.design_task import DesignTask
 from ucontrol.design.designed_cycle import CyclePhase, DesignedCycle
+from ucontrol.design.open_loop_replay import ReplayResult, replay_open_loop
 from ucontrol.design.periodic_spline_path import PeriodicSplinePath
 
 __all__ = [
@@ -20,5 +21,7 @@ __all__ = [
     "DesignTask",
     "DesignedCycle",
     "PeriodicSplinePath",
+    "ReplayResult",
     "design_cycle",
+    "replay_open_loop",
 ]
