@@ -305,7 +305,7 @@ def _client(client: Any, scheduler: str | None, workers: int | None, pending: in
             n_workers=n,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            dashboard_address=":0",
             silence_logs=40,  # logging.ERROR: a killed worker's traceback is recorded instead
         )
     local = Client(cluster)
