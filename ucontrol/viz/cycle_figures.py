@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 
 from ucontrol.control.brogliato_controller import BrogliatoController
 from ucontrol.log import Log
+from ucontrol.viz.figure_notes import annotate_clip, clip_note, legend_outside
 from ucontrol.viz.phase_bands import phase_bands, phase_legend
 
 #: Window of the moving mean of the measured contact force, in [s].
@@ -55,7 +56,7 @@ def frame_positions(log: Log, controller: BrogliatoController) -> np.ndarray:
 
 def _path_figure(log: Log, controller: BrogliatoController, plane: tuple[int, int]) -> Figure:
     a, b = plane
-    figure = Figure(figsize=(6.0, 5.5), layout="constrained")
+    figure = Figure(figsize=(7.5, 5.5), layout="constrained")
     ax = figure.add_subplot()
     cycle = controller.cycle
     nominal = np.array(
@@ -71,7 +72,7 @@ def _path_figure(log: Log, controller: BrogliatoController, plane: tuple[int, in
         _draw_plane(ax, contact.surface.point, contact.surface.normal, plane, contact.name)
     ax.set_xlabel(f"{_AXIS_NAMES[a]} [m]")
     ax.set_ylabel(f"{_AXIS_NAMES[b]} [m]")
-    ax.legend(loc="best", fontsize=8)
+    legend_outside(ax, fontsize=8)
     ax.set_title("end-effector path")
     return figure
 
@@ -119,12 +120,12 @@ def _time_figure(log: Log, controller: BrogliatoController) -> Figure:
         axes[0].plot(t, log.task_desired[:, j], "--", color=colour, lw=1, label="desired")
         axes[0].plot(t, log.task_target[:, j], ":", color=colour, lw=1, label="target (virtual)")
     axes[0].set_ylabel("gap [m]")
-    axes[0].legend(loc="upper right", fontsize=7, ncol=2)
+    legend_outside(axes[0])
 
     axes[1].semilogy(t, np.maximum(log.V, 1e-16), lw=1, label="V")
     axes[1].semilogy(t, np.maximum(log.V1, 1e-16), lw=0.8, alpha=0.7, label="V1")
     axes[1].set_ylabel("Lyapunov [J]")
-    axes[1].legend(loc="upper right", fontsize=7)
+    legend_outside(axes[1])
 
     window = max(1, round(FORCE_WINDOW / float(log.metadata["dt"])))
     peak = float(log.lambda_d.max(initial=1.0))
@@ -135,9 +136,11 @@ def _time_figure(log: Log, controller: BrogliatoController) -> Figure:
         mean = np.convolve(force, np.ones(window) / window, mode="same")
         axes[2].plot(t, mean, color=colour, lw=1.4, label=f"{FORCE_WINDOW * 1e3:.0f} ms mean")
         axes[2].plot(t, log.lambda_d[:, i], "k--", lw=1, label="λ_d" if i == 0 else None)
-    axes[2].set_ylim(-0.1 * peak, 2.0 * peak)
+    low, high = -0.1 * peak, 2.0 * peak  # [N] impact peaks above are left out
+    axes[2].set_ylim(low, high)
+    annotate_clip(axes[2], clip_note(log.contact_force, low, high, "N"))
     axes[2].set_ylabel("contact force [N]")
-    axes[2].legend(loc="upper right", fontsize=7, ncol=2)
+    legend_outside(axes[2])
 
     error = np.linalg.norm(log.task_position - log.task_desired, axis=1)
     axes[3].semilogy(t, np.maximum(error, 1e-12), lw=1)

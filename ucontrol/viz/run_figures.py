@@ -5,6 +5,10 @@
 when the controller logged them; with the scene of a phase-machine run, the end-effector path
 and the cycle summary of :func:`ucontrol.viz.cycle_figures.cycle_figures`. Phase bands shade
 the time axes of runs with a ``phase`` field. Uses matplotlib's object API with the Agg canvas.
+
+Curves are named after the URDF's joints when the scene is known, legends sit to the right of
+the axes (never over a curve), and a panel whose scale leaves samples out says how many and
+the range of the values left out.
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
@@ -22,6 +27,7 @@ from ucontrol.exceptions import InvalidParameterError
 from ucontrol.log import Log
 from ucontrol.scene import Scene
 from ucontrol.viz.cycle_figures import FORCE_WINDOW, cycle_figures, frame_positions
+from ucontrol.viz.figure_notes import annotate_clip, clip_note, legend_outside
 from ucontrol.viz.phase_bands import phase_bands, phase_legend
 
 #: Resolution of the PNG files in [dots per inch].
@@ -36,8 +42,9 @@ def run_figures(log: Log, out_dir: str | Path, *, scene: Scene | None = None) ->
     Args:
         log: The run (e.g. ``Log.load(DIR / "log.npz")``).
         out_dir: Output folder, created if needed.
-        scene: The scene of the run; with a phase-machine controller (``type = "brogliato"``)
-            it names the task coordinates and adds ``cycle_path.png`` and ``cycle_time.png``.
+        scene: The scene of the run; it names the joints after the URDF, and with a
+            phase-machine controller (``type = "brogliato"``) it names the task coordinates and
+            adds ``cycle_path.png`` and ``cycle_time.png``.
 
     Returns:
         The paths of the files written.
@@ -48,16 +55,8 @@ def run_figures(log: Log, out_dir: str | Path, *, scene: Scene | None = None) ->
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    figures = {
-        "q": _configuration_figure(log),
-        "gaps": _gap_figure(log),
-        "forces": _force_figure(log),
-        "energy": _energy_figure(log),
-    }
     controller = _phase_controller(log, scene)
-    if "task_position" in log.fields:
-        names = None if controller is None else controller.task.names
-        figures["tracking"] = _tracking_figure(log, names)
+    figures = run_figure_set(log, scene=scene, controller=controller)
     paths = []
     for name, figure in figures.items():
         paths.append(out_dir / f"{name}.png")
@@ -67,6 +66,78 @@ def run_figures(log: Log, out_dir: str | Path, *, scene: Scene | None = None) ->
         plane = tuple(int(axis) for axis in np.sort(np.argsort(positions.std(axis=0))[-2:]))
         paths += cycle_figures(log, controller, out_dir, "cycle", plane=(plane[0], plane[1]))
     return paths
+
+
+def run_figure_set(
+    log: Log, *, scene: Scene | None = None, controller: BrogliatoController | None = None
+) -> dict[str, Figure]:
+    """The figures :func:`run_figures` writes (but the cycle ones), by file stem, unsaved.
+
+    Args:
+        log: The run.
+        scene: The scene of the run: joint names for the configuration figure.
+        controller: The phase-machine controller of the run: names of the task coordinates.
+
+    Returns:
+        ``q``, ``gaps``, ``forces``, ``energy`` and, when the controller logged task
+        coordinates, ``tracking``.
+    """
+    figures = {
+        "q": _configuration_figure(log, None if scene is None else scene.robot.model),
+        "gaps": _gap_figure(log),
+        "forces": _force_figure(log),
+        "energy": _energy_figure(log),
+    }
+    if "task_position" in log.fields:
+        names = None if controller is None else controller.task.names
+        figures["tracking"] = _tracking_figure(log, names)
+    return figures
+
+
+def coordinate_names(model: pin.Model | None, nq: int, nv: int) -> tuple[list[str], list[str]]:
+    """Names of the configuration and velocity coordinates, after the model's joints.
+
+    A joint of one coordinate gives its name (``panda_joint1``); a joint of several gives one
+    name per coordinate with a suffix: ``root_joint.x`` … ``root_joint.qw`` and
+    ``root_joint.vx`` … ``root_joint.wz`` for a free flyer, ``name[k]`` otherwise. Without a
+    model (or with one of other sizes) the names are ``q[i]`` and ``v[i]``.
+
+    Args:
+        model: The Pinocchio model of the run's robot, or None.
+        nq: Number of configuration coordinates of the log.
+        nv: Number of velocity coordinates of the log.
+
+    Returns:
+        The names of q, length nq, and of v, length nv.
+    """
+    if model is None or model.nq != nq or model.nv != nv:
+        return [f"q[{i}]" for i in range(nq)], [f"v[{i}]" for i in range(nv)]
+    q_names, v_names = [""] * nq, [""] * nv
+    for joint, name in zip(model.joints[1:], model.names[1:], strict=True):
+        suffixes = _SUFFIXES.get(joint.shortname(), ((), ()))
+        for names, start, size, known in (
+            (q_names, joint.idx_q, joint.nq, suffixes[0]),
+            (v_names, joint.idx_v, joint.nv, suffixes[1]),
+        ):
+            for k in range(size):
+                if size == 1:
+                    names[start + k] = name
+                elif len(known) == size:
+                    names[start + k] = f"{name}.{known[k]}"
+                else:
+                    names[start + k] = f"{name}[{k}]"
+    return q_names, v_names
+
+
+#: Coordinate suffixes of Pinocchio joints of several coordinates: (of q, of v).
+_SUFFIXES = {
+    "JointModelFreeFlyer": (
+        ("x", "y", "z", "qx", "qy", "qz", "qw"),
+        ("vx", "vy", "vz", "wx", "wy", "wz"),
+    ),
+    "JointModelPlanar": (("x", "y", "cos", "sin"), ("vx", "vy", "w")),
+    "JointModelSpherical": (("qx", "qy", "qz", "qw"), ("wx", "wy", "wz")),
+}
 
 
 def _phase_controller(log: Log, scene: Scene | None) -> BrogliatoController | None:
@@ -96,16 +167,17 @@ def _time_axes(log: Log, rows: int, height: float) -> tuple[Figure, list[Axes]]:
     return figure, axes
 
 
-def _configuration_figure(log: Log) -> Figure:
+def _configuration_figure(log: Log, model: pin.Model | None) -> Figure:
+    q_names, v_names = coordinate_names(model, log.q.shape[1], log.v.shape[1])
     figure, (top, bottom) = _time_axes(log, 2, 2.6)
-    for i in range(log.q.shape[1]):
-        top.plot(log.t, log.q[:, i], lw=1, label=f"q[{i}]")
-    for i in range(log.v.shape[1]):
-        bottom.plot(log.t, log.v[:, i], lw=1, label=f"v[{i}]")
+    for i, name in enumerate(q_names):
+        top.plot(log.t, log.q[:, i], lw=1, label=name)
+    for i, name in enumerate(v_names):
+        bottom.plot(log.t, log.v[:, i], lw=1, label=name)
     top.set_ylabel("q [rad, m]")
     bottom.set_ylabel("v [rad/s, m/s]")
     for ax in (top, bottom):
-        ax.legend(loc="upper right", fontsize=7, ncol=min(6, log.q.shape[1]))
+        legend_outside(ax, ncol=1 if len(q_names) <= 12 else 2)
     top.set_title("configuration and velocity")
     return figure
 
@@ -120,7 +192,7 @@ def _gap_figure(log: Log) -> Figure:
         rows = np.flatnonzero(impacts[:, i])
         ax.plot(log.t[rows], log.gap[rows, i], "v", ms=4, color="C3", label="impact")
         ax.set_ylabel(name, fontsize=8)
-        ax.legend(loc="upper right", fontsize=7)
+        legend_outside(ax)
     axes[0].set_title("gaps [m] (joint stops: [rad] or [m]); negative = penetration")
     return figure
 
@@ -128,7 +200,9 @@ def _gap_figure(log: Log) -> Figure:
 def _force_figure(log: Log) -> Figure:
     """Mean force impulse / dt of each constraint, its moving mean and the desired force.
 
-    Constraints that never carry an impulse are only named in the title.
+    Constraints that never carry an impulse are only named in the title. The y scale of a panel
+    is set by the forces carried between impacts and the desired force; the impact peaks above
+    it are clipped and their number and range written in the panel.
     """
     desired = _desired_forces(log)
     names = log.constraint_names
@@ -137,6 +211,7 @@ def _force_figure(log: Log) -> Figure:
     dt = float(log.metadata["dt"])  # [s]
     window = max(1, round(FORCE_WINDOW / dt))
     t = log.t[:-1]  # [s] start of each step
+    impacts = impact_mask(log)
     for ax, i in zip(axes, shown, strict=False):
         name = names[i]
         force = log.impulse[:-1, i] / dt  # [N] over each step (the last row has none)
@@ -144,14 +219,22 @@ def _force_figure(log: Log) -> Figure:
         kernel = np.ones(window)
         mean = np.convolve(force, kernel, "same") / np.convolve(np.ones_like(force), kernel, "same")
         ax.plot(t, mean, lw=1.3, label=f"{FORCE_WINDOW * 1e3:.0f} ms mean")
-        top = float(np.percentile(force[force > 0.0], 99)) if (force > 0.0).any() else 1.0
+        # The scale is that of the forces carried between impacts (and the desired force):
+        # impact peaks above it are clipped, and the panel says so with their range.
+        carried = force[(force > 0.0) & ~impacts[:-1, i]]
+        if carried.size:
+            top = float(np.percentile(carried, 99))
+        else:  # impacts only: they set the scale
+            top = float(force.max()) if (force > 0.0).any() else 1.0
         if name in desired:
             ax.plot(t, desired[name][:-1], "k--", lw=1, label="λ_d (desired)")
             top = max(top, 1.5 * float(desired[name].max()))
-        ax.set_ylim(-0.05 * top, 1.3 * top)  # impacts above are clipped
+        low, high = -0.05 * top, 1.3 * top  # [N] impact peaks above are left out
+        ax.set_ylim(low, high)
+        annotate_clip(ax, clip_note(force, low, high, "N"))
         ax.set_ylabel(name, fontsize=8)
-        ax.legend(loc="upper right", fontsize=7, ncol=3)
-    title = "contact forces [N] (joint stops: [N m] or [N]); impact peaks clipped"
+        legend_outside(ax)
+    title = "contact forces [N] (joint stops: [N m] or [N])"
     idle = [name for i, name in enumerate(names) if i not in shown]
     if idle:
         title += f"\nno force on: {', '.join(idle)}"
@@ -177,7 +260,7 @@ def _energy_figure(log: Log) -> Figure:
         ax.axvline(log.t[row], color="C3", lw=0.4, alpha=0.4)
     ax.set_ylabel("energy [J]")
     ax.set_title("energy (red lines: impacts)")
-    ax.legend(loc="upper right", fontsize=8)
+    legend_outside(ax, fontsize=8)
     return figure
 
 
@@ -192,18 +275,18 @@ def _tracking_figure(log: Log, names: list[str] | None) -> Figure:
         ax.plot(log.t, log.task_desired[:, j], "k--", lw=1, label="X_d (desired)")
         ax.plot(log.t, log.task_target[:, j], ":", color="C3", lw=1, label="X_d* (virtual)")
         ax.set_ylabel(f"{labels[j]} [m]", fontsize=8)
-        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        legend_outside(ax)
     error = np.abs(log.task_position - log.task_desired)  # [m]
     ax = axes[m]
     for j in range(m):
         ax.semilogy(log.t, np.maximum(error[:, j], 1e-12), lw=0.8, label=f"|X̃| {labels[j]}")
     ax.semilogy(log.t, np.maximum(np.linalg.norm(error, axis=1), 1e-12), "k", lw=1, label="‖X̃‖")
     ax.set_ylabel("tracking error [m]")
-    ax.legend(loc="upper right", fontsize=7, ncol=2)
+    legend_outside(ax)
     ax = axes[m + 1]
     ax.semilogy(log.t, np.maximum(log.V, 1e-16), lw=1.2, label="V")
     ax.semilogy(log.t, np.maximum(log.V1, 1e-16), lw=0.8, alpha=0.7, label="V1 = ½ sᵀ M̄ s")
     ax.set_ylabel("Lyapunov [J]")
-    ax.legend(loc="upper right", fontsize=7)
+    legend_outside(ax)
     axes[0].set_title("task coordinates X = (gaps, tangential) against the desired ones")
     return figure
