@@ -69,9 +69,18 @@ class CirclePath:
     def derivative_matrix(self, t: float, order: int) -> NDArray[np.float64]:
         """:meth:`derivatives` stacked, shape (order + 1, 3): row k is the k-th derivative.
 
-        Row k is :math:`a_k u + b_k w` (plus c for k = 0) with the scalars
-        :math:`(a_k, b_k)` computed on floats: one small matrix product instead of a dozen
-        operations on 3-vectors.
+        Row k is :math:`a_k u + b_k w` (plus c for k = 0) with the :meth:`plane_coefficients`
+        :math:`(a_k, b_k)`: one small matrix product instead of a dozen operations on
+        3-vectors.
+        """
+        rows = self.plane_coefficients(t, order) @ self.axes
+        rows[0] += self.centre
+        return rows
+
+    def plane_coefficients(self, t: float, order: int) -> NDArray[np.float64]:
+        r"""Coordinates along (u, w) of :math:`p - c` and of its derivatives, (order + 1, 2).
+
+        Row k is :math:`r \omega^k (\cos(\varphi + k\pi/2), \sin(\varphi + k\pi/2))`.
         """
         omega = 2.0 * math.pi / self.period  # [rad/s]
         angle = self.start_angle + omega * t
@@ -83,6 +92,4 @@ class CirclePath:
             scale = r * omega**k
             a, b = turns[k % 4]
             coefficients.append((scale * a, scale * b))
-        rows = np.array(coefficients) @ self.axes
-        rows[0] += self.centre
-        return rows
+        return np.array(coefficients)

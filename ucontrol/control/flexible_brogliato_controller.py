@@ -93,6 +93,7 @@ motor acceleration, which holds the input itself.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -257,24 +258,26 @@ class FlexibleBrogliatoController(BrogliatoController):
         x = self._law_input  # state, q1d and its 4 derivatives, force term (3, n), λ (2, n)
         size = state.size
         x[:size] = state
-        x[size : size + nv] = q1d
         reference_input = x[size : size + 5 * nv]  # (q1d, X_d derivatives 1 to 4) in place
-        for k in range(1, 5):
-            reference_input[k * nv : (k + 1) * nv] = desired.target[k]
+        reference_input[:nv] = q1d
+        np.concatenate(desired.target[1:], out=reference_input[nv:])
         (derivatives,) = self._reference_derivatives(reference_input)
-        derivatives = derivatives.copy()
-        x[size + nv : size + 5 * nv] = derivatives
-        # λ_d and its derivatives, (3, n): 0 unless held; the force λ used and its derivatives:
-        # the measured value with the derivatives of λ_d, or λ_d where there is no valid
-        # measurement.
-        lambda_d = np.array([desired.force, *desired.force_derivatives])  # [N], [N/s], [N/s²]
-        lambda_m = lambda_d.copy()
-        measured = desired.constrained & self._persistent
-        lambda_m[0, measured] = self.contact_force[measured]
-        force_term = -lambda_d + self.gains.force_gain * (lambda_m - lambda_d)
+        reference_input[nv:] = derivatives  # q1d derivatives 1 to 4
+        link_desired = reference_input.reshape(5, nv).copy()
         start = size + 5 * nv
-        x[start : start + force_term.size] = force_term.ravel()
-        x[start + force_term.size :] = lambda_m[:2].ravel()
+        if desired.constrained.any():
+            # λ_d and its derivatives, (3, n): 0 unless held; the force λ used and its
+            # derivatives: the measured value with the derivatives of λ_d, or λ_d where there
+            # is no valid measurement.
+            lambda_d = np.array([desired.force, *desired.force_derivatives])  # [N], [N/s], ...
+            lambda_m = lambda_d.copy()
+            measured = desired.constrained & self._persistent
+            lambda_m[0, measured] = self.contact_force[measured]
+            force_term = -lambda_d + self.gains.force_gain * (lambda_m - lambda_d)
+            x[start : start + force_term.size] = force_term.ravel()
+            x[start + force_term.size :] = lambda_m[:2].ravel()
+        else:
+            x[start:] = 0.0  # no contact held: no force in the model
         (out,) = self._law(x)
         out = out.copy()
         return _LawValues(
@@ -282,7 +285,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             X=out[nv : 2 * nv],
             V=float(out[2 * nv]),
             V1=float(out[2 * nv + 1]),
-            link_desired=(q1d, *derivatives.reshape(4, nv)),
+            link_desired=tuple(link_desired),
             motor_desired=tuple(out[2 * nv + 2 :].reshape(3, nf)),
         )
 
@@ -300,8 +303,8 @@ class FlexibleBrogliatoController(BrogliatoController):
             q = q1.copy()
         else:
             dt = t - self._reference_time  # [s]
-            d = self.link_desired
-            q = d[0] + dt * (d[1] + dt / 2 * (d[2] + dt / 3 * (d[3] + dt / 4 * d[4])))
+            taylor = (1.0, dt, dt * dt / 2, dt**3 / 6, dt**4 / 24)  # [s^k / k!]
+            q = np.array(taylor) @ np.array(self.link_desired)
         nv = q.size
         x = self._newton_input
         x[nv:] = X_d
@@ -309,10 +312,11 @@ class FlexibleBrogliatoController(BrogliatoController):
             x[:nv] = q
             (out,) = self._newton_step(x)
             step = out[:nv]
-            if not np.all(np.isfinite(step)):  # singular task Jacobian
+            values = step.tolist()
+            if not all(math.isfinite(value) for value in values):  # singular task Jacobian
                 break
             q -= step
-            if np.max(np.abs(step)) <= NEWTON_TOLERANCE:
+            if max(abs(value) for value in values) <= NEWTON_TOLERANCE:
                 return q
         raise SolverError(
             "Newton's method for the link reference q1d = φ⁻¹(X_d)",

@@ -120,8 +120,11 @@ class PhaseMachine:
         self.coordinates = np.array([task.names.index(name) for name in self.contacts])
         self._coordinate_list = [int(j) for j in self.coordinates]
         self._A_t = np.ascontiguousarray(task.A.T)  # (3, m)
-        # the path's derivatives as one (order + 1, 3) array when it offers them so
-        self._derivative_matrix = getattr(cycle.path, "derivative_matrix", None)
+        # a path in a plane (u, w) around c: task components of u, w and of c
+        self._plane: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        if hasattr(cycle.path, "plane_coefficients"):
+            axes, centre = cycle.path.axes, cycle.path.centre
+            self._plane = (axes @ self._A_t, centre @ self._A_t - task.b)
         self.reset()
 
     def reset(self) -> None:
@@ -135,11 +138,12 @@ class PhaseMachine:
         self._takeoff_started = np.zeros(n)
         self._segments: list[TrajectorySegment] = [Nominal()] * self.task.m
         self._frozen = [False] * self.task.m
+        self._all_nominal = True  # every coordinate follows the nominal path (free phase)
 
-    @property
-    def _all_nominal(self) -> bool:
-        """Whether every coordinate follows the nominal path (the free phase)."""
-        return all(type(segment) is Nominal for segment in self._segments)
+    def _set_segment(self, j: int, segment: TrajectorySegment) -> None:
+        """Coordinate ``j`` follows ``segment`` from now on."""
+        self._segments[j] = segment
+        self._all_nominal = all(type(s) is Nominal for s in self._segments)
 
     @property
     def phase(self) -> Phase:
@@ -159,12 +163,13 @@ class PhaseMachine:
     def desired(self, t: float) -> DesiredState:
         """The desired trajectory at time ``t`` [s] in the current phases."""
         order, task = self.order, self.task
-        if self._derivative_matrix is not None:
-            stack = self._derivative_matrix(t, order)
+        if self._plane is not None:  # a planar path: p - c and its derivatives along (u, w)
+            basis, offset = self._plane
+            nominal = self.cycle.path.plane_coefficients(t, order) @ basis  # (order + 1, m)
+            nominal[0] += offset
         else:
-            stack = np.array(self.cycle.path.derivatives(t, order))
-        nominal = stack @ self._A_t  # (order + 1, m): task components of each derivative
-        nominal[0] -= task.b
+            nominal = np.array(self.cycle.path.derivatives(t, order)) @ self._A_t
+            nominal[0] -= task.b
         if self._all_nominal:
             target_rows = nominal
         else:
@@ -210,13 +215,13 @@ class PhaseMachine:
         happened = False
         for j, segment in enumerate(self._segments):  # an ended blend is the nominal path
             if type(segment) is BlendToNominal and (t - segment.t0) / segment.duration >= 1.0:
-                self._segments[j] = Nominal()
+                self._set_segment(j, Nominal())
         for i, phase in enumerate(self.phases):
             j = self.coordinates[i]
             event = Event.NONE
             if phase is Phase.FREE and _reached(t, self.approach_time(i)):
                 self.depth[i] = cycle.depth(V1)
-                self._segments[j] = self._stop(t, now, j, -self.depth[i])
+                self._set_segment(j, self._stop(t, now, j, -self.depth[i]))
                 self._frozen[j] = False  # its own transition now drives it
                 self.phases[i] = Phase.APPROACH
                 self._freeze(t, now)
@@ -236,7 +241,7 @@ class PhaseMachine:
                     self._closed_since[i] = t
                 elif _reached(t, since + cycle.rest_time):
                     self.phases[i] = Phase.CONSTRAINED
-                    self._segments[j] = Constant(0.0)
+                    self._set_segment(j, Constant(0.0))
                     self.depth[i] = 0.0
                     self._release(t)
                     event = Event.ACCUMULATION_END
@@ -247,7 +252,7 @@ class PhaseMachine:
                 t, self._takeoff_started[i] + cycle.takeoff_time
             ):
                 self.phases[i] = Phase.FREE
-                self._segments[j] = Nominal()
+                self._set_segment(j, Nominal())
                 self._cycle_index[i] += 1
                 self._freeze(t, now)
             if event:
@@ -273,7 +278,7 @@ class PhaseMachine:
             parabola = SmoothParabola(
                 t, cycle.takeoff_acceleration, cycle.takeoff_ramp_time, self.order - 2
             )
-        self._segments[self.coordinates[i]] = self._blend(parabola, t, cycle.takeoff_time)
+        self._set_segment(self.coordinates[i], self._blend(parabola, t, cycle.takeoff_time))
         if was_transiting:
             self._release(t)
 
@@ -289,7 +294,7 @@ class PhaseMachine:
             if j in busy or self._frozen[j]:
                 continue
             p, dp = now.target[0][j], now.target[1][j]
-            self._segments[j] = self._stop(t, now, j, p + 0.5 * dp * self.cycle.approach_time)
+            self._set_segment(j, self._stop(t, now, j, p + 0.5 * dp * self.cycle.approach_time))
             self._frozen[j] = True
 
     def _release(self, t: float) -> None:
@@ -298,7 +303,7 @@ class PhaseMachine:
             return
         for j, frozen in enumerate(self._frozen):
             if frozen:
-                self._segments[j] = self._blend(self._segments[j], t, self.cycle.blend_time)
+                self._set_segment(j, self._blend(self._segments[j], t, self.cycle.blend_time))
                 self._frozen[j] = False
 
     def _stop(self, t: float, now: DesiredState, j: int, p1: float) -> TrajectorySegment:
