@@ -20,6 +20,7 @@ Usage::
 
     python experiments/bench_closed_loop.py --duration 3 --repeats 3
     python experiments/bench_closed_loop.py --baseline /tmp/base_tree --rounds 3
+    python experiments/bench_closed_loop.py --current /tmp/other_checkout --no-scaling
 """
 
 from __future__ import annotations
@@ -142,14 +143,19 @@ def table(rows: list[dict], labels: Sequence[str] = ()) -> str:
 
 
 def compare(
-    names: Sequence[str], baseline: Path, duration: float, repeats: int, rounds: int
+    names: Sequence[str],
+    baseline: Path,
+    duration: float,
+    repeats: int,
+    rounds: int,
+    current: Path = ROOT,
 ) -> str:
-    """Before/after table: baseline and this checkout interleaved over ``rounds`` rounds."""
+    """Before/after table: ``baseline`` and ``current`` interleaved over ``rounds`` rounds."""
     before: list[list[dict]] = []
     after: list[list[dict]] = []
     for _ in range(rounds):
         before.append(_worker(names, baseline, duration, repeats))
-        after.append(_worker(names, ROOT, duration, repeats))
+        after.append(_worker(names, current, duration, repeats))
     old, new = _median_rows(before), _median_rows(after)
     rows, labels = [], []
     for b, a in zip(old, new, strict=True):
@@ -166,6 +172,9 @@ def main(argv: Sequence[str] | None = None) -> str:
     parser.add_argument("--repeats", type=int, default=3, help="timed runs, median kept [-]")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds [-]")
     parser.add_argument("--baseline", type=Path, default=None, help="older checkout to compare")
+    parser.add_argument(
+        "--current", type=Path, default=ROOT, help="checkout measured (default: this one)"
+    )
     parser.add_argument("--no-scaling", action="store_true", help="skip the scaling table")
     parser.add_argument("--out", type=Path, default=None, help="markdown file to write")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
@@ -178,11 +187,14 @@ def main(argv: Sequence[str] | None = None) -> str:
     tracking = list(args.scenes or TRACKING)
     if args.baseline is not None:
         text = "Tracking scenes, before and after (interleaved medians):\n\n"
-        text += compare(tracking, args.baseline, args.duration, args.repeats, args.rounds)
+        text += compare(
+            tracking, args.baseline, args.duration, args.repeats, args.rounds, args.current
+        )
     else:
-        text = "Tracking scenes:\n\n" + table(measure(tracking, ROOT, args.duration, args.repeats))
+        rows = _worker(tracking, args.current, args.duration, args.repeats)
+        text = "Tracking scenes:\n\n" + table(rows)
     if not args.no_scaling:
-        scaling = measure(SCALING, ROOT, args.duration, args.repeats)
+        scaling = _worker(SCALING, args.current, args.duration, args.repeats)
         text += "\n\nScaling with joints and contacts:\n\n" + table(scaling)
     print(text)
     if args.out is not None:

@@ -198,3 +198,44 @@ def test_closed_loop_bad_repeats_raise_a_typed_error() -> None:
 
     with pytest.raises(InvalidParameterError, match="repeats"):
         bench_closed_loop(load_scene(ROBOTS / "ball.toml"), repeats=0)
+
+
+def test_closed_loop_experiment_prints_one_row_per_scene(capsys) -> None:
+    """experiments/bench_closed_loop.py, briefly: the table's rows and columns."""
+    module = _experiment("bench_closed_loop")
+    names = ["two_link_one_constraint", "quadruped_stand"]
+    text = module.main(["--scenes", *names, "--duration", "0.02", "--repeats", "1", "--no-scaling"])
+    rows = [line for line in text.splitlines() if line.startswith("| ") and "µs" not in line]
+    assert [row.split(" | ")[0][2:] for row in rows] == names
+    assert rows[1].split(" | ")[1:3] == ["18", "4"]  # Solo-12: nv = 6 + 12, four feet
+
+
+def test_compare_logs_passes_equal_logs_and_fails_a_perturbed_one(tmp_path: Path) -> None:
+    module = _experiment("compare_logs")
+    rng = np.random.default_rng(3)
+    log = {name: rng.standard_normal((5, 2)) for name in ("q", "v", "u", "impulse")}
+    log["t"] = np.arange(5) * 1e-3
+    for directory in ("a", "b", "c"):
+        (tmp_path / directory / "scene").mkdir(parents=True)
+    np.savez(tmp_path / "a" / "scene" / "log.npz", **log)
+    np.savez(tmp_path / "b" / "scene" / "log.npz", **log)
+    log["u"] = log["u"] + 1e-9
+    np.savez(tmp_path / "c" / "scene" / "log.npz", **log)
+    assert module.main([str(tmp_path / "a"), str(tmp_path / "b")]) == 0
+    assert module.main([str(tmp_path / "a"), str(tmp_path / "c")]) == 1
+    (comparison,) = module.compare_directories(tmp_path / "a", tmp_path / "c")
+    assert comparison.max_diff["u"] == pytest.approx(1e-9, rel=1e-6)
+    assert comparison.max_diff["q"] == 0.0 and comparison.rows == (5, 5)
+
+
+def _experiment(name: str):
+    """The module experiments/<name>.py."""
+    import importlib.util
+    import sys
+
+    path = ROBOTS.parent / "experiments" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
