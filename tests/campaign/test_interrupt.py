@@ -1,4 +1,4 @@
-"""SIGTERM of the campaign client: the table is written, the cluster stops, a re-run finishes."""
+"""SIGTERM or Ctrl-C of a campaign: the table is written, the cluster stops, a re-run finishes."""
 
 from __future__ import annotations
 
@@ -17,10 +17,10 @@ from ucontrol.campaign import load
 CAMPAIGN = """
 [campaign]
 scene = "ball.toml"
-duration = 1.0
+duration = 0.6
 dt = 2e-4
 seed = 4
-runs = 10
+runs = 8
 metrics = ["n_impacts", "max_penetration"]
 
 [distributions]
@@ -60,7 +60,9 @@ def _group_alive(pgid: int) -> bool:
     return True
 
 
-def test_sigterm_writes_the_table_and_a_rerun_completes_every_run_once(tmp_path):
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_signal_writes_the_table_and_a_rerun_completes_every_run_once(tmp_path, signum):
+    """SIGTERM goes to the client alone; SIGINT to the whole group, as Ctrl-C in a terminal."""
     path = tmp_path / "interrupt.toml"
     path.write_text(textwrap.dedent(CAMPAIGN))
     out = tmp_path / "out"
@@ -71,7 +73,10 @@ def test_sigterm_writes_the_table_and_a_rerun_completes_every_run_once(tmp_path)
             assert process.poll() is None, process.communicate()[0]
             assert time.monotonic() < deadline, "no run finished in time"
             time.sleep(0.05)
-        process.send_signal(signal.SIGTERM)
+        if signum == signal.SIGTERM:
+            process.send_signal(signal.SIGTERM)
+        else:
+            os.killpg(process.pid, signal.SIGINT)
         status, output = _finish(process)
         # the worker processes of the local cluster went with the client
         deadline = time.monotonic() + 30.0
@@ -84,7 +89,7 @@ def test_sigterm_writes_the_table_and_a_rerun_completes_every_run_once(tmp_path)
     assert status == 130, output
     assert "interrupted" in output
     done = {p.name: p.read_bytes() for p in (out / "runs").glob("run-*.json")}
-    assert 2 <= len(done) < 10, output
+    assert 2 <= len(done) < 8, output
     table = load(out)
     csv_rows = (out / "campaign.csv").read_text().splitlines()[1:]
     assert len(csv_rows) == len(table) == len(done)  # the table holds what ran, no more
@@ -97,8 +102,8 @@ def test_sigterm_writes_the_table_and_a_rerun_completes_every_run_once(tmp_path)
             os.killpg(rerun.pid, signal.SIGKILL)
     assert status == 0, output
     table = load(out)
-    assert sorted(table["run_id"]) == [f"run-{i:05d}" for i in range(10)]
+    assert sorted(table["run_id"]) == [f"run-{i:05d}" for i in range(8)]
     assert table["run_id"].is_unique and (table["status"] == "ok").all()
-    for name, content in done.items():  # runs finished before SIGTERM were not run again
+    for name, content in done.items():  # runs finished before the signal were not run again
         assert (out / "runs" / name).read_bytes() == content
-    assert f"{len(done)} already done, {10 - len(done)} ran now" in output
+    assert f"{len(done)} already done, {8 - len(done)} ran now" in output

@@ -156,21 +156,23 @@ def run_campaign(
     ran = failed = 0
     interrupted = False
     if pending:
-        with _client(client, scheduler, workers, len(pending)) as dask_client, _sigterm():
-            bar = _progress_bar(len(plan), skipped, progress)
+        with _sigterm():  # installed first: a SIGTERM while the cluster starts is handled too
             try:
-                for record in _results(dask_client, campaign, pending):
-                    write_record(directory, record)
-                    ran += 1
-                    failed += record["status"] != OK
-                    if bar is not None:
-                        bar.update(1)
-                        bar.set_postfix(failed=failed, refresh=False)
-            except KeyboardInterrupt:
+                with _client(client, scheduler, workers, len(pending)) as dask_client:
+                    bar = _progress_bar(len(plan), skipped, progress)
+                    try:
+                        for record in _results(dask_client, campaign, pending):
+                            write_record(directory, record)
+                            ran += 1
+                            failed += record["status"] != OK
+                            if bar is not None:
+                                bar.update(1)
+                                bar.set_postfix(failed=failed, refresh=False)
+                    finally:
+                        if bar is not None:
+                            bar.close()
+            except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the cluster is closed by now
                 interrupted = True
-            finally:
-                if bar is not None:
-                    bar.close()
     tables = write_table(directory, formats)
     return CampaignOutcome(directory, len(plan), skipped, ran, failed, interrupted, tables)
 
