@@ -278,3 +278,21 @@ def test_scene_with_overrides_sets_the_keys(tmp_path):
     assert scene.source == path.resolve() and scene.name == "ball"
     with pytest.raises(UControlError, match="restitutio"):
         scene_with_overrides(path, ["contacts.0.restitutio=0.25"])
+
+
+def test_scene_named_like_the_campaign_file_is_the_built_in_one(write_campaign):
+    path = write_campaign(HEAD, "ball.toml")  # the campaign file itself is not a scene
+    campaign = load_campaign(path)
+    assert campaign.scene_ref == {"builtin": "ball.toml"}
+
+
+def test_scene_file_next_to_the_campaign_is_preferred(write_campaign, tmp_path):
+    from ucontrol.scene import builtin_scene
+
+    text = builtin_scene("ball.toml").read_text().replace('urdf = "ball.urdf"', "urdf = 'URDF'")
+    (tmp_path / "my_ball.toml").write_text(
+        text.replace("'URDF'", repr(str(builtin_scene("ball.toml").parent / "ball.urdf")))
+    )
+    campaign = load_campaign(write_campaign(HEAD.replace("ball.toml", "my_ball.toml")))
+    assert campaign.scene_ref == {"path": str((tmp_path / "my_ball.toml").resolve())}
+    assert campaign.scene_name() == "my_ball"

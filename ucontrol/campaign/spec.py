@@ -185,7 +185,7 @@ def parse_campaign(table: Mapping[str, Any], path: Path) -> Campaign:
     _keys(where, "[campaign]", head, _CAMPAIGN_KEYS)
     if "scene" not in head:
         raise CampaignFileError(where, "[campaign] needs `scene` (a file or a built-in name)")
-    scene_ref = _scene_ref(where, str(head["scene"]), path.parent)
+    scene_ref = _scene_ref(where, str(head["scene"]), path)
     scene_path = scene_file(scene_ref)
     try:
         scene_table = tomllib.loads(scene_path.read_text())
@@ -322,9 +322,9 @@ def _exists(table: Mapping[str, Any], key: str) -> bool:
     return True
 
 
-def _scene_ref(where: str, scene: str, folder: Path) -> dict[str, str]:
-    candidate = (folder / scene).resolve()
-    if candidate.is_file():
+def _scene_ref(where: str, scene: str, campaign_path: Path) -> dict[str, str]:
+    candidate = (campaign_path.parent / scene).resolve()
+    if candidate.is_file() and candidate != campaign_path.resolve():
         return {"path": str(candidate)}
     from ucontrol.scene import builtin_scene
 
