@@ -242,3 +242,22 @@ def test_killed_worker_run_is_retried_once_then_recorded(client, tmp_path):
         assert table.loc[run_id, "status"] in ("ok", "killed")
     assert set(finished_runs(tmp_path / "always")) == set(table.index)
     assert np.isnan(killed["wall_time_s"])
+
+
+def test_runs_on_an_existing_scheduler_by_address(client, tmp_path):
+    """``--scheduler ADDRESS``: a client of its own connects, runs, and brings records back."""
+    path = _campaign(
+        tmp_path,
+        """
+        [campaign]
+        scene = "ball.toml"
+        duration = 0.05
+        [grid]
+        "contacts.0.restitution" = [0.1, 0.4, 0.7]
+        """,
+    )
+    address = client.scheduler.address
+    outcome = run_campaign(load_campaign(path), tmp_path / "out", scheduler=address)
+    assert (outcome.ran, outcome.failed) == (3, 0)
+    assert sorted(load(tmp_path / "out")["contacts.0.restitution"]) == [0.1, 0.4, 0.7]
+    assert client.status == "running"  # the cluster is not ours to close
