@@ -5,6 +5,7 @@ Timings are never asserted: only what the report must hold whatever the machine.
 
 from __future__ import annotations
 
+import resource
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from ucontrol.bench import (
     BenchReport,
     bench_scene,
     integrator_step,
+    peak_allocation_kb,
     recorded_forces,
     trajectory,
 )
@@ -43,11 +45,10 @@ def test_a_qualifying_scene_has_the_reference_loops(free_ball_report: BenchRepor
     assert free_ball_report.steps == STEPS and free_ball_report.dt == 1e-3
 
 
-def test_ratios_are_ucontrol_time_over_loop_time(free_ball_report: BenchReport) -> None:
-    ucontrol = free_ball_report.loop(UCONTROL).time_us
+def test_ratios_are_given_for_every_reference_loop(free_ball_report: BenchReport) -> None:
+    # Their values are timings (never asserted); recomputing them with the report's own
+    # formula could not fail, so only their keys are checked.
     assert set(free_ball_report.ratios) == set(REFERENCES)
-    for name, ratio in free_ball_report.ratios.items():
-        assert ratio == pytest.approx(ucontrol / free_ball_report.loop(name).time_us, rel=1e-15)
 
 
 def test_reference_loops_do_the_same_physics(free_ball_report: BenchReport) -> None:
@@ -59,9 +60,20 @@ def test_reference_loops_do_the_same_physics(free_ball_report: BenchReport) -> N
         assert loop.active_fraction == ucontrol.active_fraction, name
 
 
-def test_memory_figures_are_positive(free_ball_report: BenchReport) -> None:
-    assert all(loop.peak_allocation_kb > 0.0 for loop in free_ball_report.loops)
-    assert free_ball_report.peak_rss_mb > 0.0
+def test_memory_figures_measure_known_allocations(free_ball_report: BenchReport) -> None:
+    # A step that holds one array of 100 000 doubles (781.25 kB) while it runs: the peak
+    # is that array plus the step's own small objects (measured 781.8 to 782.1 kB).
+    def step(q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        held = np.ones(100_000)
+        return q + held[:1], v, False
+
+    zero = np.zeros(1)
+    peak = peak_allocation_kb(step, lambda k, q, v: zero, zero, zero, steps=3)
+    assert 781.25 <= peak < 781.25 + 8.0  # [kB]
+    # The process's peak resident set, in MB: at most the peak now, and at least what
+    # Python with Pinocchio and numpy loaded occupies (> 10 MB; a unit slip would be 1024x).
+    now_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    assert 10.0 < free_ball_report.peak_rss_mb <= now_mb
 
 
 def test_markdown_holds_every_loop_and_the_memory(free_ball_report: BenchReport) -> None:
