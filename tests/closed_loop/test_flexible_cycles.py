@@ -138,7 +138,7 @@ def test_contact_force_is_within_ten_percent_of_its_desired_value_mid_phase(
         lambda_d = log.lambda_d[middle, GROUND]
         assert np.all(lambda_d > 0.99 * controller.cycle.contact_phases[GROUND].force)
         error = np.abs(log.contact_force[middle, GROUND] - lambda_d) / lambda_d
-        assert error.max() < 0.10, cycle.index  # measured 3.6e-4
+        assert error.max() < 1e-3, cycle.index  # measured 3.6e-4 (the rigid twin: 1e-3)
 
 
 def test_smooth_takeoff_detaches_from_the_ground(one_constraint) -> None:
