@@ -296,3 +296,15 @@ def test_scene_file_next_to_the_campaign_is_preferred(write_campaign, tmp_path):
     campaign = load_campaign(write_campaign(HEAD.replace("ball.toml", "my_ball.toml")))
     assert campaign.scene_ref == {"path": str((tmp_path / "my_ball.toml").resolve())}
     assert campaign.scene_name() == "my_ball"
+
+
+def test_base_scene_that_cannot_be_built_is_a_campaign_error(write_campaign, tmp_path):
+    from ucontrol.campaign import CampaignError
+    from ucontrol.scene import builtin_scene
+
+    urdf = str(builtin_scene("ball.toml").parent / "ball.urdf")
+    text = builtin_scene("ball.toml").read_text().replace('"ball.urdf"', repr(urdf))
+    (tmp_path / "broken.toml").write_text(text + "\nspeed = 3\n")
+    path = write_campaign(HEAD.replace("ball.toml", "broken.toml"))
+    with pytest.raises(CampaignError, match="speed"):
+        load_campaign(path)

@@ -56,7 +56,8 @@ class CampaignOutcome:
         skipped: Runs already on disk, not run again.
         ran: Runs finished in this call (``ok``, ``error`` or ``killed``).
         failed: Of those, runs that did not complete (``error`` or ``killed``).
-        interrupted: The campaign was stopped (Ctrl-C, SIGTERM) before every run ended.
+        interrupted: The campaign stopped before every run ended (Ctrl-C, SIGTERM, runs
+            cancelled by a scheduler that went away); the same call again runs the rest.
         tables: The table files written.
     """
 
@@ -173,6 +174,7 @@ def run_campaign(
                             bar.close()
             except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the cluster is closed by now
                 interrupted = True
+        interrupted = interrupted or ran < len(pending)  # e.g. runs cancelled with a scheduler
     tables = write_table(directory, formats)
     return CampaignOutcome(directory, len(plan), skipped, ran, failed, interrupted, tables)
 
@@ -264,6 +266,8 @@ def _results(client: Any, campaign: Campaign, pending: list[Any]) -> Iterator[di
     try:
         for future in as_completed(futures):
             task, _ = by_key[future.key]
+            if future.status == "cancelled":  # lost with the scheduler: run again on resume
+                continue
             if future.status == "finished":
                 yield future.result()
             else:  # the task never returned: its worker died (KilledWorker) or it was lost
