@@ -138,7 +138,7 @@ def test_warm_start_takes_one_iteration() -> None:
     second = solver.solve_coulomb(problem)
     assert second.outer_iterations == 1
     assert np.allclose(second.velocity, first.velocity, atol=1e-10)
-    assert second.solve_time_s > 0.0
+    assert second.residual <= 4e-14  # measured 3.6e-15 m/s: the warm start is the solution
 
 
 def test_unsolved_is_reported_not_hidden() -> None:
