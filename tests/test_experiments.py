@@ -105,3 +105,16 @@ def test_friction_cases_run(tmp_path: Path) -> None:
     assert set(tables) == {"incline", "stop", "admm", "painleve", "beads"}
     assert (tmp_path / "friction_cases.md").is_file()
     assert (tmp_path / "painleve_rod.png").is_file()
+    # Values against their references, tolerances 10x the measured errors (in brackets).
+    for row in tables["incline"]:  # g (sin a - mu cos a) when sliding, rest when sticking
+        if row["sticks"]:
+            assert row["max_speed_if_stuck"] <= 6e-14  # [6.0e-15 m/s]
+        else:
+            assert row["relative_error"] <= 5e-14  # [5.1e-15]
+        assert row["max_residual"] <= 3e-13  # [3.1e-14 m/s]
+    assert tables["stop"][0]["d_error"] <= 6e-4  # [5.8e-5 m] at dt = 1e-2 s
+    for row in tables["admm"]:  # Pinocchio's ADMM on the same problems
+        assert row["above_1e-6"] == 0 and row["max_difference"] <= 1.2e-10  # [1.2e-11]
+    assert tables["painleve"][0]["impulse_over_mgh"] > 1.0  # mu = 1.5: a tangential impact
+    for row in tables["beads"]:  # a vertical column: no impact gains energy, none moves aside
+        assert row["energy_increase_at_impacts"] == 0.0 and row["max_lateral_position"] == 0.0
