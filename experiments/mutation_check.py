@@ -1,0 +1,362 @@
+r"""Targeted mutants of the core rules, and which of them the test suite kills.
+
+Each mutant changes one expression of a rule the physics depends on — the restitution law,
+the active-set rule, the energy guard, the friction cone, the force feedback, the Zeno rule
+and the LCP polish — in a copy of the committed sources (``git archive HEAD``, so that work
+in progress in the checkout does not count), then runs the tests that guard the rule. A mutant
+is *killed* when a test fails (or the run overruns its bound), *survives* when every test
+passes. A surviving mutant is either a gap of the suite or equivalent (it changes no result);
+``docs/testing.md`` says which.
+
+Run: ``python experiments/mutation_check.py`` (about 15 min on two cores); ``--only NAME``
+for some mutants, ``--list`` to see them. Writes ``docs/figures/mutation_check.md`` (``--out``).
+Not run in CI: it runs parts of the suite once per mutant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+ED = "ucontrol/integrators/event_driven.py"
+MJ = "ucontrol/integrators/moreau_jean.py"
+COULOMB = "ucontrol/solvers/proxsuite_coulomb.py"
+REFINE = "ucontrol/solvers/lcp_refinement.py"
+BROGLIATO = "ucontrol/control/brogliato_controller.py"
+
+ED_TESTS = ("tests/integrators/test_zeno_rule.py", "tests/integrators/test_event_driven.py")
+MJ_TESTS = (
+    "tests/test_bouncing_ball.py",
+    "tests/extreme/test_restitution_limits.py",
+    "tests/extreme/test_redundant_contacts.py",
+    "tests/integrators/test_lzb_impact.py",
+)
+COULOMB_TESTS = ("tests/solvers/test_proxsuite_coulomb.py", "tests/integrators/test_friction.py")
+LCP_TESTS = (
+    "tests/solvers/test_fallbacks.py",
+    "tests/solvers/test_proxsuite_lcp.py",
+    "tests/extreme/test_redundant_contacts.py",
+)
+FEEDBACK_TESTS = (
+    "tests/closed_loop/test_brogliato_law.py",
+    "tests/closed_loop/test_one_constraint.py",
+)
+
+
+@dataclass(frozen=True)
+class Mutant:
+    """One textual change of one rule.
+
+    Attributes:
+        name: Short identifier.
+        rule: The core rule it breaks.
+        path: Source file, relative to the repository.
+        old: Text replaced; must occur exactly once in the file.
+        new: Its replacement.
+        tests: Test files run against it.
+    """
+
+    name: str
+    rule: str
+    path: str
+    old: str
+    new: str
+    tests: tuple[str, ...]
+
+
+MUTANTS = (
+    Mutant(
+        "ed-newton-half-e",
+        "restitution law",
+        ED,
+        "return self.impact_solver.solve(terms.delassus(), (1.0 + e) * u_minus)",
+        "return self.impact_solver.solve(terms.delassus(), (1.0 + 0.5 * e) * u_minus)",
+        ED_TESTS,
+    ),
+    Mutant(
+        "mj-newton-single",
+        "restitution law",
+        MJ,
+        "self.constraints.restitution[indices] * u_minus if closing[0] else np.zeros(1)",
+        "0.5 * self.constraints.restitution[indices] * u_minus if closing[0] else np.zeros(1)",
+        MJ_TESTS,
+    ),
+    Mutant(
+        "mj-newton-several",
+        "restitution law",
+        MJ,
+        "rebound = np.where(closing, self.constraints.restitution[indices] * u_minus, 0.0)",
+        "rebound = np.where(closing, 0.5 * self.constraints.restitution[indices] * u_minus, 0.0)",
+        MJ_TESTS,
+    ),
+    Mutant(
+        "mj-no-prediction",
+        "active-set rule",
+        MJ,
+        "active = state.gap + (self.gamma * h) * state.normal_velocity <= self._activation",
+        "active = state.gap <= self._activation",
+        MJ_TESTS,
+    ),
+    Mutant(
+        "mj-horizon-one-step",
+        "active-set rule",
+        MJ,
+        "gamma = 0.5  # active-set prediction horizon, in steps",
+        "gamma = 1.0  # active-set prediction horizon, in steps",
+        MJ_TESTS,
+    ),
+    Mutant(
+        "ed-closed-without-speed",
+        "active-set rule",
+        ED,
+        "closed = (gap <= self.closure_gap) & (np.abs(u) <= self.closure_velocity)",
+        "closed = gap <= self.closure_gap",
+        ED_TESTS,
+    ),
+    Mutant(
+        "mj-energy-guard-off",
+        "energy guard",
+        MJ,
+        "if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):",
+        "if False:",
+        MJ_TESTS,
+    ),
+    Mutant(
+        "mj-energy-guard-sign",
+        "energy guard",
+        MJ,
+        "- self.theta * (u_free - u_k))",
+        "+ self.theta * (u_free - u_k))",
+        MJ_TESTS,
+    ),
+    Mutant(
+        "coulomb-cone-doubled",
+        "friction cone",
+        COULOMB,
+        "step = problem.mu * P[:m] - thresholds  # the Tresca map, from the QP's impulses",
+        "step = 2.0 * problem.mu * P[:m] - thresholds  # the Tresca map, from the QP's impulses",
+        COULOMB_TESTS,
+    ),
+    Mutant(
+        "coulomb-cone-halved-start",
+        "friction cone",
+        COULOMB,
+        "thresholds, previous_step = problem.mu * P[:m], np.zeros(m)",
+        "thresholds, previous_step = 0.5 * problem.mu * P[:m], np.zeros(m)",
+        COULOMB_TESTS,
+    ),
+    Mutant(
+        "feedback-sign",
+        "force feedback",
+        BROGLIATO,
+        "tau += J_c.T @ (-lambda_d + gains.force_gain * (force - lambda_d))",
+        "tau += J_c.T @ (-lambda_d + gains.force_gain * (lambda_d - force))",
+        FEEDBACK_TESTS,
+    ),
+    Mutant(
+        "feedback-off",
+        "force feedback",
+        BROGLIATO,
+        "tau += J_c.T @ (-lambda_d + gains.force_gain * (force - lambda_d))",
+        "tau += J_c.T @ (-lambda_d + 0.0 * (force - lambda_d))",
+        FEEDBACK_TESTS,
+    ),
+    Mutant(
+        "zeno-rebound-without-e",
+        "Zeno rule",
+        ED,
+        "bounces = (u_minus < 0.0) & (-restitution * u_minus >= self.zeno_velocity)",
+        "bounces = (u_minus < 0.0) & (-u_minus >= self.zeno_velocity)",
+        ED_TESTS,
+    ),
+    Mutant(
+        "zeno-capture-half",
+        "Zeno rule",
+        ED,
+        "slow = (u > self.closure_velocity) & (u < self.zeno_velocity)",
+        "slow = (u > self.closure_velocity) & (u < 0.5 * self.zeno_velocity)",
+        ED_TESTS,
+    ),
+    Mutant(
+        "zeno-capture-adds-none",
+        "Zeno rule",
+        ED,
+        "approaching = ~captured & (u < -self.closure_velocity)",
+        "approaching = np.zeros_like(captured)",
+        ED_TESTS,
+    ),
+    Mutant(
+        "polish-keeps-worse",
+        "LCP polish",
+        REFINE,
+        "if candidate_residual <= residual:",
+        "if candidate_residual > residual:",
+        LCP_TESTS,
+    ),
+    Mutant(
+        "polish-off",
+        "LCP polish",
+        REFINE,
+        "if polish and residual > POLISH_THRESHOLD:",
+        "if False:",
+        LCP_TESTS,
+    ),
+    Mutant(
+        "lemke-fallback-off",
+        "LCP polish",
+        REFINE,
+        "if residual > residual_tolerance and b.size <= LEMKE_FALLBACK_SIZE:",
+        "if False:",
+        LCP_TESTS,
+    ),
+)
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What the tests did to one mutant.
+
+    Attributes:
+        mutant: The mutant.
+        killed: A test failed, or the run overran its bound.
+        seconds: Wall time of the test run in [s].
+        detail: The first failing test, or the last line of pytest's output.
+    """
+
+    mutant: Mutant
+    killed: bool
+    seconds: float
+    detail: str
+
+
+def snapshot(folder: Path) -> None:
+    """Extract the committed tree of the repository (``git archive HEAD``) into ``folder``."""
+    archive = subprocess.run(
+        ["git", "-C", str(ROOT), "archive", "HEAD"], capture_output=True, check=True
+    ).stdout
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(folder, filter="data")
+
+
+def run_tests(tree: Path, tests: Sequence[str], timeout: float) -> tuple[bool, float, str]:
+    """Run ``tests`` in ``tree`` (its own ``ucontrol`` first on the path), stopping at a failure.
+
+    Returns:
+        Whether every test passed, the wall time in [s], and a line describing the result.
+    """
+    command = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests]
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
+    start = time.perf_counter()
+    process = subprocess.Popen(
+        command,
+        cwd=tree,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        output, _ = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, 9)
+        process.communicate()
+        return False, time.perf_counter() - start, f"overran {timeout:g} s"
+    seconds = time.perf_counter() - start
+    lines = output.strip().splitlines()
+    failed = [line for line in lines if line.startswith(("FAILED", "ERROR"))]
+    return process.returncode == 0, seconds, (failed[0] if failed else lines[-1] if lines else "")
+
+
+def check(mutant: Mutant, tree: Path, timeout: float) -> Outcome:
+    """Apply ``mutant`` in ``tree``, run its tests, restore the file."""
+    path = tree / mutant.path
+    original = path.read_text()
+    if original.count(mutant.old) != 1:
+        raise ValueError(
+            f"{mutant.name}: the text to mutate occurs {original.count(mutant.old)} "
+            f"times in {mutant.path}"
+        )
+    mutated = original.replace(mutant.old, mutant.new)
+    compile(mutated, str(path), "exec")  # a mutant must be valid Python
+    path.write_text(mutated)
+    try:
+        passed, seconds, detail = run_tests(tree, mutant.tests, timeout)
+    finally:
+        path.write_text(original)
+    return Outcome(mutant, not passed, seconds, detail)
+
+
+def markdown(outcomes: Sequence[Outcome]) -> str:
+    """The results as a Markdown table with the kill rate."""
+    killed = sum(o.killed for o in outcomes)
+    lines = [
+        f"Killed {killed} of {len(outcomes)} mutants ({100.0 * killed / len(outcomes):.0f} %).",
+        "",
+        "| rule | mutant | file | killed | tests [s] | first failure |",
+        "|---|---|---|:-:|---:|---|",
+    ]
+    for o in outcomes:
+        detail = o.detail.replace("|", "\\|")[:110]
+        lines.append(
+            f"| {o.mutant.rule} | `{o.mutant.name}` | `{Path(o.mutant.path).name}` | "
+            f"{'yes' if o.killed else '**no**'} | {o.seconds:.0f} | {detail} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> list[Outcome]:
+    """Run the mutants and write the table; returns the outcomes."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="*", default=None, help="names of the mutants to run")
+    parser.add_argument("--list", action="store_true", help="list the mutants and stop")
+    parser.add_argument(
+        "--timeout", type=float, default=900.0, help="bound of one mutant's test run, in [s]"
+    )
+    parser.add_argument(
+        "--no-baseline",
+        action="store_true",
+        help="skip the run of every test set on the unmutated sources (they must pass)",
+    )
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures" / "mutation_check.md")
+    args = parser.parse_args(argv)
+    mutants = [m for m in MUTANTS if args.only is None or m.name in args.only]
+    if args.list:
+        for m in mutants:
+            print(f"{m.name:28s} {m.rule:16s} {m.path}")
+        return []
+    with tempfile.TemporaryDirectory(prefix="ucontrol-mutants-") as folder:
+        tree = Path(folder)
+        snapshot(tree)
+        if not args.no_baseline:
+            for tests in sorted({m.tests for m in mutants}):
+                passed, seconds, detail = run_tests(tree, tests, args.timeout)
+                print(f"baseline {' '.join(tests)}: {detail} ({seconds:.0f} s)", flush=True)
+                if not passed:
+                    raise SystemExit("the unmutated sources fail their tests: no mutant is judged")
+        outcomes = []
+        for m in mutants:
+            outcome = check(m, tree, args.timeout)
+            verdict = "killed" if outcome.killed else "SURVIVED"
+            print(f"{m.name}: {verdict} ({outcome.seconds:.0f} s) {outcome.detail}", flush=True)
+            outcomes.append(outcome)
+    table = markdown(outcomes)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(table)
+    print(table)
+    return outcomes
+
+
+if __name__ == "__main__":
+    main()
