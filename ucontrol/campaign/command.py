@@ -16,7 +16,8 @@ from typing import Any
 from ucontrol.campaign.figures import plot_campaign, worst_cases, worst_markdown
 from ucontrol.campaign.table import CAMPAIGN_FILE, TABLE_FORMATS, load, wilson_interval
 
-#: Exit status of a campaign stopped by Ctrl-C or SIGTERM (its table is written).
+#: Exit status of a campaign stopped without a signal (runs cancelled by the scheduler); a
+#: signal gives 128 + its number (130 for Ctrl-C, 143 for SIGTERM), the table written.
 INTERRUPTED = 130
 
 __all__ = ["add_sweep_parser", "is_campaign", "plot_campaign", "run_sweep", "success_line"]
@@ -56,7 +57,9 @@ def add_sweep_parser(commands: Any) -> argparse.ArgumentParser:
 
 
 def run_sweep(args: argparse.Namespace) -> int:
-    """Run the ``sweep`` command; returns 0, or 130 when interrupted (table written).
+    """Run the ``sweep`` command; returns 0, or 128 + the signal when interrupted.
+
+    The table of the runs finished so far is written in every case.
 
     Raises:
         UControlError: Any typed error of the campaign file, the output directory or the
@@ -90,7 +93,7 @@ def run_sweep(args: argparse.Namespace) -> int:
     if outcome.interrupted:
         missing = outcome.total - outcome.skipped - outcome.ran
         print(f"interrupted: {missing} runs left; run the same command again to finish")
-        return INTERRUPTED
+        return 128 + outcome.signum if outcome.signum is not None else INTERRUPTED
     return 0
 
 

@@ -42,6 +42,8 @@ from ucontrol.campaign.table import (
 
 #: Run statuses: completed, raised an exception, or its worker died twice (KilledWorker).
 OK, ERROR, KILLED = "ok", "error", "killed"
+#: Signals that stop a campaign like Ctrl-C: the table is written, the cluster closed.
+_STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 #: Seconds allowed to connect to a scheduler given by address.
 CONNECT_TIMEOUT_S = 5.0
 
@@ -56,9 +58,10 @@ class CampaignOutcome:
         skipped: Runs already on disk, not run again.
         ran: Runs finished in this call (``ok``, ``error`` or ``killed``).
         failed: Of those, runs that did not complete (``error`` or ``killed``).
-        interrupted: The campaign stopped before every run ended (Ctrl-C, SIGTERM, runs
-            cancelled by a scheduler that went away); the same call again runs the rest.
+        interrupted: The campaign stopped before every run ended (Ctrl-C, SIGTERM, SIGHUP,
+            runs cancelled by a scheduler that went away); the same call again runs the rest.
         tables: The table files written.
+        signum: The signal that stopped it (SIGINT for Ctrl-C), or None.
     """
 
     directory: Path
@@ -68,6 +71,7 @@ class CampaignOutcome:
     failed: int
     interrupted: bool
     tables: list[Path]
+    signum: int | None = None
 
 
 def run_task(task: Mapping[str, Any]) -> dict[str, Any]:
@@ -155,9 +159,9 @@ def run_campaign(
     pending = [run for run in plan if run.run_id not in done]
     skipped = len(plan) - len(pending)
     ran = failed = 0
-    interrupted = False
+    interrupted, signum = False, None
     if pending:
-        with _sigterm():  # installed first: a SIGTERM while the cluster starts is handled too
+        with _signals():  # installed first: a SIGTERM while the cluster starts is handled too
             try:
                 with _client(client, scheduler, workers, len(pending)) as dask_client:
                     bar = _progress_bar(len(plan), skipped, progress)
@@ -172,11 +176,12 @@ def run_campaign(
                     finally:
                         if bar is not None:
                             bar.close()
-            except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the cluster is closed by now
+            except KeyboardInterrupt as interrupt:  # Ctrl-C, SIGTERM, SIGHUP: cluster closed
                 interrupted = True
+                signum = int(getattr(interrupt, "signum", signal.SIGINT))
         interrupted = interrupted or ran < len(pending)  # e.g. runs cancelled with a scheduler
     tables = write_table(directory, formats)
-    return CampaignOutcome(directory, len(plan), skipped, ran, failed, interrupted, tables)
+    return CampaignOutcome(directory, len(plan), skipped, ran, failed, interrupted, tables, signum)
 
 
 def prepare_directory(campaign: Campaign, out: str | Path) -> Path:
@@ -322,9 +327,17 @@ def _client(client: Any, scheduler: str | None, workers: int | None, pending: in
         cluster.close()
 
 
+class _Signalled(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised like Ctrl-C so that the table is written."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
 @contextmanager
-def _sigterm() -> Iterator[None]:
-    """SIGTERM raises KeyboardInterrupt in the main thread (so the table gets written)."""
+def _signals() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise :class:`_Signalled` in the main thread while a campaign runs."""
     import threading
 
     if threading.current_thread() is not threading.main_thread():
@@ -332,13 +345,14 @@ def _sigterm() -> Iterator[None]:
         return
 
     def interrupt(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+        raise _Signalled(signum)
 
-    previous = signal.signal(signal.SIGTERM, interrupt)
+    previous = {signum: signal.signal(signum, interrupt) for signum in _STOP_SIGNALS}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def _progress_bar(total: int, initial: int, progress: bool | None) -> Any:
