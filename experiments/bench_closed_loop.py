@@ -69,7 +69,9 @@ def scene_path(name: str, tree: Path) -> Path:
     return own if own.is_file() else ROOT / "robots" / f"{name}.toml"
 
 
-def measure(names: Sequence[str], tree: Path, duration: float, repeats: int) -> list[dict]:
+def measure(
+    names: Sequence[str], tree: Path, duration: float, repeats: int, clock: str = "wall"
+) -> list[dict]:
     """:func:`bench_closed_loop` of each scene, in this process, as dictionaries."""
     from ucontrol.scene import Scene
 
@@ -77,7 +79,7 @@ def measure(names: Sequence[str], tree: Path, duration: float, repeats: int) -> 
     rows = []
     for name in names:
         result = bench.bench_closed_loop(
-            Scene.from_toml(scene_path(name, tree)), duration=duration, repeats=repeats
+            Scene.from_toml(scene_path(name, tree)), duration=duration, repeats=repeats, clock=clock
         )
         row = {field: getattr(result, field) for field in result.__dataclass_fields__}
         row["real_time_factor"] = result.real_time_factor
@@ -85,7 +87,9 @@ def measure(names: Sequence[str], tree: Path, duration: float, repeats: int) -> 
     return rows
 
 
-def _worker(names: Sequence[str], tree: Path, duration: float, repeats: int) -> list[dict]:
+def _worker(
+    names: Sequence[str], tree: Path, duration: float, repeats: int, clock: str = "wall"
+) -> list[dict]:
     """:func:`measure` in a fresh process importing ucontrol from ``tree``."""
     env = dict(os.environ, PYTHONPATH=str(tree))
     command = [
@@ -98,6 +102,8 @@ def _worker(names: Sequence[str], tree: Path, duration: float, repeats: int) -> 
         str(duration),
         "--repeats",
         str(repeats),
+        "--clock",
+        clock,
         "--scenes",
         *names,
     ]
@@ -149,13 +155,14 @@ def compare(
     repeats: int,
     rounds: int,
     current: Path = ROOT,
+    clock: str = "wall",
 ) -> str:
     """Before/after table: ``baseline`` and ``current`` interleaved over ``rounds`` rounds."""
     before: list[list[dict]] = []
     after: list[list[dict]] = []
     for _ in range(rounds):
-        before.append(_worker(names, baseline, duration, repeats))
-        after.append(_worker(names, current, duration, repeats))
+        before.append(_worker(names, baseline, duration, repeats, clock))
+        after.append(_worker(names, current, duration, repeats, clock))
     old, new = _median_rows(before), _median_rows(after)
     rows, labels = [], []
     for b, a in zip(old, new, strict=True):
@@ -175,26 +182,35 @@ def main(argv: Sequence[str] | None = None) -> str:
     parser.add_argument(
         "--current", type=Path, default=ROOT, help="checkout measured (default: this one)"
     )
+    parser.add_argument(
+        "--clock", choices=("wall", "cpu"), default="wall", help="wall or process CPU time"
+    )
     parser.add_argument("--no-scaling", action="store_true", help="skip the scaling table")
     parser.add_argument("--out", type=Path, default=None, help="markdown file to write")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--tree", type=Path, default=ROOT, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
-        rows = measure(args.scenes, args.tree, args.duration, args.repeats)
+        rows = measure(args.scenes, args.tree, args.duration, args.repeats, args.clock)
         print(json.dumps(rows))
         return ""
     tracking = list(args.scenes or TRACKING)
     if args.baseline is not None:
         text = "Tracking scenes, before and after (interleaved medians):\n\n"
         text += compare(
-            tracking, args.baseline, args.duration, args.repeats, args.rounds, args.current
+            tracking,
+            args.baseline,
+            args.duration,
+            args.repeats,
+            args.rounds,
+            args.current,
+            args.clock,
         )
     else:
-        rows = _worker(tracking, args.current, args.duration, args.repeats)
+        rows = _worker(tracking, args.current, args.duration, args.repeats, args.clock)
         text = "Tracking scenes:\n\n" + table(rows)
     if not args.no_scaling:
-        scaling = _worker(SCALING, args.current, args.duration, args.repeats)
+        scaling = _worker(SCALING, args.current, args.duration, args.repeats, args.clock)
         text += "\n\nScaling with joints and contacts:\n\n" + table(scaling)
     print(text)
     if args.out is not None:

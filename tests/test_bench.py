@@ -179,7 +179,8 @@ def test_closed_loop_counts_and_real_time_factor(two_link_closed_loop) -> None:
     scene, result = two_link_closed_loop
     assert result.scene == scene.name
     assert result.dt == scene.integrator.dt
-    assert result.steps == round(CLOSED_LOOP_DURATION / scene.integrator.dt)
+    assert result.steps == round(CLOSED_LOOP_DURATION / scene.integrator.dt) - 1  # step 0 out
+    assert result.clock == "wall"
     assert (result.nv, result.n_constraints, result.repeats) == (2, 5, 2)  # 1 contact, 4 stops
     assert result.real_time_factor == pytest.approx(1e6 * result.dt / result.total_us)
 
@@ -205,11 +206,27 @@ def test_closed_loop_markdown_has_one_row_per_result(two_link_closed_loop) -> No
     assert rows[0].count("|") == CLOSED_LOOP_HEADER.splitlines()[0].count("|")
 
 
-def test_closed_loop_bad_repeats_raise_a_typed_error() -> None:
+def test_closed_loop_bad_arguments_raise_a_typed_error() -> None:
     from ucontrol.bench import bench_closed_loop
 
     with pytest.raises(InvalidParameterError, match="repeats"):
         bench_closed_loop(load_scene(ROBOTS / "ball.toml"), repeats=0)
+    with pytest.raises(InvalidParameterError, match="clock"):
+        bench_closed_loop(load_scene(ROBOTS / "ball.toml"), clock="sundial")
+
+
+def test_closed_loop_cpu_clock_splits_the_same_way() -> None:
+    from ucontrol.bench import bench_closed_loop
+
+    result = bench_closed_loop(
+        load_scene(ROBOTS / "two_link_flexible_one_constraint.toml"),
+        duration=0.05,
+        repeats=1,
+        clock="cpu",
+    )
+    parts = (result.controller_us, result.plant_us, result.solver_us, result.loop_us)
+    assert result.clock == "cpu" and (result.nv, result.n_constraints) == (4, 5)  # + 2 motors
+    assert sum(parts) == pytest.approx(result.total_us, rel=1e-9)
 
 
 def test_closed_loop_experiment_prints_one_row_per_scene(capsys) -> None:

@@ -29,6 +29,7 @@ The timing helpers (:func:`time_loop`, :func:`trajectory`, :func:`integrator_ste
 
 from __future__ import annotations
 
+import copy
 import operator
 import resource
 import time
@@ -387,22 +388,25 @@ def _as_count(name: str, value: Any, minimum: int) -> int:
 class ClosedLoopResult:
     r"""Cost of one scene's closed loop (:func:`bench_closed_loop`), split by stage.
 
-    All times are per step in [µs/step], from one run (the median of the timed runs by total):
-    ``total`` is the run's loop wall time (``summary["wall_time_s"]`` of
-    :func:`ucontrol.simulate`, the set-up and the summary excluded), ``controller`` the time
-    inside the controller's calls, ``plant`` the time inside the integrator's ``evaluate`` and
-    ``step`` less the contact solves, ``solver`` the contact solves (the log's
-    ``solver_time``), and ``loop`` the rest (logging, sensors, the loop itself):
-    ``controller + plant + solver + loop = total`` by definition.
+    All times are per step in [µs/step], from one run (the median of the timed runs by total),
+    over the window between the first and the last call of the run's observer (steps 1 to
+    n - 1 of n and the evaluation of the last state; the set-up, the first step and the
+    summary excluded): ``total`` is that window's time,
+    ``controller`` the time inside the controller's calls, ``plant`` the time inside the
+    integrator's ``evaluate`` and ``step`` less the contact solves, ``solver`` the contact solves
+    (the log's ``solver_time``, a wall time), and ``loop`` the rest (logging, sensors, the loop,
+    the timers themselves): ``controller + plant + solver + loop = total`` by definition.
 
     Attributes:
         scene: Scene name.
         dt: Time step in [s].
-        steps: Steps per run.
+        steps: Steps timed per run.
         repeats: Timed runs (after one untimed warm-up run).
+        clock: ``"wall"`` (``time.perf_counter``) or ``"cpu"`` (``time.process_time``: this
+            process's CPU time, less disturbed by other processes on a shared machine).
         nv: Velocity size of the plant (links and motors).
         n_constraints: Unilateral constraints of the plant (contacts and stops).
-        total_us: Loop wall time per step.
+        total_us: Time per step.
         controller_us: Controller time per step.
         plant_us: Integrator time per step, contact solves excluded.
         solver_us: Contact-solve time per step.
@@ -413,6 +417,7 @@ class ClosedLoopResult:
     dt: float
     steps: int
     repeats: int
+    clock: str
     nv: int
     n_constraints: int
     total_us: float
@@ -423,7 +428,7 @@ class ClosedLoopResult:
 
     @property
     def real_time_factor(self) -> float:
-        """Simulated time over wall time (> 1: faster than real time)."""
+        """Simulated time over the measured time (> 1: faster than real time)."""
         return 1e6 * self.dt / self.total_us
 
     def row(self) -> str:
@@ -441,6 +446,9 @@ CLOSED_LOOP_HEADER = (
     "| contact solve | log + loop |\n|:---|---:|---:|---:|---:|---:|---:|---:|---:|"
 )
 
+#: Clocks of :func:`bench_closed_loop`.
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+
 
 def closed_loop_markdown(results: list[ClosedLoopResult]) -> str:
     """The closed-loop results as one markdown table (times in [µs/step])."""
@@ -453,68 +461,88 @@ def bench_closed_loop(
     duration: float | None = None,
     repeats: int = 3,
     dt: float | None = None,
+    clock: str = "wall",
 ) -> ClosedLoopResult:
     """Time the scene's closed loop (its own controller), split by stage.
 
     Each run builds a fresh controller (:meth:`Scene.build_controller`; compiled laws are
     built before the timing) and calls :func:`ucontrol.simulate` with the controller and the
-    integrator wrapped in timers; the first run is untimed (warm-up).
+    scene's integrator wrapped in timers and an observer that opens the timed window after the
+    first step; the first run is untimed (warm-up).
 
     Args:
         scene: The scene.
-        duration: Simulated time per run in [s]; default the scene's.
+        duration: Simulated time per run in [s], at least two steps; default the scene's.
         repeats: Timed runs, >= 1; the one of median total time is reported.
         dt: Time step in [s]; default the scene's.
+        clock: ``"wall"`` or ``"cpu"`` (see :class:`ClosedLoopResult`).
 
     Raises:
         InvalidParameterError: ``repeats`` is not an integer >= 1, ``duration`` or ``dt`` not
-            > 0.
+            > 0, or ``clock`` is not a name of :data:`CLOCKS`.
         SimulationError: A run failed.
     """
     repeats = _as_count("repeats", repeats, 1)
     if duration is not None:
         duration = as_positive("duration", duration)
+    if clock not in CLOCKS:
+        raise InvalidParameterError("clock", clock, f"one of {sorted(CLOCKS)}")
     runs = []
     for k in range(repeats + 1):
-        timers = _Timers()
+        timers = _Timers(CLOCKS[clock])
         controller = _TimedController(scene.build_controller(), timers)
-        timed_scene = _TimedScene(scene, timers)
-        result = simulate(timed_scene, controller, duration, dt=dt, progress=False)  # type: ignore[arg-type]
+        result = simulate(
+            _timed_scene(scene, timers),
+            controller,
+            duration,
+            dt=dt,
+            progress=False,
+            observer=timers.observe,
+        )
         if k == 0:
             continue  # warm-up
         log = result.log
-        steps = len(log) - 1
-        total = float(result.summary["wall_time_s"])
-        solver = float(np.sum(log.solver_time))
-        runs.append((total, steps, timers, solver, float(log.metadata["dt"])))
+        solver = float(np.sum(log.solver_time[timers.first_row : len(log) - 1]))
+        steps = timers.rows - 2  # full steps in the window: 1 to n - 1
+        runs.append((timers.window, steps, timers, solver, float(log.metadata["dt"])))
     runs.sort(key=operator.itemgetter(0))
     total, steps, timers, solver, h = runs[len(runs) // 2]
     per_step = 1e6 / max(steps, 1)  # [µs/s per step]
-    plant = timers.plant - solver
-    loop = total - timers.controller - timers.plant
     return ClosedLoopResult(
         scene=scene.name,
         dt=h,
         steps=steps,
         repeats=repeats,
+        clock=clock,
         nv=int(timers.nv),
         n_constraints=int(timers.n_constraints),
         total_us=total * per_step,
         controller_us=timers.controller * per_step,
-        plant_us=plant * per_step,
+        plant_us=(timers.plant - solver) * per_step,
         solver_us=solver * per_step,
-        loop_us=loop * per_step,
+        loop_us=(total - timers.controller - timers.plant) * per_step,
     )
 
 
 class _Timers:
-    """Seconds spent in the controller and in the integrator, accumulated over a run."""
+    """Time spent in the controller and in the integrator within the observed window [s]."""
 
-    def __init__(self) -> None:
-        self.controller = 0.0
-        self.plant = 0.0
-        self.nv = 0
-        self.n_constraints = 0
+    def __init__(self, now: Callable[[], float]) -> None:
+        self.now = now
+        self.controller = self.plant = 0.0
+        self.rows = 0  # observer calls
+        self.first_row = 0  # log row of the first observer call
+        self.start = self.window = 0.0
+        self.nv = self.n_constraints = 0
+
+    def observe(self, log: Any) -> None:
+        """Open the window at the first call (after the first step), extend it at each."""
+        now = self.now()
+        if self.rows == 0:
+            self.start, self.first_row = now, len(log)
+            self.controller = self.plant = 0.0
+        self.rows += 1
+        self.window = now - self.start
 
 
 class _TimedController:
@@ -529,30 +557,28 @@ class _TimedController:
         self._timers = timers
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: Any) -> Any:
-        start = time.perf_counter()
+        timers = self._timers
+        start = timers.now()
         u = self._controller(t, q, v, contacts)
-        self._timers.controller += time.perf_counter() - start
+        timers.controller += timers.now() - start
         return u
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._controller, name)
 
 
-class _TimedScene:
-    """The scene, except that its integrator is timed."""
+def _timed_scene(scene: Scene, timers: _Timers) -> Scene:
+    """A copy of ``scene`` whose ``build_integrator`` returns a timed integrator."""
+    timed = copy.copy(scene)
 
-    def __init__(self, scene: Scene, timers: _Timers) -> None:
-        self._scene = scene
-        self._timers = timers
+    def build_integrator(dt: float | None = None) -> _TimedIntegrator:
+        integrator = scene.build_integrator(dt=dt)
+        timers.nv = integrator.evaluate(*scene.initial_state()).v.size
+        timers.n_constraints = integrator.constraints.size
+        return _TimedIntegrator(integrator, timers)
 
-    def build_integrator(self, dt: float | None = None) -> _TimedIntegrator:
-        integrator = self._scene.build_integrator(dt=dt)
-        self._timers.nv = integrator.evaluate(*self._scene.initial_state()).v.size
-        self._timers.n_constraints = integrator.constraints.size
-        return _TimedIntegrator(integrator, self._timers)
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._scene, name)
+    object.__setattr__(timed, "build_integrator", build_integrator)  # frozen dataclass
+    return timed
 
 
 class _TimedIntegrator:
@@ -563,15 +589,17 @@ class _TimedIntegrator:
         self._timers = timers
 
     def evaluate(self, q: Vector, v: Vector) -> Any:
-        start = time.perf_counter()
+        timers = self._timers
+        start = timers.now()
         state = self._integrator.evaluate(q, v)
-        self._timers.plant += time.perf_counter() - start
+        timers.plant += timers.now() - start
         return state
 
     def step(self, state: Any, tau: Vector) -> Any:
-        start = time.perf_counter()
+        timers = self._timers
+        start = timers.now()
         outcome = self._integrator.step(state, tau)
-        self._timers.plant += time.perf_counter() - start
+        timers.plant += timers.now() - start
         return outcome
 
     def __getattr__(self, name: str) -> Any:
