@@ -278,6 +278,10 @@ def test_scene_with_overrides_sets_the_keys(tmp_path):
     assert scene.source == path.resolve() and scene.name == "ball"
     with pytest.raises(UControlError, match="restitutio"):
         scene_with_overrides(path, ["contacts.0.restitutio=0.25"])
+    by_name = scene_with_overrides("ball", ["contacts.0.restitution=0.5"])
+    assert by_name.contacts[0].restitution == 0.5 and by_name.source == path.resolve()
+    with pytest.raises(UControlError):
+        scene_with_overrides("no/such/scene.toml", [])
 
 
 def test_scene_named_like_the_campaign_file_is_the_built_in_one(write_campaign):

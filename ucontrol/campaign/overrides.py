@@ -146,11 +146,12 @@ def _toml_value(value: Any) -> str:
     return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def scene_with_overrides(path: str | Path, assignments: Sequence[str]) -> Any:
-    """Load a scene file with ``KEY=VALUE`` overrides (``ucontrol run --set``).
+def scene_with_overrides(scene: str | Path | None, assignments: Sequence[str]) -> Any:
+    """Load a scene with ``KEY=VALUE`` overrides (``ucontrol run --set``).
 
     Args:
-        path: The scene TOML file.
+        scene: A scene file, a built-in scene name (``"ball"``), or None for the default
+            scene, as :func:`ucontrol.scene.load_scene` takes them.
         assignments: ``KEY=VALUE`` texts (:func:`parse_assignment`), applied in order.
 
     Returns:
@@ -158,24 +159,30 @@ def scene_with_overrides(path: str | Path, assignments: Sequence[str]) -> Any:
 
     Raises:
         ParameterKeyError: A malformed assignment or a key that does not walk the table.
-        SceneError: The file is missing or not TOML; UnknownKeyError and the scene's other
-            errors for keys or values it rejects.
+        NotFoundError: A name that is no file and no built-in scene.
+        SceneError: The file is not TOML; UnknownKeyError and the scene's other errors for
+            keys or values it rejects.
     """
     import dataclasses
     import tomllib
 
     from ucontrol.exceptions import SceneError
-    from ucontrol.scene import Scene
+    from ucontrol.scene import Scene, builtin_scene
 
-    path = Path(path)
-    if not path.is_file():
-        raise SceneError(f"scene file {str(path)!r} does not exist")
+    if scene is None:
+        path = builtin_scene()
+    elif Path(scene).is_file():
+        path = Path(scene)
+    elif isinstance(scene, str) and "/" not in scene:
+        path = builtin_scene(scene)
+    else:
+        raise SceneError(f"scene file {str(scene)!r} does not exist")
     try:
         table = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
         raise SceneError(f"scene file {str(path)!r} is not valid TOML: {error}") from error
     overrides = dict(parse_assignment(text) for text in assignments)
-    scene = Scene.from_dict(
+    result = Scene.from_dict(
         apply_overrides(table, overrides), base_dir=path.parent, default_name=path.stem
     )
-    return dataclasses.replace(scene, source=path.resolve())
+    return dataclasses.replace(result, source=path.resolve())
