@@ -127,7 +127,12 @@ def _finite(value: Any) -> bool:
 
 
 def _rerun(info: dict[str, Any], row: Any) -> str:
-    words = ["ucontrol", "run", _short_path(info.get("scene_path", "SCENE"))]
+    reference = info.get("scene", {})
+    if "builtin" in reference:  # by name: the command works in any installation
+        scene = Path(reference["builtin"]).stem
+    else:
+        scene = _short_path(info.get("scene_path", "SCENE"))
+    words = ["ucontrol", "run", scene]
     if info.get("duration") is not None:
         words += ["--duration", repr(info["duration"])]
     if info.get("dt") is not None:
