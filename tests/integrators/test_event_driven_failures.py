@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from ucontrol.exceptions import IntegrationError, SimulationError, SolverError
+from ucontrol.integrators import event_driven
 from ucontrol.integrators.event_driven import EventDriven
 from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import simulate
@@ -94,3 +95,20 @@ def test_an_unsolved_impact_stops_the_run_at_the_landing(monkeypatch: pytest.Mon
     # Up to the landing the log is the free fall (measured error 2.6e-15 m).
     t = error.log.t
     np.testing.assert_allclose(error.log.q[:, 0], 1.1 - 0.5 * G * t**2, atol=2.5e-14)
+
+
+def test_landings_that_accumulate_below_the_time_resolution_raise_at_the_accumulation_point(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # With a Zeno velocity of 1e-12 m/s nothing stops the bounces before their flights
+    # (2 e^k t1) are shorter than the time resolution, here raised from 1e-14 s to 1e-6 s so
+    # that the stall comes after ~100 landings: 51 events in a row closer than 1 us stop the
+    # step just before the accumulation point t_inf = t1 (1 + 2e / (1 - e)) = 8.579 s.
+    monkeypatch.setattr(event_driven, "_STALL_TIME", 1e-6)
+    scene = _ball()
+    integrator = _event_driven(scene, dt=10.0, zeno_velocity=1e-12)
+    with pytest.raises(IntegrationError, match="51 events without the time advancing") as raised:
+        integrator.step(integrator.evaluate(scene.q0, scene.v0), np.zeros(1))
+    t_inf = T1 * (1.0 + 2.0 * E / (1.0 - E))  # [s]
+    # Measured: 4.2e-8 s before t_inf (the flights left sum to less than 1e-5 s).
+    assert 0.0 < t_inf - raised.value.time < 5e-7
