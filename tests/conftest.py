@@ -5,8 +5,10 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import sys
+import textwrap
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
@@ -58,3 +60,15 @@ def robots_dir() -> Path:
 @pytest.fixture
 def two_link_scene() -> Scene:
     return load_scene(ROBOTS / "two_link_drop.toml")
+
+
+@pytest.fixture
+def write_campaign(tmp_path: Path) -> Any:
+    """Write a campaign file (dedented TOML) into tmp_path and return its path."""
+
+    def write(text: str, name: str = "campaign.toml") -> Path:
+        path = tmp_path / name
+        path.write_text(textwrap.dedent(text))
+        return path
+
+    return write

@@ -19,6 +19,7 @@ LAYERS = {
     "exceptions": 0,
     "_validation": 1,
     "log": 1,
+    "output_files": 1,
     "model": 2,
     "contact": 3,
     "solvers": 4,

@@ -31,6 +31,8 @@ def as_vector(name: str, value: Any, size: int | None = None) -> NDArray[np.floa
         NonFiniteValueError: ``value`` holds NaN or infinity.
     """
     try:
+        if np.asarray(value).dtype.kind in "USObV":  # text, booleans: not numbers
+            raise TypeError(f"{name} holds non-numbers")
         array = np.array(value, dtype=float)
     except (TypeError, ValueError) as error:
         raise InvalidParameterError(name, value, "a vector of numbers") from error
@@ -51,8 +53,11 @@ def as_positive(name: str, value: Any) -> float:
 
 
 def as_float(name: str, value: Any) -> float:
-    """Return ``value`` as a finite float, or raise :class:`InvalidParameterError`."""
-    if isinstance(value, bool):
+    """Return ``value`` as a finite float, or raise :class:`InvalidParameterError`.
+
+    Booleans and strings are refused (``"0.5"`` in a scene file is a mistake, not a number).
+    """
+    if isinstance(value, bool | str | bytes):
         raise InvalidParameterError(name, value, "a finite number")
     try:
         number = float(value)
@@ -61,6 +66,27 @@ def as_float(name: str, value: Any) -> float:
     if not math.isfinite(number):
         raise InvalidParameterError(name, value, "a finite number")
     return number
+
+
+def as_int(name: str, value: Any, low: int | None = None) -> int:
+    """Return ``value`` as an integer (a float only when whole), optionally >= ``low``.
+
+    Raises:
+        InvalidParameterError: ``value`` is not a whole number, or is below ``low``.
+    """
+    number = as_float(name, value)
+    if not number.is_integer():
+        raise InvalidParameterError(name, value, "a whole number")
+    if low is not None and number < low:
+        raise InvalidParameterError(name, value, f"a whole number >= {low}")
+    return int(number)
+
+
+def as_bool(name: str, value: Any) -> bool:
+    """Return ``value`` if it is a boolean (``true``/``false`` in TOML; no strings, no 0/1)."""
+    if not isinstance(value, bool | np.bool_):
+        raise InvalidParameterError(name, value, "true or false")
+    return bool(value)
 
 
 def as_in_interval(name: str, value: Any, low: float, high: float) -> float:

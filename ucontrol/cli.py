@@ -23,8 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 from ucontrol import __version__, convergence
 from ucontrol.bench import bench_scene
-from ucontrol.campaign.command import add_sweep_parser, run_sweep
+from ucontrol.campaign.command import add_sweep_parser, is_campaign, plot_campaign, run_sweep
+from ucontrol.design.command import add_design_parser, run_design
 from ucontrol.exceptions import OptionalDependencyError, UControlError
+from ucontrol.output_files import check_output_dir, check_output_file
 from ucontrol.saved_run import SavedRun
 from ucontrol.scene import INTEGRATORS, Scene, builtin_scenes, load_scene
 from ucontrol.simulate import simulate
@@ -154,8 +156,10 @@ def _parser() -> argparse.ArgumentParser:
         "--html", type=Path, default=None, help="write the animation to this HTML file and exit"
     )
     view.add_argument("--fps", type=float, default=30.0, help="frames per second of simulated time")
-    plot = commands.add_parser("plot", help="figures (PNG) of a saved run")
-    plot.add_argument("directory", type=Path, help="run directory (holds log.npz)")
+    plot = commands.add_parser("plot", help="figures (PNG) of a saved run or of a campaign")
+    plot.add_argument(
+        "directory", type=Path, help="run directory (holds log.npz) or campaign directory"
+    )
     plot.add_argument(
         "--scene", type=Path, default=None, help="scene file (default: the one the run recorded)"
     )
@@ -163,6 +167,7 @@ def _parser() -> argparse.ArgumentParser:
         "--out", type=Path, default=None, help="folder of the figures (default: DIR/figures)"
     )
     add_sweep_parser(commands)
+    add_design_parser(commands)
     return parser
 
 
@@ -216,6 +221,8 @@ def _live_viewer(scene: Scene) -> tuple[MeshcatServer, LiveViewer]:
 
 
 def _view(args: argparse.Namespace) -> int:
+    if args.html is not None:
+        check_output_file("--html", args.html)
     run = SavedRun.load(args.directory, args.scene)
     scene = run.require_scene()
     from ucontrol.viz.meshcat_server import MeshcatServer
@@ -233,6 +240,12 @@ def _view(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
+    out = args.out if args.out is not None else args.directory / "figures"
+    check_output_dir("--out", out)
+    if is_campaign(args.directory):  # a campaign's figures: success rates, distributions
+        for path in plot_campaign(args.directory, out):
+            print(f"wrote {path}")
+        return 0
     run = SavedRun.load(args.directory, args.scene)
     try:
         from ucontrol.viz.run_figures import run_figures
@@ -240,7 +253,6 @@ def _plot(args: argparse.Namespace) -> int:
         if (error.name or "").partition(".")[0] != "matplotlib":
             raise
         raise OptionalDependencyError("matplotlib", "viz") from error
-    out = args.out if args.out is not None else args.directory / "figures"
     if run.scene is None:
         print(
             "ucontrol: note: the scene of the run is unknown (pass --scene FILE for the "
@@ -264,6 +276,7 @@ def _wait_for_interrupt() -> None:
 def _convergence(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
     out = args.out if args.out is not None else Path("runs") / scene.name / "convergence"
+    check_output_dir("--out", out)
     study = convergence.run_convergence(
         scene,
         duration=args.duration,
@@ -283,6 +296,8 @@ def _convergence(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     if args.scene is None:
         print(f"benchmarking the built-in scene {BENCH_SCENE} (it has the Pinocchio comparison)")
+    if args.out is not None:
+        check_output_file("--out", args.out)
     scene = load_scene(BENCH_SCENE if args.scene is None else args.scene)
     report = bench_scene(
         scene, steps=args.steps, repeats=args.repeats, warmup=args.warmup, dt=args.dt
@@ -334,6 +349,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "plot": _plot,
             "scenes": _scenes,
             "sweep": run_sweep,
+            "design": run_design,
         }
         return commands[args.command](args)
     except UControlError as error:

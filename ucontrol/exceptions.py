@@ -386,3 +386,133 @@ class InfeasibleDesignError(DesignError):
             f"{named or 'unknown (the dynamics or periodicity cannot be met)'}; relax them in "
             "the task file (the best iterate is kept in `best`)"
         )
+
+
+class InvalidInertiaError(InvalidParameterError):
+    """A body of a URDF has inertial parameters no rigid body can have.
+
+    Attributes:
+        body: The body (link) name.
+        mass: Its mass in [kg].
+        moments: Principal moments of inertia about its centre of mass in [kg m²], ascending.
+    """
+
+    def __init__(self, body: str, mass: float, moments: Sequence[float], expected: str) -> None:
+        self.body = body
+        self.mass = mass
+        self.moments = list(moments)
+        values = f"mass {mass!r} kg, principal moments {[float(m) for m in self.moments]} kg m²"
+        super().__init__(f"inertia of link {body!r}", values, expected)
+
+
+class OutputPathError(InvalidParameterError):
+    """An output location cannot be written (checked before any work starts).
+
+    Attributes:
+        path: The location asked for.
+        reason: Why it cannot be used.
+    """
+
+    def __init__(self, name: str, path: str, reason: str) -> None:
+        self.path = path
+        self.reason = reason
+        super().__init__(name, path, f"a writable location ({reason})")
+
+
+class OutputWriteError(UControlError):
+    """Writing an output file failed (e.g. a full disk); the last complete file is kept.
+
+    Attributes:
+        path: The file being written.
+        reason: The system's error message.
+    """
+
+    def __init__(self, path: str, reason: str) -> None:
+        self.path = path
+        self.reason = reason
+        super().__init__(f"cannot write {path!r}: {reason} (the last complete file is kept)")
+
+
+class OutputInUseError(UControlError):
+    """Another run writes to the same output directory.
+
+    Attributes:
+        path: The directory.
+        pid: Process id of the run that holds it.
+    """
+
+    def __init__(self, path: str, pid: int) -> None:
+        self.path = path
+        self.pid = pid
+        super().__init__(
+            f"output directory {path!r} is in use by the run of process {pid}; choose another "
+            "--out or wait for it to end"
+        )
+
+
+class LogFileError(UControlError):
+    """A log file cannot be read (truncated, corrupt or not a log).
+
+    Attributes:
+        path: The file.
+        reason: What is wrong with it.
+    """
+
+    def __init__(self, path: str, reason: str) -> None:
+        self.path = path
+        self.reason = reason
+        super().__init__(f"cannot read the log {path!r}: {reason}")
+
+
+class PhysicsWarning(UserWarning):
+    """A run went on, but something in its physics deserves a look (the figure is given)."""
+
+
+class PenetrationWarning(PhysicsWarning):
+    """A constraint was penetrated deeper than the scene's tolerance.
+
+    Attributes:
+        constraint: The constraint's name.
+        depth: The deepest penetration in [m] (or [rad]).
+        time: When it happened, in [s].
+        tolerance: The tolerance in [m] (or [rad]).
+    """
+
+    def __init__(self, constraint: str, depth: float, time: float, tolerance: float) -> None:
+        self.constraint = constraint
+        self.depth = depth
+        self.time = time
+        self.tolerance = tolerance
+        super().__init__(
+            f"constraint {constraint!r} penetrated by {depth:.4g} at t = {time:.6g} s, beyond "
+            f"the tolerance {tolerance:.4g} (set [integrator] penetration_tolerance; a smaller "
+            "dt reduces it)"
+        )
+
+
+class PlasticRedoWarning(PhysicsWarning):
+    """Steps were redone with a plastic impact law in a scene whose restitutions are all 1.
+
+    Attributes:
+        steps: How many steps were redone.
+    """
+
+    def __init__(self, steps: int) -> None:
+        self.steps = steps
+        super().__init__(
+            f"{steps} step(s) were redone with a plastic impact law (e = 0) because Newton's law "
+            "would have added energy, although every restitution of the scene is 1; with "
+            "theta > 1/2 the scheme dissipates at impacts (use theta = 0.5)"
+        )
+
+
+class VideoError(UControlError):
+    """A video of a run could not be written (ffmpeg missing or failing).
+
+    Attributes:
+        reason: What went wrong (ffmpeg's last messages when it failed).
+    """
+
+    def __init__(self, reason: str) -> None:
+        self.reason = reason
+        super().__init__(f"video: {reason}")

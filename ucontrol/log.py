@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import os
+import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.exceptions import InvalidParameterError, LogFileError, NotFoundError
+from ucontrol.output_files import write_atomically
 
 #: Per-sample arrays of a log, with their shape after the sample axis (see docs/outputs.md).
 SAMPLE_FIELDS: dict[str, str] = {
@@ -218,23 +220,35 @@ class Log:
         self.size = k + 1
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the filled rows to ``path`` (``.npz``) atomically and return the path."""
+        """Write the filled rows to ``path`` (``.npz``) atomically and return the path.
+
+        Raises:
+            OutputWriteError: The file could not be written (e.g. a full disk); a previous
+                file at ``path`` is kept whole.
+        """
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp.npz")
         payload: dict[str, Any] = {name: getattr(self, name) for name in self.fields}
         payload["constraint_names"] = np.array(self.constraint_names, dtype=str)
         for key, value in self.metadata.items():
             payload[f"meta_{key}"] = np.array(value)
-        np.savez(tmp, **payload)
-        os.replace(tmp, path)
-        return path
+        return write_atomically(path, lambda stream: np.savez(stream, **payload))
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Log:
-        """Read a log written by :meth:`save`."""
-        with np.load(path) as archive:
-            content = {key: archive[key] for key in archive.files}
+        """Read a log written by :meth:`save`.
+
+        Raises:
+            LogFileError: The file is missing, truncated, corrupt or not a log.
+        """
+        try:
+            with np.load(path) as archive:
+                content = {key: archive[key] for key in archive.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
+            raise LogFileError(str(path), str(error) or type(error).__name__) from error
+        missing = {"t", "q", "v", "u", "constraint_names"} - set(content)
+        if missing:
+            raise LogFileError(str(path), f"it has no {sorted(missing)} arrays")
         names = [str(name) for name in content.pop("constraint_names")]
         metadata = {
             key.removeprefix("meta_"): _metadata_value(content.pop(key))

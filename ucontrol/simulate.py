@@ -6,6 +6,7 @@ import json
 import math
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,11 +21,14 @@ from ucontrol.control.controller import ContactState, Controller, LoggingControl
 from ucontrol.exceptions import (
     InitialPenetrationError,
     InvalidParameterError,
+    PenetrationWarning,
+    PlasticRedoWarning,
     ShapeError,
     SimulationError,
     UControlError,
 )
 from ucontrol.log import SOLVED, UNSOLVED, Log
+from ucontrol.output_files import OutputLock, check_output_dir, write_atomically
 from ucontrol.scene import Scene
 
 if TYPE_CHECKING:
@@ -91,16 +95,20 @@ def simulate(
         KeyboardInterrupt: Ctrl-C; it carries ``time`` (the last sample's, in [s]) and, with
             ``out``, ``log_path`` (the log written up to then).
     """
+    _check_arguments(scene, controller, progress, observer)
+    out_dir = None if out is None else check_output_dir("out", out)
     integrator = scene.build_integrator(dt=dt)
     h = integrator.dt
     duration = as_positive("duration", scene.duration if duration is None else duration)
     hold = 1 if control_period is None else _hold_steps(control_period, h)
     controller = scene.build_controller() if controller is None else controller
     _check_initial_penetration(integrator.constraints, scene.q0)
-    n_steps = max(1, math.ceil(duration / h - 1e-9))
+    n_steps = _step_count(scene, duration, h)
     loop = _ClosedLoop(scene, integrator, controller, n_steps + 1, hold, observer)
     log = loop.log
-    out_dir = Path(out) if out is not None else None
+    lock = None if out_dir is None else OutputLock(out_dir)
+    if lock is not None:
+        lock.acquire()
     bar = _progress_bar(n_steps, progress)
     start = last_checkpoint = time.perf_counter()
     k = 0
@@ -113,8 +121,19 @@ def simulate(
                 loop.control(k * h, state)
             loop.advance(state)
             if k % 1000 == 0:
-                last_checkpoint = _report_progress(bar, n_steps, log, out_dir, last_checkpoint)
+                last_checkpoint = _report_progress(bar, k + 1, log, out_dir, last_checkpoint)
         loop.finish()
+        if bar is not None:
+            bar.update(n_steps - bar.n)
+        wall_time = time.perf_counter() - start
+        summary = summarize(log, wall_time_s=wall_time, theta=integrator.theta)
+        summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
+        summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
+        _report_physics(scene, log, summary)
+        if out_dir is not None:
+            log.save(out_dir / "log.npz")
+            text = json.dumps(summary, indent=2) + "\n"
+            write_atomically(out_dir / "summary.json", lambda stream: stream.write(text.encode()))
     except KeyboardInterrupt as interrupt:  # Ctrl-C (or a signal): keep what ran, then stop
         loop.close_row()
         interrupt.time = float(log.t[len(log) - 1]) if len(log) else 0.0  # type: ignore[attr-defined]
@@ -130,13 +149,8 @@ def simulate(
     finally:
         if bar is not None:
             bar.close()
-    wall_time = time.perf_counter() - start
-    summary = summarize(log, wall_time_s=wall_time, theta=integrator.theta)
-    summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
-    summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
-    if out_dir is not None:
-        log.save(out_dir / "log.npz")
-        (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        if lock is not None:
+            lock.release()
     return SimulationResult(log, summary, out_dir)
 
 
@@ -208,6 +222,9 @@ class _ClosedLoop:
     def sample(self, t: float) -> PlantEvaluation:
         """Evaluate the plant at t [s] and open the log row of that sample."""
         state = self.integrator.evaluate(self.q, self.v)
+        energy = state.kinetic_energy + state.potential_energy
+        if not math.isfinite(energy):
+            raise _NonFiniteState(f"the energy became non-finite ({energy}) at t = {t:.6g} s")
         log, q, v = self.log, self.q, self.v
         log.record_state(
             t,
@@ -215,7 +232,7 @@ class _ClosedLoop:
             v[: self.nv],
             state.gap,
             state.normal_velocity,
-            state.kinetic_energy + state.potential_energy,
+            energy,
         )
         if self.flexible is not None:
             log.record_extra("motor_q", q[self.nq :])
@@ -297,19 +314,74 @@ class _ClosedLoop:
 
 
 def _report_progress(
-    bar: Any, n_steps: int, log: Log, out_dir: Path | None, last_checkpoint: float
+    bar: Any, done: int, log: Log, out_dir: Path | None, last_checkpoint: float
 ) -> float:
-    """Advance the progress bar by 1000 steps and checkpoint the log when one is due.
+    """Show ``done`` steps on the progress bar and checkpoint the log when one is due.
 
     Returns:
         The wall time [s] (``time.perf_counter``) of the last checkpoint.
     """
     if bar is not None:
-        bar.update(min(1000, n_steps - bar.n))
+        bar.update(done - bar.n)
     if out_dir is None or time.perf_counter() - last_checkpoint <= CHECKPOINT_PERIOD_S:
         return last_checkpoint
     log.save(out_dir / "log.npz")
     return time.perf_counter()
+
+
+#: Largest log a run may allocate, in [bytes]: a longer run is refused before it starts.
+MAX_LOG_BYTES = 8 * 2**30
+
+
+def _check_arguments(scene: Any, controller: Any, progress: Any, observer: Any) -> None:
+    """Typed errors for arguments of the wrong kind (before anything is built)."""
+    if not isinstance(scene, Scene):
+        raise InvalidParameterError("scene", scene, "a Scene (e.g. ucontrol.load_scene(path))")
+    if controller is not None and not callable(controller):
+        raise InvalidParameterError("controller", controller, "callable(t, q, v, contacts)")
+    if observer is not None and not callable(observer):
+        raise InvalidParameterError("observer", observer, "callable(log) or None")
+    if progress not in (None, True, False):
+        raise InvalidParameterError("progress", progress, "True, False or None")
+
+
+def _step_count(scene: Scene, duration: float, h: float) -> int:
+    """Steps of a run, refused when its log would not fit in :data:`MAX_LOG_BYTES`."""
+    steps = max(1, math.ceil(duration / h - 1e-9))
+    robot, n = scene.robot, scene.constraints.size
+    row_bytes = 8 * (8 + 2 * robot.nq + 2 * robot.nv + robot.nu + 5 * n)  # [bytes], about
+    if steps * row_bytes > MAX_LOG_BYTES:
+        need = steps * row_bytes / 2**30
+        raise InvalidParameterError(
+            "duration",
+            duration,
+            f"at most {MAX_LOG_BYTES * h / row_bytes:.4g} s at dt = {h:g} s (duration / dt = "
+            f"{steps:.4g} steps would need {need:.4g} GiB of log)",
+        )
+    return steps
+
+
+def _report_physics(scene: Scene, log: Log, summary: dict[str, Any]) -> None:
+    """Warnings, and summary entries, for what a run should not have done silently."""
+    tolerance = scene.integrator.penetration_tolerance
+    beyond = log.gap < -tolerance
+    summary["penetration_tolerance"] = tolerance
+    summary["n_penetrations_beyond_tolerance"] = int(beyond.sum())
+    if beyond.any():
+        row, column = np.unravel_index(int(np.argmin(log.gap)), log.gap.shape)
+        warnings.warn(
+            PenetrationWarning(
+                log.constraint_names[column],
+                float(-log.gap[row, column]),
+                float(log.t[row]),
+                tolerance,
+            ),
+            stacklevel=3,
+        )
+    restitutions = scene.constraints.restitution
+    plastic = summary.get("n_plastic_steps", 0)
+    if plastic and restitutions.size and np.all(restitutions == 1.0):
+        warnings.warn(PlasticRedoWarning(plastic), stacklevel=3)
 
 
 def _hold_steps(control_period: float, h: float) -> int:

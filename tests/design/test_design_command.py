@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ucontrol.design import DesignedCycle
+from ucontrol.design import DesignedCycle, cycle_transcription
 from ucontrol.design.command import add_design_parser, run_design
 from ucontrol.exceptions import InfeasibleDesignError
 
@@ -60,14 +60,13 @@ def test_design_writes_cycle_report_and_figures(tmp_path, capsys) -> None:  # ty
 
 def test_infeasible_task_exits_with_1_and_names_the_limit(tmp_path, capsys, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     # the solve itself is tested in test_cycle_design.py; here only what the command does
-    import ucontrol.design.command as command
 
     binding = [("torque limit of joint 'shoulder' (|tau| <= 100 N m)", 116.6)]
 
     def infeasible(task, progress=None):  # type: ignore[no-untyped-def]
         raise InfeasibleDesignError(binding)
 
-    monkeypatch.setattr(command, "design_cycle", infeasible)
+    monkeypatch.setattr(cycle_transcription, "design_cycle", infeasible)  # imported on use
     task = _write_task(tmp_path / "task.toml", force_min=400.0, force_max=500.0)
     out = tmp_path / "out"
     assert run_design(_parse(["design", str(task), "--out", str(out), "--no-figures"])) == 1

@@ -13,6 +13,9 @@ from ucontrol.analysis.tracking import tracking
 from ucontrol.analysis.weak_stability import weak_stability
 from ucontrol.log import SOLVED, UNSOLVED, Log
 
+#: Energy changes below this, relative to 1 + the largest absolute energy in [J], are rounding.
+ENERGY_ROUNDING = 1e-9
+
 
 def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, Any]:
     """Summary of a run (keys documented in docs/outputs.md).
@@ -27,11 +30,12 @@ def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, 
     gap = log.gap
     impacts = impact_mask(log)[:steps]
     impact_steps = np.flatnonzero(impacts.any(axis=1))
-    energy_jump = 0.0
+    energy_jump, worst_step = 0.0, None
     if impact_steps.size:
         k = impact_steps
         work = step_work(log, theta)[k]  # [J]
-        energy_jump = float(np.max(log.energy[k + 1] - log.energy[k] - work))
+        jumps = log.energy[k + 1] - log.energy[k] - work
+        energy_jump, worst_step = float(np.max(jumps)), int(k[np.argmax(jumps)])
     summary = {
         "scene": log.metadata.get("scene", ""),
         "integrator": log.metadata.get("integrator", ""),
@@ -51,6 +55,12 @@ def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, 
         "max_solver_iterations": int(log.solver_iterations.max(initial=0)),
         **_contact_solves(log),
     }
+    rounding = ENERGY_ROUNDING * (1.0 + float(np.max(np.abs(log.energy), initial=0.0)))
+    if worst_step is not None and energy_jump > rounding:  # where the impacts added energy
+        summary["energy_increase_time"] = float(t[worst_step])
+        summary["energy_increase_constraints"] = [
+            name for name, hit in zip(log.constraint_names, impacts[worst_step]) if hit
+        ]
     if CYCLE_FIELDS <= set(log.fields):  # a phase-machine controller ran
         summary["weak_stability"] = weak_stability(log).to_dict()
         summary["tracking"] = tracking(log).to_dict()

@@ -7,12 +7,31 @@ durations, impact maps, constrained dynamics) and solves it with IPOPT into a
 model against the plant.
 """
 
-from ucontrol.design.cycle_transcription import CycleTranscription, design_cycle
-from ucontrol.design.design_report import DesignReport
-from ucontrol.design.design_task import DesignTask
-from ucontrol.design.designed_cycle import CyclePhase, DesignedCycle
-from ucontrol.design.open_loop_replay import ReplayResult, replay_open_loop
-from ucontrol.design.periodic_spline_path import PeriodicSplinePath
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ucontrol.design.cycle_transcription import CycleTranscription, design_cycle
+    from ucontrol.design.design_report import DesignReport
+    from ucontrol.design.design_task import DesignTask
+    from ucontrol.design.designed_cycle import CyclePhase, DesignedCycle
+    from ucontrol.design.open_loop_replay import ReplayResult, replay_open_loop
+    from ucontrol.design.periodic_spline_path import PeriodicSplinePath
+
+#: Each public name and its module, imported on first use (casadi loads with the first).
+_EXPORTS = {
+    "CyclePhase": "ucontrol.design.designed_cycle",
+    "CycleTranscription": "ucontrol.design.cycle_transcription",
+    "DesignReport": "ucontrol.design.design_report",
+    "DesignTask": "ucontrol.design.design_task",
+    "DesignedCycle": "ucontrol.design.designed_cycle",
+    "PeriodicSplinePath": "ucontrol.design.periodic_spline_path",
+    "ReplayResult": "ucontrol.design.open_loop_replay",
+    "design_cycle": "ucontrol.design.cycle_transcription",
+    "replay_open_loop": "ucontrol.design.open_loop_replay",
+}
 
 __all__ = [
     "CyclePhase",
@@ -25,3 +44,9 @@ __all__ = [
     "design_cycle",
     "replay_open_loop",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        return getattr(import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

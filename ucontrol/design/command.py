@@ -1,7 +1,7 @@
 """``ucontrol design TASK.toml --out DIR``: design a cycle, write it, its report and figures.
 
-Wire it into the CLI with ``add_design_parser(commands)`` on the subparsers and dispatch
-``args.command == "design"`` to ``run_design(args)``.
+:mod:`ucontrol.cli` adds the subcommand with :func:`add_design_parser`, which imports nothing
+heavy; :func:`run_design` imports casadi when the command runs.
 """
 
 from __future__ import annotations
@@ -10,10 +10,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from ucontrol.design.cycle_transcription import design_cycle
-from ucontrol.design.design_figures import save_design_figures
-from ucontrol.design.design_task import DesignTask
-from ucontrol.design.open_loop_replay import replay_open_loop
 from ucontrol.exceptions import InfeasibleDesignError
 
 
@@ -40,6 +36,12 @@ def add_design_parser(commands: argparse._SubParsersAction) -> argparse.Argument
 
 def run_design(args: argparse.Namespace) -> int:
     """Run ``ucontrol design``; returns the exit status (0 designed, 1 infeasible)."""
+    # casadi and matplotlib load with these, for this command only
+    from ucontrol.design.cycle_transcription import design_cycle
+    from ucontrol.design.design_figures import save_design_figures
+    from ucontrol.design.design_task import DesignTask
+    from ucontrol.design.open_loop_replay import replay_open_loop
+
     task = DesignTask.from_toml(args.task)
     out = args.out if args.out is not None else Path("runs") / f"design_{Path(args.task).stem}"
     out.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from ucontrol._validation import check_keys, require_key
+from ucontrol._validation import as_bool, check_keys, require_key
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
 from ucontrol.control.controller import Controller
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
@@ -95,7 +95,9 @@ def _joint_pd(scene: Scene, table: Mapping[str, Any]) -> Controller:
         q_ref=table.get("q_ref", scene.q0),
         kp=require_key(table, "[controller]", "kp"),
         kd=require_key(table, "[controller]", "kd"),
-        gravity_compensation=bool(table.get("gravity_compensation", True)),
+        gravity_compensation=as_bool(
+            "gravity_compensation", table.get("gravity_compensation", True)
+        ),
         flexible=scene.flexible,
     )
 

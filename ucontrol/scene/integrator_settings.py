@@ -6,11 +6,14 @@ from dataclasses import dataclass
 from itertools import chain
 from typing import Any
 
-from ucontrol._validation import as_float, as_in_interval, as_positive
+from ucontrol._validation import as_float, as_in_interval, as_int, as_positive
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
 from ucontrol.integrators.methods import CONTACT_MODELS, INTEGRATORS, IVP_METHODS
 from ucontrol.integrators.moreau_jean import ON_UNSOLVED, PERSISTENCE_TOLERANCE
 from ucontrol.solvers.contact_solver_choice import check_contact_solver
+
+#: Largest contact or friction tolerance accepted, in [m/s]: looser is no contact solve.
+MAX_TOLERANCE = 1e-2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -46,6 +49,9 @@ class IntegratorSettings:
             midpoint: second order between impacts (see :class:`MoreauJean`).
         persistence_tolerance: Predicted gap in [m] up to which Moreau–Jean keeps a constraint
             that carried an impulse in the previous step active; 0 turns it off.
+        penetration_tolerance: Depth in [m] (or [rad]) beyond which a penetration is reported
+            (a :class:`~ucontrol.exceptions.PenetrationWarning` and the summary's
+            ``n_penetrations_beyond_tolerance``).
 
     Keys that do not concern the chosen integrator are checked and ignored, so one scene can
     be run with every integrator.
@@ -69,6 +75,7 @@ class IntegratorSettings:
     on_unsolved: str = "raise"
     midpoint: bool = False
     persistence_tolerance: float = PERSISTENCE_TOLERANCE
+    penetration_tolerance: float = 0.01
 
     def __post_init__(self) -> None:
         check_contact_solver(self.contact_solver)
@@ -78,11 +85,14 @@ class IntegratorSettings:
         if not tolerance >= 0.0:  # also rejects NaN
             raise InvalidParameterError("persistence_tolerance", tolerance, "a length >= 0 in [m]")
         object.__setattr__(self, "persistence_tolerance", tolerance)
+        friction_tolerance = as_positive("friction_tolerance", self.friction_tolerance)
+        if friction_tolerance > MAX_TOLERANCE:
+            raise InvalidParameterError(
+                "friction_tolerance", friction_tolerance, f"in (0, {MAX_TOLERANCE:g}] m/s"
+            )
+        object.__setattr__(self, "friction_tolerance", friction_tolerance)
         object.__setattr__(
-            self, "friction_tolerance", as_positive("friction_tolerance", self.friction_tolerance)
-        )
-        object.__setattr__(
-            self, "friction_max_iter", int(as_positive("friction_max_iter", self.friction_max_iter))
+            self, "friction_max_iter", as_int("friction_max_iter", self.friction_max_iter, 1)
         )
         if self.on_unsolved not in ON_UNSOLVED:
             raise InvalidParameterError("on_unsolved", self.on_unsolved, f"one of {ON_UNSOLVED}")
@@ -91,9 +101,18 @@ class IntegratorSettings:
         object.__setattr__(self, "dt", as_positive("dt", self.dt))
         object.__setattr__(self, "theta", as_in_interval("theta", self.theta, 0.5, 1.0))
         object.__setattr__(
-            self, "contact_tolerance", as_positive("contact_tolerance", self.contact_tolerance)
+            self,
+            "contact_tolerance",
+            as_in_interval("contact_tolerance", self.contact_tolerance, 0.0, MAX_TOLERANCE),
         )
-        object.__setattr__(self, "max_iter", int(as_positive("max_iter", self.max_iter)))
+        if self.contact_tolerance == 0.0:
+            raise InvalidParameterError("contact_tolerance", 0.0, f"in (0, {MAX_TOLERANCE:g}]")
+        object.__setattr__(
+            self,
+            "penetration_tolerance",
+            as_positive("penetration_tolerance", self.penetration_tolerance),
+        )
+        object.__setattr__(self, "max_iter", as_int("max_iter", self.max_iter, 1))
         for key in ("rtol", "atol"):
             if getattr(self, key) is not None:
                 object.__setattr__(self, key, as_positive(key, getattr(self, key)))
@@ -101,6 +120,10 @@ class IntegratorSettings:
         if self.method is not None and self.method not in methods:
             raise InvalidParameterError("method", self.method, f"one of {list(methods)}")
         object.__setattr__(self, "zeno_velocity", as_positive("zeno_velocity", self.zeno_velocity))
+        threshold = as_float("restitution_threshold", self.restitution_threshold)
+        if threshold < 0.0:
+            raise InvalidParameterError("restitution_threshold", threshold, "a speed >= 0 in [m/s]")
+        object.__setattr__(self, "restitution_threshold", threshold)
         object.__setattr__(self, "stiffness", as_positive("stiffness", self.stiffness))
         if self.contact_model not in CONTACT_MODELS:
             raise InvalidParameterError(

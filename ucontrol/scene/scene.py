@@ -16,8 +16,9 @@ from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
 from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
-from ucontrol.exceptions import SceneError
+from ucontrol.exceptions import InvalidParameterError, SceneError
 from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.inertia_check import check_inertias, check_mass_matrix
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.scene.controller_builders import build_controller
 from ucontrol.scene.integrator_builders import build_integrator
@@ -99,7 +100,16 @@ class Scene:
         constraints = ConstraintSet(
             self.robot, self.contacts, self.stops, self.sphere_contacts, self.planar_axis
         )
+        repeated = sorted({name for name in constraints.names if constraints.names.count(name) > 1})
+        if repeated:
+            raise SceneError(
+                f"constraint names must be unique; {repeated} name several constraints (give "
+                "each contact its own `name`)"
+            )
         object.__setattr__(self, "_constraints", constraints)
+        check_inertias(self.robot)
+        _check_within_limits(self.robot, self.q0)
+        check_mass_matrix(self.robot, self.q0)
 
     @property
     def constraints(self) -> ConstraintSet:
@@ -140,7 +150,11 @@ class Scene:
         if not path.is_file():
             raise SceneError(f"scene file {str(path)!r} does not exist")
         try:
-            table = tomllib.loads(path.read_text())
+            table = tomllib.loads(path.read_text(encoding="utf-8"))
+        except UnicodeDecodeError as error:
+            raise SceneError(f"scene file {str(path)!r} is not UTF-8 text: {error}") from error
+        except OSError as error:
+            raise SceneError(f"scene file {str(path)!r} cannot be read: {error}") from error
         except tomllib.TOMLDecodeError as error:
             raise SceneError(f"scene file {str(path)!r} is not valid TOML: {error}") from error
         scene = cls.from_dict(table, base_dir=path.parent, default_name=path.stem)
@@ -161,3 +175,26 @@ class Scene:
         if reference is None:
             return scene
         return replace(scene, reference=check_reference(reference, scene.contacts))
+
+
+#: Largest magnitude of an initial coordinate without joint limits, in [rad] or [m].
+MAX_COORDINATE = 1e6
+
+
+def _check_within_limits(robot: RobotModel, q0: NDArray[np.float64]) -> None:
+    """``q0`` inside the URDF's position limits (where finite), and of a sane magnitude."""
+    model = robot.model
+    lower, upper = model.lowerPositionLimit, model.upperPositionLimit
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        for i in range(joint.idx_q, joint.idx_q + joint.nq):
+            low, high = float(lower[i]), float(upper[i])
+            bounded = np.isfinite(low) and np.isfinite(high) and low < high and high - low < 1e10
+            if bounded and not low - 1e-9 <= q0[i] <= high + 1e-9:
+                raise InvalidParameterError(
+                    f"q0 of joint {model.names[j]!r}", float(q0[i]), f"within [{low:g}, {high:g}]"
+                )
+            if abs(q0[i]) > MAX_COORDINATE:
+                raise InvalidParameterError(
+                    f"q0 of joint {model.names[j]!r}", float(q0[i]), f"at most {MAX_COORDINATE:g}"
+                )

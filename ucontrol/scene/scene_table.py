@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ucontrol._validation import as_vector, check_keys, require_key
+from ucontrol._validation import as_bool, as_vector, check_keys, require_key
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
 from ucontrol.contact.point_contact import PointContact
@@ -75,6 +75,7 @@ _INTEGRATOR_KEYS = {
     "on_unsolved",
     "midpoint",
     "persistence_tolerance",
+    "penetration_tolerance",
 }
 _REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
 
@@ -93,7 +94,7 @@ def scene_fields(
     gravity = robot_table.get("gravity", [0.0, 0.0, -9.81])
     robot = RobotModel.from_urdf(
         resolve_urdf(str(require_key(robot_table, "[robot]", "urdf")), base_dir),
-        floating_base=bool(robot_table.get("floating_base", False)),
+        floating_base=as_bool("floating_base", robot_table.get("floating_base", False)),
         gravity=as_vector("gravity", gravity, 3),
     )
     q0 = robot.check_configuration("q0", robot_table.get("q0", robot.neutral()))

@@ -1,0 +1,287 @@
+"""A table of bad inputs through the scene format, the API and the command line.
+
+Each must end in a typed error (a :class:`~ucontrol.exceptions.UControlError`) whose message
+names the offending value: never a raw Python exception, never a silent run.
+"""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from ucontrol.cli import main
+from ucontrol.exceptions import UControlError
+from ucontrol.log import Log
+from ucontrol.scene import Scene, builtin_scene, load_scene
+from ucontrol.simulate import simulate
+
+ROBOTS = builtin_scene().parent
+BALL = tomllib.loads((ROBOTS / "ball.toml").read_text())
+ARM = tomllib.loads((ROBOTS / "two_link_drop.toml").read_text())
+NAN = float("nan")
+
+
+def _set(table: dict[str, Any], key: str, value: Any) -> dict[str, Any]:
+    """A deep copy of ``table`` with the dotted ``key`` set (list items by index)."""
+    table = copy.deepcopy(table)
+    *parents, last = key.split(".")
+    node: Any = table
+    for part in parents:
+        node = node[int(part)] if isinstance(node, list) else node.setdefault(part, {})
+    if isinstance(node, list):
+        node[int(last)] = value
+    else:
+        node[last] = value
+    return table
+
+
+#: (base table, dotted key, bad value, text the message must hold; default repr(value)).
+SCENE_CASES: list[tuple[str, str, Any, str | None]] = [
+    ("ball", "duration", "3", None),
+    ("ball", "duration", -1.0, None),
+    ("ball", "duration", 0.0, None),
+    ("ball", "duration", True, None),
+    ("ball", "duration", [1.0], None),
+    ("ball", "duration", NAN, "nan"),
+    ("ball", "robot.floating_base", "false", None),
+    ("ball", "robot.floating_base", 1, None),
+    ("ball", "robot.gravity", [0.0, 0.0], "(3,)"),
+    ("ball", "robot.gravity", "down", None),
+    ("ball", "robot.gravity", [0.0, 0.0, NAN], "nan"),
+    ("ball", "robot.q0", [1e300], "1e+300"),
+    ("ball", "robot.q0", [200.0], "200.0"),
+    ("ball", "robot.q0", ["1"], None),
+    ("ball", "robot.q0", [1.0, 2.0], "(1,)"),
+    ("ball", "robot.v0", ["a"], None),
+    ("ball", "robot.v0", [1.0, 2.0], "(1,)"),
+    ("ball", "robot.urdf", "missing.urdf", "missing.urdf"),
+    ("ball", "robot.urdf", 42, "42"),
+    ("ball", "robot.planar_axis", [0.0, 1.0], "(3,)"),
+    ("ball", "robot.mass", 2.0, "'mass'"),
+    ("ball", "surfaces.ground.normal", [0.0, 0.0, 0.0], "[0.0, 0.0, 0.0]"),
+    ("ball", "surfaces.ground.normal", "up", None),
+    ("ball", "surfaces.ground.point", [0.0, 0.0], "(3,)"),
+    ("ball", "surfaces.ground.type", "sphere", None),
+    ("ball", "surfaces.ground.colour", "red", "'colour'"),
+    ("ball", "contacts.0.restitution", "0.5", None),
+    ("ball", "contacts.0.restitution", 1.5, None),
+    ("ball", "contacts.0.restitution", -0.1, None),
+    ("ball", "contacts.0.restitution", True, None),
+    ("ball", "contacts.0.radius", -1.0, None),
+    ("ball", "contacts.0.radius", "0.1", None),
+    ("ball", "contacts.0.friction", -0.3, None),
+    ("ball", "contacts.0.friction", "0.3", None),
+    ("ball", "contacts.0.frame", "hand", None),
+    ("ball", "contacts.0.surface", "table", None),
+    ("ball", "contacts.0.stiffness", 1e6, "'stiffness'"),
+    ("ball", "integrator.dt", "0.001", None),
+    ("ball", "integrator.dt", -1.0, None),
+    ("ball", "integrator.dt", 0.0, None),
+    ("ball", "integrator.dt", True, None),
+    ("ball", "integrator.theta", 0.4, None),
+    ("ball", "integrator.theta", 1.5, None),
+    ("ball", "integrator.theta", "0.5", None),
+    ("ball", "integrator.max_iter", 0.5, None),
+    ("ball", "integrator.max_iter", 0, None),
+    ("ball", "integrator.max_iter", "10", None),
+    ("ball", "integrator.max_iter", -3, None),
+    ("ball", "integrator.friction_max_iter", 2.5, None),
+    ("ball", "integrator.contact_tolerance", 1e300, None),
+    ("ball", "integrator.contact_tolerance", 0.0, None),
+    ("ball", "integrator.contact_tolerance", -1e-9, None),
+    ("ball", "integrator.friction_tolerance", 1.0, None),
+    ("ball", "integrator.name", "rk4", None),
+    ("ball", "integrator.midpoint", "false", None),
+    ("ball", "integrator.midpoint", 1, None),
+    ("ball", "integrator.persistence_tolerance", -1.0, None),
+    ("ball", "integrator.penetration_tolerance", 0.0, None),
+    ("ball", "integrator.penetration_tolerance", -1.0, None),
+    ("ball", "integrator.on_unsolved", "ignore", None),
+    ("ball", "integrator.contact_solver", "gurobi", None),
+    ("ball", "integrator.method", "Euler", None),
+    ("ball", "integrator.zeno_velocity", -1.0, None),
+    ("ball", "integrator.stiffness", "1e6", None),
+    ("ball", "integrator.contact_model", "hertz", None),
+    ("ball", "integrator.restitution_threshold", "0", None),
+    ("ball", "integrator.substeps", 4, "'substeps'"),
+    ("ball", "controller.type", "mpc", None),
+    ("ball", "controller.gain", 3.0, "'gain'"),
+    ("ball", "reference.type", "pendulum", None),
+    ("ball", "reference.contact", "ball/table", None),
+    ("ball", "name2", "x", "'name2'"),
+    ("ball", "sensors.delay", 1.5, None),
+    ("ball", "sensors.position_noise", -0.1, None),
+    ("ball", "sensors.velocity", "kalman", None),
+    ("ball", "sensors.seed", -1, None),
+    ("ball", "sensors.force_noise", [1.0, 2.0], None),
+    ("ball", "actuators.torque_limit", "max", None),
+    ("ball", "actuators.rate_limit", -5.0, None),
+    ("arm", "controller", {"type": "joint_pd", "kp": 1.0, "kd": 1.0, "q_ref": "up"}, "'up'"),
+    ("arm", "controller", {"type": "joint_pd", "kp": "10", "kd": 1.0}, "'10'"),
+    ("arm", "controller", {"type": "joint_pd", "kp": 1, "kd": 1, "gravity_compensation": 0}, "0"),
+    (
+        "arm",
+        "controller",
+        {"type": "joint_pd", "kp": 10.0, "kd": 1.0, "gravity_compensation": "false"},
+        "'false'",
+    ),
+    ("arm", "stops.0.lower", "0", None),
+    ("arm", "stops.0.joint", "wrist", None),
+    ("arm", "stops.0.restitution", 2.0, None),
+    ("arm", "robot.q0", [4.0, -1.6], "4.0"),
+    ("arm", "robot.q0", [0.9], "(2,)"),
+    ("arm", "contacts.1.surface", "ground", "end_effector/ground"),
+]
+
+
+@pytest.mark.parametrize(("base", "key", "value", "text"), SCENE_CASES)
+def test_bad_scene_values(base: str, key: str, value: Any, text: str | None) -> None:
+    table = _set(BALL if base == "ball" else ARM, key, value)
+    with pytest.raises(UControlError) as caught:  # the controller's values: when it is built
+        Scene.from_dict(table, base_dir=ROBOTS).build_controller()
+    message = str(caught.value)
+    assert (text if text is not None else repr(value)) in message, message
+
+
+def _urdf_with(tmp_path: Path, inertial: str) -> Path:
+    text = (ROBOTS / "ball.urdf").read_text()
+    start, end = text.index("<mass"), text.index("</inertial>")
+    (tmp_path / "bad.urdf").write_text(text[:start] + inertial + text[end:])
+    scene = tmp_path / "scene.toml"
+    scene.write_text((ROBOTS / "ball.toml").read_text().replace("ball.urdf", "bad.urdf"))
+    return scene
+
+
+@pytest.mark.parametrize(
+    ("inertial", "text"),
+    [
+        ('<mass value="-1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>', "-1.0"),
+        ('<mass value="1"/><inertia ixx="-1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>', "-1.0"),
+        ('<mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="5"/>', "5.0"),
+        ('<mass value="0"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>', "0.0"),
+        ('<mass value="1"/><inertia ixx="1" ixy="2" ixz="0" iyy="1" iyz="0" izz="1"/>', "-1.0"),
+        ('<mass value="0"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>', "height"),
+    ],
+)
+def test_physically_impossible_urdf_inertia_names_the_link(
+    tmp_path: Path, inertial: str, text: str
+) -> None:
+    with pytest.raises(UControlError) as caught:
+        load_scene(_urdf_with(tmp_path, inertial))
+    assert text in str(caught.value) and (
+        "'ball'" in str(caught.value) or "height" in str(caught.value)
+    )
+
+
+def _ball() -> Scene:
+    return load_scene("ball")
+
+
+API_CASES: list[tuple[str, Callable[[], Any], str]] = [
+    ("load_scene(42)", lambda: load_scene(42), "42"),  # type: ignore[arg-type]
+    ("load_scene(unknown)", lambda: load_scene("no_such_scene"), "no_such_scene"),
+    ("simulate(path)", lambda: simulate("x.toml"), "'x.toml'"),  # type: ignore[arg-type]
+    ("simulate(scene, 5)", lambda: simulate(_ball(), 5), "5"),  # type: ignore[arg-type]
+    ("out=3.5", lambda: simulate(_ball(), out=3.5), "3.5"),  # type: ignore[arg-type]
+    ("duration=1e300", lambda: simulate(_ball(), duration=1e300), "1e+300"),
+    ("dt=1e-300", lambda: simulate(_ball(), dt=1e-300), "steps"),
+    ("duration='1'", lambda: simulate(_ball(), duration="1"), "'1'"),  # type: ignore[arg-type]
+    ("progress='yes'", lambda: simulate(_ball(), progress="yes"), "'yes'"),  # type: ignore[arg-type]
+    ("observer=3", lambda: simulate(_ball(), observer=3), "3"),  # type: ignore[arg-type]
+    ("control_period=-1", lambda: simulate(_ball(), control_period=-1.0), "-1.0"),
+    ("dt=0", lambda: simulate(_ball(), dt=0.0), "0.0"),
+    (
+        "output of wrong size",
+        lambda: simulate(_ball(), lambda *a: [1.0, 2.0], duration=0.01),
+        "(1,)",
+    ),
+    ("output NaN", lambda: simulate(_ball(), lambda *a: [NAN], duration=0.01), "nan"),
+    ("output text", lambda: simulate(_ball(), lambda *a: "go", duration=0.01), "'go'"),
+]
+
+
+@pytest.mark.parametrize(("label", "call", "text"), API_CASES, ids=[c[0] for c in API_CASES])
+def test_bad_api_calls(label: str, call: Callable[[], Any], text: str) -> None:
+    with pytest.raises(UControlError) as caught:
+        call()
+    assert text in str(caught.value), str(caught.value)
+
+
+def test_files_that_are_not_what_they_claim(tmp_path: Path) -> None:
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not a zip file at all")
+    truncated = tmp_path / "truncated.npz"
+    good = tmp_path / "good"
+    simulate(_ball(), duration=0.05, out=good)
+    truncated.write_bytes((good / "log.npz").read_bytes()[:200])
+    for path in (garbage, truncated, tmp_path / "missing.npz"):
+        with pytest.raises(UControlError, match=str(path.name)):
+            Log.load(path)
+    scene = tmp_path / "latin1.toml"
+    scene.write_bytes("name = 'b\xe9ll'\n".encode("latin-1"))
+    with pytest.raises(UControlError, match=r"not UTF-8"):
+        load_scene(scene)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "text"),
+    [
+        (["run", "ball", "--out", "{file}"], "{file}"),
+        (["run", "ball", "--out", "/dev/null"], "/dev/null"),
+        (["run", "ball", "--out", "{file}/below"], "{file}/below"),
+        (["run", "ball", "--dt", "-1", "--out", "{dir}/a"], "-1"),
+        (["run", "ball", "--duration", "0", "--out", "{dir}/a"], "0"),
+        (["run", "no_such_scene"], "no_such_scene"),
+        (["plot", "{garbage}"], "log.npz"),
+        (["plot", "{dir}/empty"], "empty"),
+        (["plot", "{run}", "--out", "{file}"], "{file}"),
+        (["view", "{run}", "--html", "{dir}"], "{dir}"),
+        (["bench", "ball", "--out", "{dir}"], "{dir}"),
+        (["convergence", "ball", "--out", "{file}"], "{file}"),
+    ],
+)
+def test_bad_command_lines_end_in_one_line_and_status_2(
+    tmp_path: Path, capsys: Any, arguments: list[str], text: str
+) -> None:
+    file = tmp_path / "a_file.txt"
+    file.write_text("x")
+    (tmp_path / "empty").mkdir()
+    garbage = tmp_path / "garbage"
+    garbage.mkdir()
+    (garbage / "log.npz").write_bytes(b"garbage")
+    run = tmp_path / "run"
+    simulate(_ball(), duration=0.05, out=run)
+    names = {"file": file, "dir": tmp_path, "garbage": garbage, "run": run}
+    capsys.readouterr()
+    status = main([argument.format(**names) for argument in arguments])
+    error = capsys.readouterr().err.strip()
+    assert status == 2 and error.startswith("ucontrol: error: ") and len(error.splitlines()) == 1
+    assert text.format(**names) in error
+
+
+def test_the_table_has_at_least_a_hundred_cases() -> None:
+    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 12
+    assert cases >= 100
+
+
+def test_silent_physics_is_made_loud() -> None:
+    from ucontrol.exceptions import PenetrationWarning, PlasticRedoWarning, SimulationError
+
+    with pytest.warns(PenetrationWarning, match=r"'ball/ground' penetrated by 4\.39"):
+        summary = simulate(_ball(), dt=1.0, duration=3.0).summary  # one step lands 3.9 m deep
+    assert summary["n_penetrations_beyond_tolerance"] > 0
+    elastic = Scene.from_dict(
+        _set(_set(BALL, "contacts.0.restitution", 1.0), "integrator.theta", 1.0),
+        base_dir=ROBOTS,
+    )
+    with pytest.warns(PlasticRedoWarning, match=r"every restitution of the scene is 1"):
+        simulate(elastic, duration=1.0)
+    heavy = Scene.from_dict(_set(BALL, "robot.gravity", [0.0, 0.0, -1e300]), base_dir=ROBOTS)
+    with pytest.raises(SimulationError, match=r"non-finite.*t = "):
+        simulate(heavy, duration=0.1)
+    assert summary["max_penetration"] == pytest.approx(4.396, abs=1e-3)
