@@ -12,6 +12,7 @@ import pytest
 from conftest import ROBOTS
 
 from ucontrol.cli import main
+from ucontrol.log import Log
 
 SUMMARY_KEYS = {
     "wall_time_s",
@@ -96,3 +97,16 @@ def test_unknown_scene_name_lists_the_builtin_ones(capsys) -> None:
     assert main(["run", "no_such_scene"]) == 2
     error = capsys.readouterr().err
     assert "built-in scene 'no_such_scene'" in error and "two_link_drop" in error
+
+
+def test_set_overrides_scene_keys(tmp_path: Path, capsys) -> None:
+    """--set changes the scene: half the restitution, a lower rebound (e² of the height)."""
+    out = tmp_path / "half"
+    args = ["run", "ball", "--duration", "1.0", "--out", str(out), "--no-progress"]
+    assert main([*args, "--set", "contacts.0.restitution=0.5"]) == 0
+    log = Log.load(out / "log.npz")
+    first = int(np.argmax(log.impulse[:, 0] > 0))
+    rebound = log.v[first + 1, 0] / -log.v[first, 0]
+    assert rebound == pytest.approx(0.5, abs=0.01)
+    assert main([*args, "--set", "contacts.0.restitution='x'"]) == 2
+    assert "'x'" in capsys.readouterr().err

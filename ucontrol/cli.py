@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 from ucontrol import __version__, convergence
 from ucontrol.bench import bench_scene
 from ucontrol.campaign.command import add_sweep_parser, is_campaign, plot_campaign, run_sweep
+from ucontrol.campaign.overrides import scene_with_overrides
 from ucontrol.design.command import add_design_parser, run_design
 from ucontrol.exceptions import OptionalDependencyError, UControlError
 from ucontrol.output_files import check_output_dir, check_output_file
@@ -56,6 +57,14 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--dt", type=float, default=None, help="time step in [s]")
     run.add_argument("--duration", type=float, default=None, help="simulated time in [s]")
     run.add_argument("--integrator", choices=INTEGRATORS, default=None, help="time integrator")
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="set a scene key (dotted TOML key, TOML value), e.g. contacts.0.restitution=0.5; "
+        "repeatable",
+    )
     run.add_argument(
         "--control-period",
         type=float,
@@ -178,7 +187,7 @@ def _scenes(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    scene = load_scene(args.scene)
+    scene = scene_with_overrides(args.scene, args.set) if args.set else load_scene(args.scene)
     if args.integrator is not None:
         settings = dataclasses.replace(scene.integrator, name=args.integrator)
         scene = dataclasses.replace(scene, integrator=settings)
