@@ -7,10 +7,12 @@ imported only by a scene with flexible joints.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import as_bool, check_keys, require_key
+from ucontrol.contact.plane import Plane
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
 from ucontrol.control.controller import Controller
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
@@ -20,6 +22,7 @@ from ucontrol.control.path_table import path_from_table
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import NotFoundError, SceneError
+from ucontrol.model.model_uncertainty import perturbed_robot
 
 if TYPE_CHECKING:
     from ucontrol.scene.scene import Scene
@@ -57,9 +60,13 @@ _CONTROLLER_KEYS = {
     },
     "impedance": IMPEDANCE_KEYS,
 }
+# Every controller may run on its own model of the scene ([controller.model]).
+_CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
 #: Controller types a scene may declare.
 CONTROLLERS = tuple(_CONTROLLER_KEYS)
 _CONTACT_PHASE_KEYS = {"contact", "start", "end", "force"}
+_MODEL_KEYS = {"mass_scale", "com_offset", "surfaces"}
+_PLANE_KEYS = {"point", "normal"}
 
 
 def check_controller_table(table: Mapping[str, Any]) -> str:
@@ -80,9 +87,51 @@ def check_controller_table(table: Mapping[str, Any]) -> str:
 
 
 def build_controller(scene: Scene) -> Controller:
-    """The controller declared by ``scene.controller``."""
+    """The controller declared by ``scene.controller``, on its own model of the scene.
+
+    A ``[controller.model]`` table gives the controller a model that differs from the plant
+    (:func:`controller_view`); the controller is then built on that view of the scene.
+    """
     table = dict(scene.controller)
-    return _BUILDERS[check_controller_table(table)](scene, table)
+    kind = check_controller_table(table)
+    view = controller_view(scene, table.pop("model", None))
+    return _BUILDERS[kind](view, table)
+
+
+def controller_view(scene: Scene, model: Mapping[str, Any] | None) -> Scene:
+    """The scene as a controller with a ``[controller.model]`` table believes it is.
+
+    Keys: ``mass_scale`` (a factor, or one per link), ``com_offset`` (per link, [m], in the
+    frame of the link's joint), ``surfaces`` (per surface name, its ``point`` and ``normal``
+    as the controller believes them: the plant keeps the scene's).
+
+    Raises:
+        UnknownKeyError: A key of the table that is not one of these.
+        NotFoundError: A link or surface name the scene does not have.
+    """
+    if model is None:
+        return scene
+    check_keys("[controller.model]", model, _MODEL_KEYS)
+    robot = perturbed_robot(
+        scene.robot,
+        mass_scale=model.get("mass_scale", 1.0),
+        com_offset=model.get("com_offset"),
+    )
+    believed = model.get("surfaces", {})
+    check_keys("[controller.model.surfaces]", believed, {c.surface.name for c in scene.contacts})
+    contacts = []
+    for contact in scene.contacts:
+        spec = believed.get(contact.surface.name)
+        if spec is not None:
+            check_keys(f"[controller.model.surfaces.{contact.surface.name}]", spec, _PLANE_KEYS)
+            plane = Plane(
+                point=spec.get("point", contact.surface.point),
+                normal=spec.get("normal", contact.surface.normal),
+                name=contact.surface.name,
+            )
+            contact = dataclasses.replace(contact, surface=plane, name=contact.name)
+        contacts.append(contact)
+    return dataclasses.replace(scene, robot=robot, contacts=tuple(contacts))
 
 
 def _zero(scene: Scene, table: Mapping[str, Any]) -> Controller:
