@@ -1,5 +1,7 @@
-"""A controller on its own model of the scene ([controller.model]): masses, centres of mass,
-surfaces as it believes them, while the plant keeps the scene's.
+"""A controller on its own model of the scene ([controller.model]).
+
+Masses, centres of mass and surfaces as the controller believes them; the plant keeps the
+scene's.
 """
 
 from __future__ import annotations
