@@ -40,7 +40,7 @@ MJ_TESTS = (
     "tests/test_bouncing_ball.py",
     "tests/extreme/test_restitution_limits.py",
     "tests/extreme/test_redundant_contacts.py",
-    "tests/integrators/test_lzb_impact.py",
+    "tests/test_simulate.py",
 )
 COULOMB_TESTS = ("tests/solvers/test_proxsuite_coulomb.py", "tests/integrators/test_friction.py")
 LCP_TESTS = (
