@@ -149,3 +149,16 @@ def test_frame_rows_sample_the_run_at_the_frame_times() -> None:
     times = t[0] + np.arange(len(rows)) * 0.5 / 25.0
     assert np.all(t[rows] >= times - 1e-9)  # the first sample at or after each frame time
     assert np.all(t[np.maximum(rows - 1, 0)][1:] < times[1:])
+
+
+def test_cli_view_writes_the_video(ball_run, tmp_path, capsys) -> None:
+    """`ucontrol view DIR --video FILE --fps F` (active once the command has the flag)."""
+    from ucontrol.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["view", "--help"])
+    if "--video" not in capsys.readouterr().out:
+        pytest.skip("`ucontrol view` has no --video flag yet")
+    path = tmp_path / "cli.mp4"
+    assert main(["view", str(ball_run), "--video", str(path), "--fps", "8"]) == 0
+    assert int(_probe(path)["nb_read_frames"]) == round(DURATION * 8)
