@@ -268,3 +268,14 @@ def _experiment(name: str):
     sys.modules[spec.name] = module  # dataclasses look their module up
     spec.loader.exec_module(module)
     return module
+
+
+def test_closed_loop_cpu_clock_keeps_the_solver_inside_the_plant() -> None:
+    """With the CPU clock the solver's wall time is scaled to the step's CPU time: plant >= 0."""
+    from ucontrol.bench import bench_closed_loop
+
+    scene = load_scene(ROBOTS / "table_drop.toml")
+    result = bench_closed_loop(scene, duration=0.2, repeats=1, clock="cpu")
+    assert result.solver_us > 0.0 and result.plant_us >= 0.0
+    parts = (result.controller_us, result.plant_us, result.solver_us, result.loop_us)
+    assert sum(parts) == pytest.approx(result.total_us, rel=1e-9)

@@ -394,7 +394,8 @@ class ClosedLoopResult:
     summary excluded): ``total`` is that window's time,
     ``controller`` the time inside the controller's calls, ``plant`` the time inside the
     integrator's ``evaluate`` and ``step`` less the contact solves, ``solver`` the contact solves
-    (the log's ``solver_time``, a wall time), and ``loop`` the rest (logging, sensors, the loop,
+    (the log's ``solver_time``, a wall time; with the CPU clock scaled by the integrator's ratio
+    of CPU to wall time, measured alongside), and ``loop`` the rest (logging, sensors, the loop,
     the timers themselves): ``controller + plant + solver + loop = total`` by definition.
 
     Attributes:
@@ -502,7 +503,9 @@ def bench_closed_loop(
         if k == 0:
             continue  # warm-up
         log = result.log
-        solver = float(np.sum(log.solver_time[timers.first_row : len(log) - 1]))
+        solver = float(np.sum(log.solver_time[timers.first_row : len(log) - 1]))  # wall [s]
+        if clock != "wall" and timers.plant_wall > 0.0:  # its share of the integrator's CPU time
+            solver *= timers.step_cpu / timers.plant_wall
         steps = timers.rows - 2  # full steps in the window: 1 to n - 1
         runs.append((timers.window, steps, timers, solver, float(log.metadata["dt"])))
     runs.sort(key=operator.itemgetter(0))
@@ -529,7 +532,8 @@ class _Timers:
 
     def __init__(self, now: Callable[[], float]) -> None:
         self.now = now
-        self.controller = self.plant = 0.0
+        self.wall = time.perf_counter if now is not time.perf_counter else None
+        self.controller = self.plant = self.plant_wall = self.step_cpu = 0.0
         self.rows = 0  # observer calls
         self.first_row = 0  # log row of the first observer call
         self.start = self.window = 0.0
@@ -540,7 +544,7 @@ class _Timers:
         now = self.now()
         if self.rows == 0:
             self.start, self.first_row = now, len(log)
-            self.controller = self.plant = 0.0
+            self.controller = self.plant = self.plant_wall = self.step_cpu = 0.0
         self.rows += 1
         self.window = now - self.start
 
@@ -597,9 +601,18 @@ class _TimedIntegrator:
 
     def step(self, state: Any, tau: Vector) -> Any:
         timers = self._timers
-        start = timers.now()
+        wall = timers.wall
+        if wall is None:
+            start = timers.now()
+            outcome = self._integrator.step(state, tau)
+            timers.plant += timers.now() - start
+            return outcome
+        start, start_wall = timers.now(), wall()  # the solver's wall time needs the ratio
         outcome = self._integrator.step(state, tau)
-        timers.plant += timers.now() - start
+        timers.plant_wall += wall() - start_wall
+        elapsed = timers.now() - start
+        timers.plant += elapsed
+        timers.step_cpu += elapsed
         return outcome
 
     def __getattr__(self, name: str) -> Any:
