@@ -22,7 +22,7 @@ _NUMBER = r"[-+]?\d+(?:\.\d+)?(?:e[-+]\d+)?"
 def _moving_joints(urdf: str) -> list[str]:
     """Names of the URDF's joints that move, read from the XML (not through Pinocchio)."""
     root = ET.parse(ROBOTS / urdf).getroot()
-    return [joint.get("name") for joint in root.iter("joint") if joint.get("type") != "fixed"]
+    return [joint.attrib["name"] for joint in root.iter("joint") if joint.get("type") != "fixed"]
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,9 @@ def test_joint_names_come_from_the_urdf(two_link_scene) -> None:
     log = simulate(two_link_scene, duration=0.05, dt=1e-3).log
     figure = run_figure_set(log, scene=two_link_scene)["q"]
     for ax in figure.axes[:2]:
-        labels = [text.get_text() for text in ax.get_legend().get_texts()]
+        legend = ax.get_legend()
+        assert legend is not None
+        labels = [text.get_text() for text in legend.get_texts()]
         assert labels == _moving_joints("two_link.urdf")
 
 
@@ -88,9 +90,11 @@ def test_clipped_impacts_are_stated_with_their_range(resting_ball) -> None:
     notes = [text.get_text() for text in ax.texts if "clipped" in text.get_text()]
     assert len(notes) == 1
     above = force[force > high]
-    count, first, last = re.match(
+    match = re.match(
         rf"(\d+) samples? above the axis clipped: ({_NUMBER}) to ({_NUMBER}) N", notes[0]
-    ).groups()
+    )
+    assert match is not None, notes[0]
+    count, first, last = match.groups()
     assert int(count) == above.size
     assert float(first) == pytest.approx(above.min(), rel=5e-3)
     assert float(last) == pytest.approx(above.max(), rel=5e-3)

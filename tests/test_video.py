@@ -86,9 +86,9 @@ def test_frames_show_the_logged_heights(ball_run, tmp_path) -> None:
     path = write_video(ball_run, tmp_path / "ball.mp4", fps=fps, width=width, height=height)
     frames = _frames(path, width, height).astype(float)
     orange = np.array([0.95, 0.45, 0.05]) * 255  # the ball's colour (it has no material)
-    radius = float(  # [m] from the URDF, not from the renderer
-        ET.parse(ROBOTS / "ball.urdf").getroot().find(".//sphere").get("radius")
-    )
+    sphere = ET.parse(ROBOTS / "ball.urdf").getroot().find(".//sphere")
+    assert sphere is not None
+    radius = float(sphere.attrib["radius"])  # [m] from the URDF, not from the renderer
     log = Log.load(ball_run / "log.npz")
     rows = frame_rows(log.t, fps)
     # Frames without a force arrow: no impulse since the previous frame (read from the log).

@@ -74,6 +74,9 @@ _FRAMING_SAMPLES = 200
 
 Matrix = NDArray[np.float64]
 Vector = NDArray[np.float64]
+#: A body, segment or surface to draw: (depth toward the camera [m], image outline (K, 2) [m],
+#: colour, kind: "body", "segment" or "surface").
+_Shape = tuple[float, Matrix, tuple[float, ...] | str, str]
 
 
 @dataclass(frozen=True)
@@ -193,14 +196,17 @@ class SceneRenderer:
         layer = 2.0 if alpha >= 1.0 else 1.0  # a strobe's faded bodies behind the robot
         for _, xy, colour, kind in sorted(shapes, key=lambda shape: shape[0]):
             if kind == "surface":
-                style = {"edgecolor": "0.35", "lw": 1.0, "alpha": 0.6, "zorder": 0.0}
-                ax.add_patch(Polygon(xy, closed=True, facecolor=colour, **style))
+                ax.add_patch(
+                    Polygon(xy, facecolor=colour, edgecolor="0.35", lw=1.0, alpha=0.6, zorder=0)
+                )
             elif kind == "segment":
-                style = {"lw": 4.0, "alpha": alpha, "solid_capstyle": "round", "zorder": layer}
-                ax.plot(xy[:, 0], xy[:, 1], color=colour, **style)
+                ax.plot(xy[:, 0], xy[:, 1], color=colour, lw=4.0, alpha=alpha, zorder=layer)
             else:
-                style = {"edgecolor": "0.2", "lw": 0.6, "alpha": alpha, "zorder": layer}
-                ax.add_patch(Polygon(xy, closed=True, facecolor=colour, **style))
+                ax.add_patch(
+                    Polygon(
+                        xy, facecolor=colour, edgecolor="0.2", lw=0.6, alpha=alpha, zorder=layer
+                    )
+                )
         if alpha >= 1.0:
             self._draw_contacts(ax, q, row, previous)
             self._draw_label(ax, row)
@@ -209,13 +215,13 @@ class SceneRenderer:
         """World positions of joints, frames and contact points (and bodies' outlines)."""
         model, data = self._model, self._data
         step = max(1, len(configurations) // _FRAMING_SAMPLES)
-        points: list[Vector] = []
+        points: list[Matrix] = []
         for q in configurations[::step]:
             pin.framesForwardKinematics(model, data, q)
-            points.extend(data.oMi[j].translation.copy() for j in range(1, model.njoints))
-            points.extend(data.oMf[f].translation.copy() for f in range(1, model.nframes))
+            points.append(np.array([data.oMi[j].translation for j in range(1, model.njoints)]))
+            points.append(np.array([data.oMf[f].translation for f in range(1, model.nframes)]))
             points.extend(
-                data.oMf[frame].translation - radius * normal
+                (data.oMf[frame].translation - radius * normal).reshape(1, 3)
                 for frame, normal, radius in self._contacts
             )
             if not bodies:
@@ -224,15 +230,15 @@ class SceneRenderer:
             for k, outline in enumerate(self._outlines):
                 if outline is not None:
                     pose = self._geometry_data.oMg[k]
-                    points.extend(outline @ pose.rotation.T + pose.translation)
-        return np.array(points).reshape(-1, 3)
+                    points.append(outline @ pose.rotation.T + pose.translation)
+        return np.vstack([block.reshape(-1, 3) for block in points])
 
-    def _shapes(self, q: Vector) -> list[tuple[float, Matrix, tuple[float, ...], str]]:
+    def _shapes(self, q: Vector) -> list[_Shape]:
         """(depth, image outline, colour, kind) of every body at ``q``."""
         model, data, view = self._model, self._data, self.view
         pin.framesForwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, self._geometry, self._geometry_data)
-        shapes = []
+        shapes: list[_Shape] = []
         for k, (obj, outline) in enumerate(
             zip(self._geometry.geometryObjects, self._outlines, strict=True)
         ):
@@ -257,10 +263,11 @@ class SceneRenderer:
             shapes.append((view.depth(start), view.project(ring), ROBOT_COLOUR, "body"))
         return shapes
 
-    def _surface_shapes(self) -> list[tuple[float, Matrix, str, str]]:
+    def _surface_shapes(self) -> list[_Shape]:
         """One thin slab per plane surface, its top face the plane, around the view."""
         planes = {c.surface.name: c.surface for c in self.scene.contacts}
-        view, shapes = self.view, []
+        view = self.view
+        shapes: list[_Shape] = []
         side, thickness = 2.4 * view.radius, 0.04 * view.radius  # [m]
         for plane in planes.values():
             normal = plane.normal
@@ -482,15 +489,15 @@ def write_still(
     renderer = SceneRenderer(
         run.require_scene(),
         run.log,
-        width=as_positive("width", width) * dpi,
-        height=as_positive("height", height) * dpi,
+        width=round(as_positive("width", width) * dpi),
+        height=round(as_positive("height", height) * dpi),
         dpi=dpi,
     )
 
     def row_at(name: str, value: float) -> int:
         if not t[0] - 1e-12 <= value <= t[-1] + 1e-12:
             raise InvalidParameterError(name, value, f"a time in [{t[0]:g}, {t[-1]:g}] s")
-        return int(min(np.searchsorted(t, value - 1e-9), len(t) - 1))
+        return min(int(np.searchsorted(t, value - 1e-9)), len(t) - 1)
 
     row = len(t) - 1 if time is None else row_at("time", time)
     figure = renderer.figure()
