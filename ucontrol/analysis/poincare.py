@@ -237,9 +237,12 @@ def smallest_gap(system: ImpactSystem, t0: float, x0: Vector, periods: int = 1) 
 
 
 def without_impacts(system: ImpactSystem) -> ImpactSystem:
-    """The same flow with the impact surface removed: its periodic orbits are the
-    non-impacting ones, followed through their grazing (where :func:`smallest_gap` of the
-    original system crosses 0) even when no impacting orbit continues them."""
+    """The same flow with the impact surface removed.
+
+    Its periodic orbits are the non-impacting ones, followed through their grazing (where
+    :func:`smallest_gap` of the original system crosses 0) even when no impacting orbit
+    continues them.
+    """
     return replace(system, gap=lambda t, x: 1.0, sticking=None)
 
 
@@ -264,7 +267,7 @@ def stroboscopic_jacobian(
 
 
 def impact_map(system: ImpactSystem, horizon: float | None = None) -> Callable[[Vector], Vector]:
-    """z = (t_k, x_k+) -> (t_{k+1}, x_{k+1}+), the next impact; shape (n + 1,).
+    """The impact map (t_k, x_k+) -> (t_{k+1}, x_{k+1}+), to the next impact; shape (n + 1,).
 
     Raises:
         InvalidParameterError: No impact within ``horizon`` (default 100 periods): the
@@ -416,7 +419,7 @@ def _residual(P: Map, z: Vector, period: int, shift: Vector) -> float:
 
 
 def _damped(residual: Callable[[Vector], float], z: Vector, step: Vector, r0: float) -> Vector:
-    """z - λ step with the largest λ in 1, 1/2, ... 1/64 that lowers the residual.
+    """Damped Newton: z - λ step, the largest λ in 1, 1/2, ... 1/64 lowering the residual.
 
     Near a grazing the map is only continuous (its Jacobian has a square-root singularity),
     where full Newton steps may cycle. A trial whose map fails counts as no decrease.
@@ -674,8 +677,10 @@ def bifurcation_figure(
     ylabel: str = "coordinate",
     title: str = "",
 ) -> Figure:
-    """Orbit diagram (points) with followed branches (lines, dashed where unstable) and
-    bifurcations (vertical lines)."""
+    """Orbit diagram (points), followed branches (dashed where unstable), bifurcations.
+
+    Bifurcations are drawn as vertical dotted lines labelled with their parameter.
+    """
     from matplotlib.figure import Figure  # lazy: matplotlib only for figures
 
     figure = Figure(figsize=(7.0, 4.2), layout="constrained")
@@ -822,7 +827,7 @@ def impact_oscillator(
     restitution: float,
     stick_velocity: float = 0.0,
 ) -> ImpactSystem:
-    r"""m ẍ + c ẋ + k x = F cos ωt for x <= σ, with x = σ a rigid stop: ẋ+ = -r ẋ-.
+    r"""The impact oscillator m ẍ + c ẋ + k x = F cos ωt, x <= σ, stop x = σ: ẋ+ = -r ẋ-.
 
     State x = (x, ẋ) [m, m/s]; gap σ - x. With ``stick_velocity`` > 0 [m/s], a rebound slower
     than it ends an accumulation of impacts: the mass rests on the stop until the net force
