@@ -1,5 +1,6 @@
-"""What can touch what: surfaces, unilateral point and sphere–sphere contacts, joint stops."""
+"""What can touch what: surfaces, point, sphere–sphere and collision-shape contacts, stops."""
 
+from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
@@ -8,7 +9,9 @@ from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
 from ucontrol.contact.tangent_basis import tangent_basis
 
 __all__ = [
+    "CollisionPair",
     "ConstraintSet",
+    "EnvironmentShape",
     "JointStop",
     "Plane",
     "PointContact",

@@ -9,6 +9,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_vector
+from ucontrol.contact.collision_pair import CollisionPair
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
 from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
@@ -23,11 +24,13 @@ _PLANAR_TOLERANCE = 1e-9
 
 
 class ConstraintSet:
-    r"""Point contacts, sphere–sphere contacts, then joint stops, as one ordered list.
+    r"""Point contacts, sphere–sphere contacts, collision pairs, then joint stops, in one list.
 
     Constraint ``i`` has gap ``g_i(q)`` (>= 0 when admissible), normal velocity
     ``u_i = J_i v`` and restitution ``e_i``. Point contacts come first, in the order given, then
-    sphere–sphere contacts, then each finite stop bound (lower before upper).
+    sphere–sphere contacts, then the rows of the collision pairs
+    (:class:`~ucontrol.contact.collision_geometry.CollisionGeometry`, built only when there is
+    a pair), then each finite stop bound (lower before upper).
 
     Contacts with a positive friction coefficient also have tangential rows (:meth:`tangent_rows`):
     two (spatial friction) or, when the robot moves in a plane (``planar_axis``), one — the
@@ -42,19 +45,23 @@ class ConstraintSet:
         sphere_contacts: Contacts between two spheres on robot frames.
         planar_axis: Unit normal of the plane the robot moves in, shape (3,), or None: with it
             every frictional contact is planar (one tangent), without it spatial (two).
+        collision_pairs: Pairs of collision shapes (link ↔ environment shape or link).
 
     Attributes:
         robot: The robot whose data buffer is read.
         contacts: The point contacts.
         sphere_contacts: The sphere–sphere contacts.
         stops: The joint stops.
+        collision_pairs: The collision pairs.
+        collision: Their rows' geometry, or None without pairs.
         planar_axis: The axis of planar motion, or None.
         names: One label per constraint.
         restitution: Restitution coefficients, shape (n,).
         friction: Coulomb coefficients, shape (n,) (0 for stops).
         tangent_count: Tangential rows of each constraint (0, 1 or 2), shape (n,).
         has_friction: Whether any constraint has tangential rows.
-        n_contacts: Number of point and sphere–sphere contacts (the first constraints).
+        n_contacts: Number of point, sphere–sphere and collision contacts (the first
+            constraints).
         size: Number of constraints n.
 
     Raises:
@@ -69,8 +76,15 @@ class ConstraintSet:
         stops: Sequence[JointStop] = (),
         sphere_contacts: Sequence[SphereSphereContact] = (),
         planar_axis: Vector | None = None,
+        collision_pairs: Sequence[CollisionPair] = (),
     ) -> None:
         self.robot = robot
+        self.collision_pairs = tuple(collision_pairs)
+        self.collision = None
+        if self.collision_pairs:  # geometry loaded only for declared pairs
+            from ucontrol.contact.collision_geometry import CollisionGeometry
+
+            self.collision = CollisionGeometry(robot, self.collision_pairs)
         self.contacts = tuple(contacts)
         self.sphere_contacts = tuple(sphere_contacts)
         self.stops = tuple(stops)
@@ -96,6 +110,12 @@ class ConstraintSet:
         names = [contact.name for contact in all_contacts]
         restitution = [contact.restitution for contact in all_contacts]
         friction = [contact.friction for contact in all_contacts]
+        self._pairs_end = len(all_contacts)
+        if self.collision is not None:
+            names += self.collision.names
+            restitution += self.collision.restitution.tolist()
+            friction += self.collision.friction.tolist()
+        n_contacts = len(names)
         stop_q, stop_v, stop_sign, stop_bound = [], [], [], []
         for stop in self.stops:
             joint = robot.model.joints[robot.joint_id(stop.joint)]
@@ -120,7 +140,7 @@ class ConstraintSet:
         self.names = names
         self.restitution = np.array(restitution, dtype=float)
         self.friction = np.array(friction, dtype=float)
-        self.n_contacts = len(all_contacts)
+        self.n_contacts = n_contacts
         self.size = len(names)
         self._n_point = len(self.contacts)
         spatial_rows = 1 if self.planar_axis is not None else 2
@@ -167,6 +187,9 @@ class ConstraintSet:
                 - pin.getFrameVelocity(model, data, second, _LWA).linear
             )
             velocity[i] = delta.dot(relative) / distance
+        if self.collision is not None:
+            rows = slice(self._pairs_end, self.n_contacts)
+            gap[rows], velocity[rows] = self.collision.evaluate(data)
         if self._has_stops:
             k = self.n_contacts
             gap[k:] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
@@ -182,8 +205,11 @@ class ConstraintSet:
         model = self.robot.model
         rows = np.zeros((len(indices), self.robot.nv))
         k = self.n_contacts
+        shapes: list[int] = []  # positions in indices of the collision rows
         for row, i in enumerate(indices):
-            if i < self._n_point:
+            if self._pairs_end <= i < k:
+                shapes.append(row)
+            elif i < self._n_point:
                 frame_id, normal, _ = self._contact_terms[i]
                 rows[row] = normal.dot(pin.getFrameJacobian(model, data, frame_id, _LWA)[:3])
             elif i < k:
@@ -195,6 +221,10 @@ class ConstraintSet:
                 )
             else:
                 rows[row, self._stop_v[i - k]] = self._stop_sign[i - k]
+        if shapes and self.collision is not None:
+            rows[shapes] = self.collision.jacobian(
+                data, [int(indices[row]) - self._pairs_end for row in shapes]
+            )
         return rows
 
     def tangent_rows(
@@ -220,7 +250,12 @@ class ConstraintSet:
             if count == 0:
                 continue
             end = start + count
-            if i < self._n_point:
+            if self._pairs_end <= i and self.collision is not None:
+                row = int(i) - self._pairs_end
+                normal = self.collision.normals(data, [row])[0]
+                tangents = tangent_basis(normal, self.planar_axis)
+                rows[start:end] = self.collision.tangent_rows(data, [row], [tangents])
+            elif i < self._n_point:
                 tangents = self._plane_tangents[i]
                 J = pin.getFrameJacobian(model, data, self._frame_ids[i], _LWA)
                 rows[start:end] = tangents @ J[:3] + self._plane_levers[i] @ J[3:]
@@ -251,6 +286,12 @@ class ConstraintSet:
         """
         model = self.robot.model
         drift = np.zeros(len(indices))
+        if any(self._pairs_end <= i < self.n_contacts for i in indices):
+            raise InvalidParameterError(
+                "collision_pairs",
+                [pair.name for pair in self.collision_pairs],
+                "no collision pairs where constraint accelerations are needed (event-driven)",
+            )
         for row, i in enumerate(indices):
             if i < self._n_point:
                 frame_id, normal, _ = self._contact_terms[i]
@@ -287,6 +328,8 @@ class ConstraintSet:
         for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
             delta = data.oMf[first].translation - data.oMf[second].translation
             gap[i] = np.sqrt(delta.dot(delta)) - radii
+        if self.collision is not None:
+            gap[self._pairs_end : self.n_contacts] = self.collision.gaps(data)
         gap[self.n_contacts :] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
         return gap
 

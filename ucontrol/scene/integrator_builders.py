@@ -24,8 +24,9 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
 
     Raises:
         InvalidParameterError: The scene has friction and the integrator is not
-            ``moreau_jean`` (the others are frictionless), or a ``qpsolvers:`` contact
-            solver was asked for a scene with friction.
+            ``moreau_jean`` (the others are frictionless), a ``qpsolvers:`` contact
+            solver was asked for a scene with friction, or an event-driven integrator for a
+            scene with collision pairs.
     """
     name = scene.integrator.name
     if scene.constraints.has_friction and name != "moreau_jean":
@@ -34,6 +35,13 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
             name,
             "'moreau_jean' for contacts with friction (event_driven and compliant are "
             "frictionless)",
+        )
+    if scene.collision_pairs and name == "event_driven":
+        raise InvalidParameterError(
+            "[integrator] name",
+            name,
+            "'moreau_jean' or 'compliant' for scenes with [[collision_pairs]] (event_driven "
+            "needs the constraint accelerations of collision rows, not implemented)",
         )
     return _BUILDERS[name](scene, scene.integrator.dt if dt is None else dt)
 

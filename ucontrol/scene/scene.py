@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
+from ucontrol.contact.collision_pair import CollisionPair
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
@@ -41,6 +42,8 @@ class Scene:
         contacts: Point contacts.
         stops: Joint stops.
         sphere_contacts: Contacts between two spheres on robot frames.
+        collision_pairs: Pairs of collision shapes (URDF ``<collision>`` elements against
+            environment shapes or other links); the geometry is loaded only when there is one.
         planar_axis: Unit normal of the plane the robot moves in, shape (3,): its frictional
             contacts are then planar (one tangent), else spatial (two); None: spatial.
         q0: Initial configuration of the links, shape (nq,).
@@ -67,6 +70,7 @@ class Scene:
     contacts: tuple[PointContact, ...] = ()
     stops: tuple[JointStop, ...] = ()
     sphere_contacts: tuple[SphereSphereContact, ...] = ()
+    collision_pairs: tuple[CollisionPair, ...] = ()
     planar_axis: NDArray[np.float64] | None = None
     q0: NDArray[np.float64]
     v0: NDArray[np.float64]
@@ -97,8 +101,14 @@ class Scene:
         object.__setattr__(self, "contacts", tuple(self.contacts))
         object.__setattr__(self, "stops", tuple(self.stops))
         object.__setattr__(self, "sphere_contacts", tuple(self.sphere_contacts))
+        object.__setattr__(self, "collision_pairs", tuple(self.collision_pairs))
         constraints = ConstraintSet(
-            self.robot, self.contacts, self.stops, self.sphere_contacts, self.planar_axis
+            self.robot,
+            self.contacts,
+            self.stops,
+            self.sphere_contacts,
+            self.planar_axis,
+            collision_pairs=self.collision_pairs,
         )
         repeated = sorted({name for name in constraints.names if constraints.names.count(name) > 1})
         if repeated:

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ucontrol._validation import as_bool, as_vector, check_keys, require_key
+from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
 from ucontrol.contact.point_contact import PointContact
@@ -35,6 +36,8 @@ _TOP_KEYS = {
     "surfaces",
     "contacts",
     "sphere_contacts",
+    "shapes",
+    "collision_pairs",
     "stops",
     "integrator",
     "controller",
@@ -56,6 +59,12 @@ _SPHERE_CONTACT_KEYS = {
     "name",
 }
 _STOP_KEYS = {"joint", "lower", "upper", "restitution"}
+_SHAPE_KEYS = {
+    "halfspace": {"type", "point", "normal"},
+    "box": {"type", "position", "rpy", "size"},
+    "sphere": {"type", "position", "radius"},
+}
+_PAIR_KEYS = {"link", "other", "restitution", "friction", "points", "name"}
 _INTEGRATOR_KEYS = {
     "name",
     "dt",
@@ -109,6 +118,13 @@ def scene_fields(
     }
     contacts = [_contact(spec, surfaces) for spec in table.get("contacts", [])]
     sphere_contacts = [_sphere_contact(spec) for spec in table.get("sphere_contacts", [])]
+    shapes = {
+        name: _shape(f"[shapes.{name}]", name, spec)
+        for name, spec in table.get("shapes", {}).items()
+    }
+    collision_pairs = [
+        _collision_pair(spec, shapes, surfaces) for spec in table.get("collision_pairs", [])
+    ]
     planar_axis = robot_table.get("planar_axis")
     stops = [_stop(spec, robot) for spec in table.get("stops", [])]
     integrator_table = dict(table.get("integrator", {}))
@@ -120,6 +136,7 @@ def scene_fields(
         robot=robot,
         contacts=tuple(contacts),
         sphere_contacts=tuple(sphere_contacts),
+        collision_pairs=tuple(collision_pairs),
         planar_axis=None if planar_axis is None else as_vector("planar_axis", planar_axis, 3),
         stops=tuple(stops),
         q0=q0,
@@ -212,6 +229,60 @@ def _sphere_contact(spec: Mapping[str, Any]) -> SphereSphereContact:
             if key in spec
         },
         name=str(spec.get("name", "")),
+    )
+
+
+def _shape(section: str, name: str, spec: Any) -> EnvironmentShape:
+    """An ``[shapes.NAME]`` table: a halfspace, box or sphere fixed in the world."""
+    if not isinstance(spec, Mapping):
+        raise SceneError(f"{section} must be a table, got {spec!r}")
+    kind = require_key(spec, section, "type")
+    if kind not in _SHAPE_KEYS:
+        raise NotFoundError("shape type", str(kind), _SHAPE_KEYS)
+    check_keys(section, spec, _SHAPE_KEYS[kind])
+    if kind == "halfspace":
+        return EnvironmentShape(
+            name=name,
+            type=kind,
+            position=spec.get("point", [0.0, 0.0, 0.0]),
+            normal=require_key(spec, section, "normal"),
+        )
+    if kind == "box":
+        return EnvironmentShape(
+            name=name,
+            type=kind,
+            position=spec.get("position", [0.0, 0.0, 0.0]),
+            rpy=spec.get("rpy", [0.0, 0.0, 0.0]),
+            size=require_key(spec, section, "size"),
+        )
+    return EnvironmentShape(
+        name=name,
+        type=kind,
+        position=spec.get("position", [0.0, 0.0, 0.0]),
+        radius=require_key(spec, section, "radius"),
+    )
+
+
+def _collision_pair(
+    spec: Mapping[str, Any],
+    shapes: Mapping[str, EnvironmentShape],
+    surfaces: Mapping[str, Plane],
+) -> CollisionPair:
+    """A ``[[collision_pairs]]`` entry; ``other`` names a shape, a surface or a link."""
+    check_keys("[[collision_pairs]]", spec, _PAIR_KEYS)
+    other_name = str(require_key(spec, "[[collision_pairs]]", "other"))
+    other: EnvironmentShape | str = other_name
+    if other_name in shapes:
+        other = shapes[other_name]
+    elif other_name in surfaces:  # a [surfaces] plane is a halfspace
+        plane = surfaces[other_name]
+        other = EnvironmentShape(
+            name=other_name, type="halfspace", position=plane.point, normal=plane.normal
+        )
+    return CollisionPair(
+        link=str(require_key(spec, "[[collision_pairs]]", "link")),
+        other=other,
+        **{key: spec[key] for key in ("restitution", "friction", "points", "name") if key in spec},
     )
 
 

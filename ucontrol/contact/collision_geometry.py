@@ -1,0 +1,428 @@
+r"""Contact constraints between collision shapes, through Pinocchio's geometry model and coal.
+
+Imported and built only when a scene declares a :class:`~ucontrol.contact.CollisionPair`:
+a scene without one loads no geometry model.
+
+The shapes of a link are the ``<collision>`` elements of its URDF (``pin.buildGeomFromUrdf``):
+spheres, boxes, cylinders and meshes (a mesh stands for its convex hull; URDF has no capsule
+element). Each pair of shapes gives unilateral constraints of two kinds.
+
+**Witness rows** (link ↔ link, link ↔ box or sphere, and any pair with ``points =
+"witness"``): one row, the signed distance :math:`g = d(A, B)` computed by ``coal.distance``
+with its witness points :math:`p_A \in A`, :math:`p_B \in B` and unit normal :math:`n` from
+B to A (:math:`p_A - p_B = g\,n`). Its row is
+
+.. math:: J_n = n^T \big(J_{p_A} - J_{p_B}\big), \qquad
+          J_p = J_{lin}(j) - [p - o_j]_\times J_{ang}(j),
+
+the velocity of the material point of the body (joint :math:`j`, origin :math:`o_j`, joint
+Jacobian in LOCAL_WORLD_ALIGNED) at the witness point: the derivative of the distance between
+smooth convex shapes. Friction acts on the relative velocity of the witness points.
+
+**Vertex rows** (``points = "auto"``, a link shape against a halfspace of normal :math:`n`
+through :math:`p_0`): one row per support point :math:`c` of the shape with radius :math:`r`,
+gap :math:`g = n \cdot (c(q) - p_0) - r` — the 8 corners of a box, the vertices of a mesh's
+hull, the centre of a sphere (radius :math:`r`), 16 points on each rim of a cylinder. Each is
+exactly the distance of that point, so the minimum over the rows is the exact signed distance
+of a polytope; a box lying flat then rests on its four lower corners (a face contact is a
+patch of four rows, an edge contact two) instead of on one witness point that jumps between
+corners as it rocks. A cylinder is approximated by its rim polygons: penetration up to
+:math:`r (1 - \cos(\pi / 16)) \approx 0.019\,r` when it rests on its rim.
+
+**Broad phase.** For witness rows, the bounding spheres of both shapes are checked first: when
+they are more than :data:`BROAD_PHASE_MARGIN` apart, coal is not called and the row's gap is
+that distance between bounding spheres, a lower bound of the true one (its velocity, the rate
+of that distance). Rows of shapes that close get the exact distance.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
+from ucontrol.contact.tangent_basis import cross
+from ucontrol.exceptions import InvalidParameterError, URDFError
+from ucontrol.model.robot_model import RobotModel
+
+Vector = NDArray[np.float64]
+_LWA = pin.LOCAL_WORLD_ALIGNED
+#: Distance in [m] between bounding spheres beyond which coal is not called.
+BROAD_PHASE_MARGIN = 0.05
+#: Tolerance of coal's GJK and EPA iterations in [m] (coal's default, 1e-6, leaves distances
+#: between curved shapes too coarse for finite-difference checks of their derivative).
+GJK_TOLERANCE = 1e-12
+#: Points on each rim of a cylinder against a halfspace.
+CYLINDER_RIM_POINTS = 16
+
+
+class _Vertex(NamedTuple):
+    """A support point of a link's shape against a halfspace (a vertex row)."""
+
+    joint: int
+    point: Vector  # in the joint frame [m], (3,)
+    radius: float
+    normal: Vector  # halfspace normal, (3,)
+    offset: float  # normal · p0 [m]
+
+
+class _Witness(NamedTuple):
+    """A pair of shapes whose distance coal computes (a witness row)."""
+
+    first: int  # geometry object of the link
+    joint: int
+    second: int | None  # geometry object of the other link, or None for an environment shape
+    other_joint: int  # 0 (the world) for an environment shape
+    shape: Any  # coal geometry of the environment shape, or None
+    transform: Any  # its coal.Transform3s, or None
+    bound: float  # radius of the environment shape's bounding sphere [m] (inf: halfspace)
+    centre: Vector  # centre of that bounding sphere in the world [m], (3,)
+
+
+class ContactPoints(NamedTuple):
+    """Where the constraint rows act, at the current configuration.
+
+    Attributes:
+        normal: Unit normals from the second body to the first, shape (k, 3).
+        point: Contact points on the first body in world coordinates [m], shape (k, 3).
+        joint: Joint carrying the first body, shape (k,).
+        other_point: Contact points on the second body [m], shape (k, 3).
+        other_joint: Joint carrying the second body (0: the world), shape (k,).
+        gap: Signed distances [m], shape (k,).
+    """
+
+    normal: Vector
+    point: Vector
+    joint: NDArray[np.intp]
+    other_point: Vector
+    other_joint: NDArray[np.intp]
+    gap: Vector
+
+
+class CollisionGeometry:
+    """The rows of declared collision pairs, in the order of the pairs.
+
+    Args:
+        robot: The robot; its URDF's ``<collision>`` elements are loaded.
+        pairs: The declared pairs.
+
+    Attributes:
+        names: One label per row (``"<pair>"`` for a pair of one row, else ``"<pair>#<k>"``).
+        restitution: Per row, shape (n,).
+        friction: Per row, shape (n,).
+        size: Number of rows n.
+        geometry_model: Pinocchio's geometry model of the robot's collision shapes.
+
+    Raises:
+        URDFError: The URDF's collision elements do not load (a missing mesh file).
+        InvalidParameterError: A pair names a link without ``<collision>`` elements.
+    """
+
+    def __init__(self, robot: RobotModel, pairs: Sequence[CollisionPair]) -> None:
+        self.robot = robot
+        model = robot.model
+        path = robot.urdf_path
+        if path is None:
+            raise InvalidParameterError("robot", robot.name, "a robot loaded from a URDF file")
+        try:
+            geometry_model = pin.buildGeomFromUrdf(
+                model, str(path), pin.COLLISION, package_dirs=[str(path.parent)]
+            )
+        except (ValueError, RuntimeError) as error:
+            raise URDFError(str(path), str(error).splitlines()[0]) from error
+        self.geometry_model = geometry_model
+        self._geometry_data = pin.GeometryData(geometry_model)
+        self._shapes: list[Any] = []
+        by_link: dict[str, list[int]] = {}
+        for index, item in enumerate(geometry_model.geometryObjects):
+            shape = item.geometry
+            if isinstance(shape, coal.BVHModelBase):  # a mesh stands for its convex hull
+                shape.buildConvexHull(True, "Qt")
+                shape = shape.convex
+            shape.computeLocalAABB()
+            self._shapes.append(shape)
+            by_link.setdefault(model.frames[item.parentFrame].name, []).append(index)
+        self._request = coal.DistanceRequest()
+        self._request.gjk_tolerance = GJK_TOLERANCE
+        self._request.epa_tolerance = GJK_TOLERANCE
+        self._request.gjk_max_iterations = 1000
+        self._request.epa_max_iterations = 1000
+        self._result = coal.DistanceResult()
+        self._rows: list[_Vertex | _Witness] = []
+        names: list[str] = []
+        restitution: list[float] = []
+        friction: list[float] = []
+        for pair in pairs:
+            rows = self._pair_rows(pair, by_link)
+            names += (
+                [pair.name] if len(rows) == 1 else [f"{pair.name}#{k}" for k in range(len(rows))]
+            )
+            restitution += [pair.restitution] * len(rows)
+            friction += [pair.friction] * len(rows)
+            self._rows += rows
+        self.names = names
+        self.restitution = np.array(restitution, dtype=float)
+        self.friction = np.array(friction, dtype=float)
+        self.size = len(names)
+
+    # -- building ---------------------------------------------------------------------------
+
+    def _link_shapes(self, link: str, by_link: dict[str, list[int]]) -> list[int]:
+        if link not in by_link:
+            raise InvalidParameterError(
+                "link",
+                link,
+                f"a link with <collision> elements in {self.robot.urdf_path}; links with "
+                f"some: {sorted(by_link)}",
+            )
+        return by_link[link]
+
+    def _pair_rows(
+        self, pair: CollisionPair, by_link: dict[str, list[int]]
+    ) -> list[_Vertex | _Witness]:
+        objects = self.geometry_model.geometryObjects
+        rows: list[_Vertex | _Witness] = []
+        for first in self._link_shapes(pair.link, by_link):
+            joint = int(objects[first].parentJoint)
+            other = pair.other
+            if isinstance(other, str):
+                for second in self._link_shapes(other, by_link):
+                    rows.append(
+                        _Witness(
+                            first,
+                            joint,
+                            second,
+                            int(objects[second].parentJoint),
+                            None,
+                            None,
+                            np.inf,
+                            np.zeros(3),
+                        )
+                    )
+            elif other.type == "halfspace" and pair.points == "auto":
+                offset = float(other.normal @ other.position)
+                placement = objects[first].placement
+                for point, radius in _support_points(self._shapes[first]):
+                    local = placement.act(point)
+                    rows.append(_Vertex(joint, local, radius, other.normal, offset))
+            else:
+                shape, bound = _environment_shape(other)
+                placement = other.placement
+                rows.append(
+                    _Witness(
+                        first,
+                        joint,
+                        None,
+                        0,
+                        shape,
+                        coal.Transform3s(placement.rotation, placement.translation),
+                        bound,
+                        other.position.copy(),
+                    )
+                )
+        return rows
+
+    # -- evaluation -------------------------------------------------------------------------
+
+    def evaluate(self, data: pin.Data) -> tuple[Vector, Vector]:
+        """Gaps [m] and normal velocities [m/s] of the rows, each of shape (n,).
+
+        ``data`` must hold forward kinematics with velocities (``data.oMi``, ``data.v``).
+        """
+        gap = np.empty(self.size)
+        velocity = np.empty(self.size)
+        self._place(data)
+        for i, row in enumerate(self._rows):
+            if isinstance(row, _Vertex):
+                placement = data.oMi[row.joint]
+                point = placement.act(row.point)
+                gap[i] = row.normal.dot(point) - row.offset - row.radius
+                velocity[i] = row.normal.dot(_point_velocity(data, row.joint, point))
+                continue
+            broad = self._broad_phase(row)
+            if broad is not None:
+                gap[i], normal, first, second = broad
+            else:
+                gap[i], normal, first, second = self._distance(row)
+            relative = _point_velocity(data, row.joint, first)
+            if row.other_joint:
+                relative = relative - _point_velocity(data, row.other_joint, second)
+            velocity[i] = normal.dot(relative)
+        return gap, velocity
+
+    def gaps(self, data: pin.Data) -> Vector:
+        """Gaps [m] from the joint placements in ``data``, shape (n,)."""
+        gap = np.empty(self.size)
+        self._place(data)
+        for i, row in enumerate(self._rows):
+            if isinstance(row, _Vertex):
+                point = data.oMi[row.joint].act(row.point)
+                gap[i] = row.normal.dot(point) - row.offset - row.radius
+            else:
+                broad = self._broad_phase(row)
+                gap[i] = (broad if broad is not None else self._distance(row))[0]
+        return gap
+
+    def contact_points(self, data: pin.Data, rows: Sequence[int]) -> ContactPoints:
+        """Normals and contact points of ``rows`` (exact distances, no broad phase).
+
+        ``data`` must hold the joint placements (``data.oMi``).
+        """
+        k = len(rows)
+        normal, point, other_point = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3))
+        joint, other_joint = np.empty(k, dtype=np.intp), np.zeros(k, dtype=np.intp)
+        gap = np.empty(k)
+        self._place(data)
+        for j, i in enumerate(rows):
+            row = self._rows[i]
+            if isinstance(row, _Vertex):
+                centre = data.oMi[row.joint].act(row.point)
+                normal[j] = row.normal
+                point[j] = centre - row.radius * row.normal
+                other_point[j] = point[j]
+                joint[j] = row.joint
+                gap[j] = row.normal.dot(centre) - row.offset - row.radius
+            else:
+                gap[j], normal[j], point[j], other_point[j] = self._distance(row)
+                joint[j], other_joint[j] = row.joint, row.other_joint
+        return ContactPoints(normal, point, joint, other_point, other_joint, gap)
+
+    def jacobian(self, data: pin.Data, rows: Sequence[int]) -> Vector:
+        """Normal rows :math:`n^T (J_{p_A} - J_{p_B})` of ``rows``, shape (len(rows), nv).
+
+        ``data`` must hold joint Jacobians and placements (``pin.computeAllTerms``).
+        """
+        points = self.contact_points(data, rows)
+        rows_out = np.empty((len(rows), self.robot.nv))
+        for j in range(len(rows)):
+            rows_out[j] = points.normal[j] @ self._relative_jacobian(data, points, j)
+        return rows_out
+
+    def tangent_rows(
+        self, data: pin.Data, rows: Sequence[int], tangents: Sequence[Vector]
+    ) -> Vector:
+        """Rows :math:`t^T (J_{p_A} - J_{p_B})` for each row's tangents (k_j, 3), stacked."""
+        points = self.contact_points(data, rows)
+        blocks = [t @ self._relative_jacobian(data, points, j) for j, t in enumerate(tangents)]
+        return np.vstack(blocks) if blocks else np.empty((0, self.robot.nv))
+
+    def normals(self, data: pin.Data, rows: Sequence[int]) -> Vector:
+        """Unit normals of ``rows``, shape (len(rows), 3)."""
+        return self.contact_points(data, rows).normal
+
+    # -- helpers ----------------------------------------------------------------------------
+
+    def _relative_jacobian(self, data: pin.Data, points: ContactPoints, j: int) -> Vector:
+        """:math:`J_{p_A} - J_{p_B}` of entry ``j`` of ``points``, shape (3, nv)."""
+        J = _point_jacobian(self.robot.model, data, int(points.joint[j]), points.point[j])
+        if points.other_joint[j]:
+            J = J - _point_jacobian(
+                self.robot.model, data, int(points.other_joint[j]), points.other_point[j]
+            )
+        return J
+
+    def _place(self, data: pin.Data) -> None:
+        pin.updateGeometryPlacements(
+            self.robot.model, data, self.geometry_model, self._geometry_data
+        )
+
+    def _transform(self, index: int) -> Any:
+        placement = self._geometry_data.oMg[index]
+        return coal.Transform3s(placement.rotation, placement.translation)
+
+    def _bounding_sphere(self, index: int) -> tuple[Vector, float]:
+        shape = self._shapes[index]
+        centre = self._geometry_data.oMg[index].act(np.asarray(shape.aabb_center))
+        return centre, float(shape.aabb_radius)
+
+    def _broad_phase(self, row: _Witness) -> tuple[float, Vector, Vector, Vector] | None:
+        """Distance between bounding spheres when beyond the margin, else None."""
+        centre, radius = self._bounding_sphere(row.first)
+        if row.second is not None:
+            other_centre, other_radius = self._bounding_sphere(row.second)
+        elif np.isfinite(row.bound):
+            other_centre, other_radius = row.centre, row.bound
+        else:
+            return None
+        delta = centre - other_centre
+        distance = float(np.sqrt(delta.dot(delta)))
+        lower = distance - radius - other_radius
+        if lower <= BROAD_PHASE_MARGIN:
+            return None
+        return lower, delta / distance, centre, other_centre
+
+    def _distance(self, row: _Witness) -> tuple[float, Vector, Vector, Vector]:
+        """Signed distance [m], normal from the second shape to the first, witness points."""
+        result = self._result
+        result.clear()
+        if row.second is None:
+            shape, transform = row.shape, row.transform
+        else:
+            shape, transform = self._shapes[row.second], self._transform(row.second)
+        distance = coal.distance(
+            self._shapes[row.first],
+            self._transform(row.first),
+            shape,
+            transform,
+            self._request,
+            result,
+        )
+        first = np.array(result.getNearestPoint1())
+        second = np.array(result.getNearestPoint2())
+        return float(distance), -np.array(result.normal), first, second
+
+
+def _point_velocity(data: pin.Data, joint: int, point: Vector) -> Vector:
+    """World velocity [m/s] of the point ``point`` (world coordinates) moving with ``joint``."""
+    placement = data.oMi[joint]
+    motion = data.v[joint]  # in the joint frame
+    rotation = placement.rotation
+    omega = rotation @ motion.angular
+    return rotation @ motion.linear + cross(omega, point - placement.translation)
+
+
+def _point_jacobian(model: pin.Model, data: pin.Data, joint: int, point: Vector) -> Vector:
+    r""":math:`J_{lin} - [p - o]_\times J_{ang}` of the material point ``point`` of ``joint``."""
+    J = pin.getJointJacobian(model, data, joint, _LWA)
+    lever = point - data.oMi[joint].translation
+    return J[:3] + cross(J[3:].T, lever).T
+
+
+def _support_points(shape: Any) -> list[tuple[Vector, float]]:
+    """Support points (in the shape's frame [m]) and radii of a shape against a halfspace."""
+    if isinstance(shape, coal.Sphere):
+        return [(np.zeros(3), float(shape.radius))]
+    if isinstance(shape, coal.Box):
+        half = np.asarray(shape.halfSide)
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+        return [(s * half, 0.0) for s in signs]
+    if isinstance(shape, coal.Cylinder):
+        angles = 2.0 * np.pi * np.arange(CYLINDER_RIM_POINTS) / CYLINDER_RIM_POINTS
+        r, half = float(shape.radius), float(shape.halfLength)
+        return [
+            (np.array([r * np.cos(a), r * np.sin(a), z]), 0.0)
+            for z in (-half, half)
+            for a in angles
+        ]
+    if isinstance(shape, coal.Capsule):
+        half = float(shape.halfLength)
+        return [(np.array([0.0, 0.0, z]), float(shape.radius)) for z in (-half, half)]
+    if isinstance(shape, coal.ConvexBase):
+        return [(np.array(p), 0.0) for p in np.asarray(shape.points())]
+    raise InvalidParameterError(
+        "collision shape", type(shape).__name__, "a sphere, box, cylinder, capsule or mesh"
+    )
+
+
+def _environment_shape(shape: EnvironmentShape) -> tuple[Any, float]:
+    """The coal geometry of an environment shape and the radius of its bounding sphere [m]."""
+    if shape.type == "sphere":
+        return coal.Sphere(shape.radius), shape.radius
+    if shape.type == "box":
+        return coal.Box(*shape.size), 0.5 * float(np.linalg.norm(shape.size))
+    return coal.Halfspace(shape.normal, float(shape.normal @ shape.position)), np.inf
