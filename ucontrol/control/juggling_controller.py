@@ -1,0 +1,272 @@
+r"""Juggling a ball with a 1-DoF paddle: impact-to-impact replanning of the paddle's motion.
+
+The ball (unactuated) flies ballistically between hits; the paddle (a prismatic joint) is
+driven by a computed-force tracking law on a desired motion that is replanned at every hit
+(Brogliato 2016, §8.5.2, after Zavala-Río & Brogliato's tracking approach: the paddle's
+desired motion is a designed trajectory through the next impact; here the design is one cubic
+per flight, a discrete-time feedback on the ball's post-impact state).
+
+At a hit (and at the start) the controller predicts the ball's next arrival at the hit height
+:math:`z_h` (contact gap 0 with the paddle there), at time :math:`t_h` with velocity
+:math:`v_b^-`, and the ball's take-off speed that reaches the commanded apex :math:`H` (height
+of the ball's centre), :math:`V = \sqrt{2 g (H - z_h - d)}` (d: distance of the centres at
+contact). Newton's law with the ball/paddle mass ratio :math:`\mu = m_b / m_p` and momentum
+conservation give the paddle velocity at the hit,
+
+.. math::
+
+    v_p^- = \frac{(1 + \mu) V - (\mu - e)\, v_b^-}{1 + e},
+
+and the paddle follows the cubic from its present state to :math:`(z_h, v_p^-)` at
+:math:`t_h`, then holds :math:`z_h` if the ball does not come. With an exact model the apex
+error is removed in one hit (dead-beat); the closed loop's Floquet multipliers
+(:mod:`ucontrol.analysis.poincare`) are near 0.
+
+The paddle force is :math:`u = m_p(\ddot z_r + k_d (\dot z_r - \dot z) + k_p (z_r - z)) + g_p(q)`
+with :math:`g_p` the paddle's gravity force; the ball's generalized force is 0.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_float, as_in_interval, as_positive, check_keys, require_key
+from ucontrol.control.controller import ContactState
+from ucontrol.exceptions import InvalidParameterError, NotFoundError
+
+if TYPE_CHECKING:
+    from ucontrol.log import Log
+    from ucontrol.model.robot_model import RobotModel
+    from ucontrol.scene.scene import Scene
+
+Vector = NDArray[np.float64]
+
+#: Keys of a ``[controller] type = "juggling"`` table.
+JUGGLING_KEYS = {
+    "type",
+    "paddle_joint",
+    "ball_joint",
+    "contact",
+    "apex",
+    "hit_height",
+    "restitution",
+    "kp",
+    "kd",
+    "max_paddle_speed",
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class JugglingSettings:
+    """What the juggler aims at and how it tracks.
+
+    Attributes:
+        apex: Commanded apex of the ball's centre in [m].
+        hit_height: Paddle height at the hits in [m].
+        restitution: Ball/paddle restitution e the controller assumes, in [0, 1).
+        kp: Position gain in [1/s²].
+        kd: Velocity gain in [1/s].
+        max_paddle_speed: Largest paddle speed at a hit in [m/s]; an apex needing more is
+            out of reach.
+    """
+
+    apex: float
+    hit_height: float = 0.0
+    restitution: float = 0.8
+    kp: float = 900.0
+    kd: float = 60.0
+    max_paddle_speed: float = 10.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "apex", as_float("apex", self.apex))
+        object.__setattr__(self, "hit_height", as_float("hit_height", self.hit_height))
+        e = as_in_interval("restitution", self.restitution, 0.0, 1.0)
+        if e >= 1.0:
+            raise InvalidParameterError("restitution", e, "in [0, 1) (e = 1 needs no juggler)")
+        object.__setattr__(self, "restitution", e)
+        for key in ("kp", "kd", "max_paddle_speed"):
+            object.__setattr__(self, key, as_positive(key, getattr(self, key)))
+
+
+@dataclass(frozen=True)
+class Hit:
+    """One planned hit.
+
+    Attributes:
+        time: Time of the plan (just after the previous hit) in [s].
+        hit_time: Predicted time of the hit in [s].
+        ball_velocity: Predicted ball velocity at the hit in [m/s].
+        paddle_velocity: Paddle velocity planned at the hit in [m/s].
+    """
+
+    time: float
+    hit_time: float
+    ball_velocity: float
+    paddle_velocity: float
+
+
+class JugglingController:
+    """Paddle juggling with one cubic per flight, replanned at every hit.
+
+    Args:
+        robot: The robot holding the paddle's and the ball's prismatic joints (vertical).
+        paddle_joint: Name of the paddle's joint.
+        ball_joint: Name of the ball's joint.
+        contact: Index of the ball/paddle constraint in the scene's constraints.
+        distance: Distance between the joint coordinates at contact, z_ball - z_paddle, in [m].
+        settings: Apex, hit height, restitution and gains.
+        gravity: g in [m/s²] (the magnitude of the robot's gravity).
+
+    Raises:
+        InvalidParameterError: The apex is out of the paddle's reach.
+    """
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        *,
+        paddle_joint: str,
+        ball_joint: str,
+        contact: int,
+        distance: float,
+        settings: JugglingSettings,
+        gravity: float | None = None,
+    ) -> None:
+        self.robot = robot
+        model = robot.model
+        self.paddle = int(model.joints[robot.joint_id(paddle_joint)].idx_v)
+        self.ball = int(model.joints[robot.joint_id(ball_joint)].idx_v)
+        self.contact = int(contact)
+        self.distance = float(distance)
+        self.settings = settings
+        self.g = float(np.linalg.norm(robot.gravity)) if gravity is None else float(gravity)
+        M = robot.mass_matrix(robot.neutral())
+        self.paddle_mass = float(M[self.paddle, self.paddle])  # [kg]
+        self.mass_ratio = float(M[self.ball, self.ball]) / self.paddle_mass
+        rise = settings.apex - settings.hit_height - self.distance  # [m]
+        if rise <= 0.0:
+            raise InvalidParameterError(
+                "apex",
+                settings.apex,
+                f"> {settings.hit_height + self.distance:g} m (hit height + contact distance)",
+            )
+        self.takeoff_speed = math.sqrt(2.0 * self.g * rise)  # [m/s]
+        needed = self._paddle_velocity(-self.takeoff_speed)
+        if abs(needed) > settings.max_paddle_speed:
+            raise InvalidParameterError(
+                "apex",
+                settings.apex,
+                f"reachable with a paddle speed <= {settings.max_paddle_speed:g} m/s "
+                f"(needs {needed:.3g} m/s)",
+            )
+        self.hits: list[Hit] = []
+        self._plan: tuple[float, float, Vector] | None = None  # t0, T, cubic coefficients
+        self._last: dict[str, float] = {"z_ref": math.nan, "hit_time": math.nan}
+
+    def _paddle_velocity(self, ball_velocity: float) -> float:
+        """Paddle velocity at the hit sending the ball up at the take-off speed, in [m/s]."""
+        e, mu = self.settings.restitution, self.mass_ratio
+        return ((1.0 + mu) * self.takeoff_speed - (mu - e) * ball_velocity) / (1.0 + e)
+
+    def _replan(self, t: float, q: Vector, v: Vector) -> None:
+        z_b, v_b = float(q[self.ball]), float(v[self.ball])
+        target = self.settings.hit_height + self.distance  # ball height at the hit [m]
+        # z_b + v_b s - g s²/2 = target, the later root
+        disc = v_b * v_b + 2.0 * self.g * (z_b - target)
+        if disc < 0.0:  # the ball will not come down to the hit height: hold
+            self._plan = None
+            return
+        s = (v_b + math.sqrt(disc)) / self.g  # [s]
+        ball_in = v_b - self.g * s
+        paddle_in = self._paddle_velocity(ball_in)
+        z0, v0 = float(q[self.paddle]), float(v[self.paddle])
+        z1 = self.settings.hit_height
+        T = max(s, 1e-6)
+        a2 = (3.0 * (z1 - z0) - (2.0 * v0 + paddle_in) * T) / T**2
+        a3 = (2.0 * (z0 - z1) + (v0 + paddle_in) * T) / T**3
+        self._plan = (t, T, np.array([z0, v0, a2, a3]))
+        self.hits.append(Hit(t, t + s, ball_in, paddle_in))
+
+    def reference(self, t: float) -> tuple[float, float, float]:
+        """Desired paddle (position [m], velocity [m/s], acceleration [m/s²]) at t."""
+        if self._plan is None:
+            return self.settings.hit_height, 0.0, 0.0
+        t0, T, c = self._plan
+        s = t - t0
+        if s > T:
+            return self.settings.hit_height, 0.0, 0.0
+        return (
+            c[0] + c[1] * s + c[2] * s**2 + c[3] * s**3,
+            c[1] + 2.0 * c[2] * s + 3.0 * c[3] * s**2,
+            2.0 * c[2] + 6.0 * c[3] * s,
+        )
+
+    def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
+        """Paddle force (ball force 0), shape (nu,)."""
+        hit = contacts.impulse[self.contact] > 0.0
+        if (self._plan is None and not self.hits) or hit:
+            self._replan(t, q, v)
+        z_r, dz_r, ddz_r = self.reference(t)
+        s = self.settings
+        acceleration = ddz_r + s.kd * (dz_r - v[self.paddle]) + s.kp * (z_r - q[self.paddle])
+        tau = np.zeros(self.robot.nv)
+        tau[self.paddle] = (
+            self.paddle_mass * acceleration + self.robot.gravity_torque(q)[self.paddle]
+        )
+        self._last = {"z_ref": z_r, "hit_time": self.hits[-1].hit_time if self.hits else math.nan}
+        return tau[self.robot.actuated]
+
+    def prepare_log(self, log: Log) -> None:
+        """Declare ``paddle_reference`` [m] and ``planned_hit_time`` [s]."""
+        log.add_field("paddle_reference", ())
+        log.add_field("planned_hit_time", ())
+
+    def record(self, log: Log) -> None:
+        """Write the current reference and planned hit time."""
+        log.record_extra("paddle_reference", self._last["z_ref"])
+        log.record_extra("planned_hit_time", self._last["hit_time"])
+
+
+def juggling_from_table(scene: Scene, table: Mapping[str, Any]) -> JugglingController:
+    """The juggling controller of a ``[controller] type = "juggling"`` table.
+
+    Keys: ``paddle_joint``, ``ball_joint``, ``contact`` (name of the ball/paddle sphere
+    contact), ``apex`` [m] (required), ``hit_height`` [m], ``restitution`` (default the
+    contact's), ``kp`` [1/s²], ``kd`` [1/s], ``max_paddle_speed`` [m/s].
+
+    Raises:
+        UnknownKeyError: A key not in :data:`JUGGLING_KEYS`.
+        NotFoundError: The contact is not one of the scene's constraints.
+        InvalidParameterError: A bad value, or an apex out of reach.
+    """
+    check_keys("[controller]", table, JUGGLING_KEYS)
+    constraints = scene.constraints
+    name = str(table.get("contact", constraints.names[0]))
+    if name not in constraints.names:
+        raise NotFoundError("contact", name, constraints.names)
+    index = constraints.names.index(name)
+    pair = next((c for c in (*scene.contacts, *scene.sphere_contacts) if c.name == name), None)
+    restitution = table.get("restitution", getattr(pair, "restitution", 0.8))
+    distance = float(getattr(pair, "radius", 0.0)) + float(getattr(pair, "other_radius", 0.0))
+    settings = JugglingSettings(
+        apex=require_key(table, "[controller]", "apex"),
+        hit_height=table.get("hit_height", 0.0),
+        restitution=restitution,
+        kp=table.get("kp", 900.0),
+        kd=table.get("kd", 60.0),
+        max_paddle_speed=table.get("max_paddle_speed", 10.0),
+    )
+    return JugglingController(
+        scene.robot,
+        paddle_joint=str(table.get("paddle_joint", "paddle_height")),
+        ball_joint=str(table.get("ball_joint", "ball_height")),
+        contact=index,
+        distance=distance,
+        settings=settings,
+    )
