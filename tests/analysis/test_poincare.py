@@ -255,3 +255,31 @@ def test_bifurcation_figure_draws_branch_and_diagram(tmp_path) -> None:
     figure = pc.bifurcation_figure(diagram, xlabel="A [m]", ylabel="impact phase [s]")
     figure.savefig(tmp_path / "diagram.png")
     assert (tmp_path / "diagram.png").stat().st_size > 1000
+
+
+def test_scene_stroboscopic_map_converges_to_the_oscillator_map() -> None:
+    """The oscillator as a scene maps the period-1 orbit onto itself up to O(h).
+
+    robots/impact_oscillator.toml is run by simulate (event-driven), the spring, damper and
+    forcing held over each step.
+    """
+    import dataclasses
+
+    from tests.conftest import ROBOTS
+    from ucontrol.scene import Scene
+
+    w = 2.4
+    found = oscillator_fixed_point(w, np.array([-1.0, 0.1]))
+    scene = Scene.from_toml(ROBOTS / "impact_oscillator.toml")
+    assert np.max(np.abs(np.concatenate((scene.q0, scene.v0)) - found.z)) <= 1e-9
+    forcing = pc.SinusoidalForcing(stiffness=1.0, damping=0.05, force=1.0, frequency=w)
+    period = 2 * math.pi / w
+    errors = []
+    for steps in (500, 1000):
+        settings = dataclasses.replace(scene.integrator, dt=period / steps)
+        P = pc.scene_stroboscopic_map(
+            dataclasses.replace(scene, integrator=settings), forcing, period
+        )
+        errors.append(np.max(np.abs(P(found.z) - found.z)))
+    assert errors[1] < 0.7 * errors[0]  # first order in h (zero-order hold)
+    assert errors[1] < 1e-2

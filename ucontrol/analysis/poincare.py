@@ -868,3 +868,62 @@ def free_response_amplitude(
 ) -> float:
     """Amplitude in [m] of the steady response of m ẍ + c ẋ + k x = F cos ωt without the stop."""
     return abs(force) / math.hypot(stiffness - mass * frequency**2, damping * frequency)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SinusoidalForcing:
+    r"""A controller applying a spring, a damper and a sinusoidal force to one joint.
+
+    :math:`u = -k (q_j - q_\text{rest}) - c\,v_j + F\cos(\omega t + \varphi)` on joint index j
+    (0 elsewhere): the impact oscillator as a scene (``robots/impact_oscillator.toml``) run by
+    :func:`ucontrol.simulate` with the event-driven integrator. The force is held over each
+    control period (zero-order hold), an O(h) difference from the continuous oscillator.
+
+    Attributes:
+        stiffness: k in [N/m].
+        damping: c in [N s/m].
+        force: F in [N].
+        frequency: ω in [rad/s].
+        phase: φ in [rad].
+        rest: q_rest in [m].
+        index: j, the velocity index of the joint.
+        nu: Size of the returned torque vector.
+    """
+
+    stiffness: float
+    damping: float
+    force: float
+    frequency: float
+    phase: float = 0.0
+    rest: float = 0.0
+    index: int = 0
+    nu: int = 1
+
+    def __call__(self, t: float, q: Vector, v: Vector, contacts: object) -> Vector:
+        """Generalized force at t, shape (nu,)."""
+        u = np.zeros(self.nu)
+        u[self.index] = (
+            -self.stiffness * (q[self.index] - self.rest)
+            - self.damping * v[self.index]
+            + self.force * math.cos(self.frequency * t + self.phase)
+        )
+        return u
+
+
+def scene_stroboscopic_map(scene: object, controller: object, period: float) -> Map:
+    """The stroboscopic map (q, v) -> (q, v) of a scene, by :func:`ucontrol.simulate`.
+
+    The state one ``period`` later. The scene's integrator step should divide ``period``; the
+    controller must depend on time only through t (each evaluation restarts at t = 0).
+    """
+    from dataclasses import replace as replace_scene
+
+    from ucontrol.simulate import simulate  # lazy: analysis sits below simulate
+
+    def P(x: Vector) -> Vector:
+        nq = scene.q0.size  # type: ignore[attr-defined]
+        start = replace_scene(scene, q0=x[:nq], v0=x[nq:])  # type: ignore[type-var]
+        log = simulate(start, controller, duration=period, progress=False).log  # type: ignore[arg-type]
+        return np.concatenate((log.q[-1], log.v[-1]))
+
+    return P
