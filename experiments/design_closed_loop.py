@@ -21,23 +21,11 @@ import numpy as np
 from ucontrol.analysis.cycles import cycle_events
 from ucontrol.analysis.weak_stability import weak_stability
 from ucontrol.control.brogliato_controller import BrogliatoController
+from ucontrol.control.controller_table import CYCLE_KEYS
 from ucontrol.design import DesignTask, design_cycle
 from ucontrol.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
-_CYCLE_KEYS = (
-    "approach_time",
-    "depth_gain",
-    "depth_exponent",
-    "depth_min",
-    "depth_max",
-    "rest_time",
-    "force_fall_time",
-    "takeoff_acceleration",
-    "takeoff_time",
-    "blend_time",
-    "takeoff_ramp_time",
-)
 
 
 def _figures(log, contact: int, period: float, cycles: int) -> dict[str, float]:  # type: ignore[no-untyped-def]
@@ -76,7 +64,7 @@ def main(argv: list[str] | None = None) -> dict[str, dict]:  # type: ignore[type
     print(f"design: {report.status}, landing at {designed.landing_time:.4g} s")
     hand_made = scene.build_controller()
     assert isinstance(hand_made, BrogliatoController)
-    settings = {k: scene.controller[k] for k in _CYCLE_KEYS if k in scene.controller}
+    settings = {k: scene.controller[k] for k in CYCLE_KEYS if k in scene.controller}
     cycle = designed.desired_cycle(**settings)
     controller = BrogliatoController(
         scene.robot,

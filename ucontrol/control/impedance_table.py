@@ -6,11 +6,11 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import check_keys, require_key
-from ucontrol.control.desired_cycle import ContactPhase
+from ucontrol.control.controller_table import contact_phases, tracked_contacts
 from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
 from ucontrol.control.path_reach import check_reach
 from ucontrol.control.path_table import path_from_table
-from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.exceptions import InvalidParameterError
 
 if TYPE_CHECKING:
     from ucontrol.scene import Scene
@@ -30,7 +30,6 @@ IMPEDANCE_KEYS = {
     "contact_phases",
     *_GAIN_KEYS,
 }
-_CONTACT_PHASE_KEYS = ("contact", "start", "end", "force")
 
 
 def impedance_from_table(scene: Scene, table: Mapping[str, Any]) -> ImpedanceController:
@@ -63,18 +62,8 @@ def impedance_from_table(scene: Scene, table: Mapping[str, Any]) -> ImpedanceCon
             "rigid joints and the scene declares [robot.flexible]",
         )
     frame = str(require_key(table, section, "frame"))
-    scene_contacts = {contact.name: contact for contact in scene.contacts}
-    names = table.get("contacts", [c.name for c in scene.contacts if c.frame == frame])
-    for name in names:
-        if name not in scene_contacts:
-            raise NotFoundError("contact", str(name), scene_contacts)
-    phases = []
-    entry = "[[controller.contact_phases]]"
-    for spec in table.get("contact_phases", []):
-        check_keys(entry, spec, set(_CONTACT_PHASE_KEYS))
-        phases.append(
-            ContactPhase(**{key: require_key(spec, entry, key) for key in _CONTACT_PHASE_KEYS})
-        )
+    tracked = tracked_contacts(table, frame, scene.contacts)
+    phases = contact_phases(table)
     path = path_from_table(require_key(table, section, "path"))
     gains = ImpedanceGains(
         stiffness=require_key(table, section, "stiffness"),
@@ -91,7 +80,7 @@ def impedance_from_table(scene: Scene, table: Mapping[str, Any]) -> ImpedanceCon
         frame,
         path,
         gains,
-        contacts=[scene_contacts[name] for name in names],
+        contacts=tracked,
         contact_phases=phases,
         posture=table.get("posture", scene.q0),
         project=table.get("project", True),

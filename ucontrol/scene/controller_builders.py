@@ -15,7 +15,8 @@ from ucontrol._validation import as_bool, check_keys, require_key
 from ucontrol.contact.plane import Plane
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
 from ucontrol.control.controller import Controller
-from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
+from ucontrol.control.controller_table import CYCLE_KEYS, contact_phases, tracked_contacts
+from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.impedance_table import IMPEDANCE_KEYS, impedance_from_table
 from ucontrol.control.joint_pd import JointPD
 from ucontrol.control.path_table import path_from_table
@@ -27,19 +28,6 @@ from ucontrol.model.model_uncertainty import perturbed_robot
 if TYPE_CHECKING:
     from ucontrol.scene.scene import Scene
 
-_CYCLE_KEYS = (
-    "approach_time",
-    "depth_gain",
-    "depth_exponent",
-    "depth_min",
-    "depth_max",
-    "rest_time",
-    "force_fall_time",
-    "takeoff_acceleration",
-    "takeoff_time",
-    "blend_time",
-    "takeoff_ramp_time",
-)
 _BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
 _CONTROLLER_KEYS = {
     "zero": {"type"},
@@ -56,7 +44,7 @@ _CONTROLLER_KEYS = {
         "path",
         "contact_phases",
         *_BROGLIATO_GAIN_KEYS,
-        *_CYCLE_KEYS,
+        *CYCLE_KEYS,
     },
     "impedance": IMPEDANCE_KEYS,
 }
@@ -64,7 +52,6 @@ _CONTROLLER_KEYS = {
 _CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
 #: Controller types a scene may declare.
 CONTROLLERS = tuple(_CONTROLLER_KEYS)
-_CONTACT_PHASE_KEYS = {"contact", "start", "end", "force"}
 _MODEL_KEYS = {"mass_scale", "com_offset", "surfaces"}
 _PLANE_KEYS = {"point", "normal"}
 
@@ -155,26 +142,15 @@ def _brogliato(scene: Scene, table: Mapping[str, Any]) -> Controller:
     """The ``type = "brogliato"`` controller of a scene (keys in docs/scene_format.md)."""
     section = "[controller]"
     frame = str(require_key(table, section, "frame"))
-    contacts = {contact.name: contact for contact in scene.contacts}
-    names = table.get("contacts", [c.name for c in scene.contacts if c.frame == frame])
-    for name in names:
-        if name not in contacts:
-            raise NotFoundError("contact", str(name), contacts)
-    task = TaskCoordinates(
-        scene.robot, frame, [contacts[name] for name in names], table.get("tangents", ())
-    )
+    tracked = tracked_contacts(table, frame, scene.contacts)
+    task = TaskCoordinates(scene.robot, frame, tracked, table.get("tangents", ()))
     path = path_from_table(require_key(table, section, "path"))
-    phases = []
-    for spec in require_key(table, section, "contact_phases"):
-        entry = "[[controller.contact_phases]]"
-        check_keys(entry, spec, _CONTACT_PHASE_KEYS)
-        phases.append(
-            ContactPhase(**{key: require_key(spec, entry, key) for key in _CONTACT_PHASE_KEYS})
-        )
+    require_key(table, section, "contact_phases")
+    phases = contact_phases(table)
     cycle = DesiredCycle(
         path=path,
         contact_phases=tuple(phases),
-        **{key: table[key] for key in _CYCLE_KEYS if key in table},
+        **{key: table[key] for key in CYCLE_KEYS if key in table},
     )
     gains = BrogliatoGains(
         gamma1=require_key(table, section, "gamma1"),
