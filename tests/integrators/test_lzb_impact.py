@@ -263,3 +263,23 @@ def test_step_cap_raises_solver_error() -> None:
 def test_no_approach_no_impulse() -> None:
     result = lzb_impact(np.eye(2), chain_jacobian(2), [0.0, 1.0])
     assert np.all(result.impulse == 0.0) and result.steps == 0
+
+
+def test_newton_cradle_scene_jacobians_give_the_chain_result() -> None:
+    """robots/newton_cradle.toml: M and J from Pinocchio, as the event-driven integrator has."""
+    from tests.conftest import ROBOTS
+    from ucontrol.plant import evaluate_plant
+    from ucontrol.scene import Scene
+
+    scene = Scene.from_toml(ROBOTS / "newton_cradle.toml")
+    q, v = scene.initial_state()
+    data = scene.robot.model.createData()
+    state = evaluate_plant(data, scene.constraints, None, q, v)
+    J = scene.constraints.jacobian(data, [0, 1])
+    M = scene.robot.mass_matrix(q)
+    assert np.max(np.abs(J @ v - state.normal_velocity)) <= 1e-14
+    result = LZBImpactLaw(restitution=1.0, exponent=HERTZ).solve(M, J, v)
+    chain = lzb_impact(0.1 * np.eye(3), chain_jacobian(3), v, restitution=1.0, exponent=HERTZ)
+    assert np.max(np.abs(result.v - chain.v)) <= 1e-12
+    reference = compliant_chain(0.1 * np.ones(3), v, np.array([1e6, 1e6]), HERTZ)
+    assert np.max(np.abs(result.v - reference)) <= _CHAIN_TOLERANCE
