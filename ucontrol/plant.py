@@ -31,6 +31,8 @@ class PlantEvaluation(NamedTuple):
         normal_velocity: Constraint velocities ``J v``, shape (n,).
         kinetic_energy: In [J], motors included.
         potential_energy: Gravitational plus the joint springs' elastic energy, in [J].
+        t: Time of the evaluation in [s], or None when it was not given (constraints that do
+            not depend on time).
     """
 
     q: Vector
@@ -39,6 +41,7 @@ class PlantEvaluation(NamedTuple):
     normal_velocity: Vector
     kinetic_energy: float
     potential_energy: float
+    t: float | None = None
 
 
 def evaluate_plant(
@@ -49,25 +52,27 @@ def evaluate_plant(
     v: Vector,
     *,
     frames: bool = True,
+    t: float | None = None,
 ) -> PlantEvaluation:
     """All dynamics terms, constraint gaps, normal velocities and energies at (q, v).
 
     Runs ``pin.computeAllTerms`` (and the frame placements when ``frames``) on ``data`` at the
     links' state; with flexible joints (q, v) are the extended state and the energies include
-    the motors and the springs.
+    the motors and the springs. ``t`` [s] is required when the constraints depend on time
+    (moving surfaces: :attr:`ConstraintSet.time_dependent`).
     """
     model = constraints.robot.model
     q1, v1 = (q, v) if flexible is None else flexible.split(q, v)[:2]
     pin.computeAllTerms(model, data, q1, v1)
     if frames:
         pin.updateFramePlacements(model, data)
-    gap, normal_velocity = constraints.evaluate(data, q1, v1)
+    gap, normal_velocity = constraints.evaluate(data, q1, v1, t)
     kinetic, potential = data.kinetic_energy, data.potential_energy
     if flexible is not None:
         motors, springs = flexible.energies(q, v)
         kinetic += motors
         potential += springs
-    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential)
+    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t)
 
 
 class StepOutcome(NamedTuple):
@@ -115,8 +120,12 @@ class Integrator(Protocol):
     theta: float
     constraints: ConstraintSet
 
-    def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
-        """Dynamics, kinematics and constraint gaps at (q, v); prepares :meth:`step`."""
+    def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
+        """Dynamics, kinematics and constraint gaps at (q, v) and time t; prepares :meth:`step`.
+
+        ``t`` [s] is required when the constraints depend on time (the closed loop passes it
+        then), and may be omitted otherwise.
+        """
         ...
 
     def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:

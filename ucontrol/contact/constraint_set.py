@@ -38,6 +38,13 @@ class ConstraintSet:
     A contact point is the point of the sphere nearest the other body, so its tangential
     velocity includes the sphere's rotation: :math:`v_F + \omega \times (-r n)`.
 
+    Point contacts against a moving plane (:attr:`Plane.motion`, a translation :math:`x(t)`)
+    are time-dependent: :math:`g(q, t) = n \cdot (p_F(q) - p_0 - x(t)) - r`, and their
+    velocities are relative to the plane, :math:`u = J v + \partial g / \partial t` with
+    :math:`\partial g / \partial t = -n \cdot \dot x(t)` (:meth:`normal_rate`; on tangential
+    rows :math:`-t \cdot \dot x(t)`, :meth:`tangent_rate`). :meth:`evaluate` then needs the
+    time.
+
     Args:
         robot: The robot whose data buffer is read.
         contacts: Point contacts against planes.
@@ -60,6 +67,7 @@ class ConstraintSet:
         friction: Coulomb coefficients, shape (n,) (0 for stops).
         tangent_count: Tangential rows of each constraint (0, 1 or 2), shape (n,).
         has_friction: Whether any constraint has tangential rows.
+        time_dependent: Whether some contact is against a moving surface.
         n_contacts: Number of point, sphere–sphere and collision contacts (the first
             constraints).
         size: Number of constraints n.
@@ -151,6 +159,12 @@ class ConstraintSet:
             zip(self._frame_ids, list(self._normals), self._offsets.tolist(), strict=True)
         )
         self._plane_tangents = [tangent_basis(normal, self.planar_axis) for normal in self._normals]
+        self._moving = [
+            (i, contact.surface.motion, contact.surface.normal)
+            for i, contact in enumerate(self.contacts)
+            if contact.surface.motion is not None
+        ]
+        self.time_dependent = bool(self._moving)
         # Contact point p_F - r n: velocity v_F + ω × (-r n), i.e. t·v_F + r (t × n)·ω.
         self._plane_levers = [
             contact.radius * cross(tangents, contact.surface.normal)
@@ -166,11 +180,22 @@ class ConstraintSet:
                         f"{contact.name!r} (the robot moves in the plane normal to the axis)",
                     )
 
-    def evaluate(self, data: pin.Data, q: Vector, v: Vector) -> tuple[Vector, Vector]:
-        """Gaps and normal velocities, each of shape (n,).
+    def evaluate(
+        self, data: pin.Data, q: Vector, v: Vector, t: float | None = None
+    ) -> tuple[Vector, Vector]:
+        """Gaps and normal velocities (relative to moving surfaces), each of shape (n,).
 
         ``data`` must hold forward kinematics with velocity and frame placements at (q, v)
         (``pin.computeAllTerms`` then ``pin.updateFramePlacements``).
+
+        Args:
+            data: Pinocchio data at (q, v).
+            q: Configuration, shape (nq,).
+            v: Velocity, shape (nv,).
+            t: Time in [s]; required when :attr:`time_dependent`, unused otherwise.
+
+        Raises:
+            InvalidParameterError: ``t`` is None and some surface moves.
         """
         model = self.robot.model
         gap = np.empty(self.size)
@@ -190,6 +215,8 @@ class ConstraintSet:
         if self.collision is not None:
             rows = slice(self._pairs_end, self.n_contacts)
             gap[rows], velocity[rows] = self.collision.evaluate(data)
+        if self.time_dependent:
+            self._move(gap, velocity, t)
         if self._has_stops:
             k = self.n_contacts
             gap[k:] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
@@ -314,11 +341,62 @@ class ConstraintSet:
                 drift[row] = normal @ acceleration + tangential.dot(tangential) / distance
         return drift
 
-    def gaps(self, q: Vector) -> Vector:
-        """Gaps at configuration ``q``, shape (n,); runs forward kinematics on the robot's data."""
+    def gaps(self, q: Vector, t: float = 0.0) -> Vector:
+        """Gaps at configuration ``q``, shape (n,); runs forward kinematics on the robot's data.
+
+        Args:
+            q: Configuration, shape (nq,).
+            t: Time in [s] of the moving surfaces' positions; default 0, the start of a run.
+        """
         data = self.robot.data
         pin.framesForwardKinematics(self.robot.model, data, q)
-        return self._gap(data, q)
+        gap = self._gap(data, q)
+        if self.time_dependent:
+            self._move(gap, None, t)
+        return gap
+
+    def normal_rate(self, indices: Sequence[int] | NDArray[np.intp], t: float) -> Vector:
+        r""":math:`\partial g / \partial t = -n \cdot \dot x(t)` of ``indices`` at t [s], in [m/s].
+
+        Zero for constraints against fixed surfaces; shape (len(indices),).
+        """
+        rate = np.zeros(len(indices))
+        for i, motion, normal in self._moving:
+            rows = np.flatnonzero(np.asarray(indices) == i)
+            if rows.size:
+                rate[rows] = -normal.dot(motion(t)[1])
+        return rate
+
+    def tangent_rate(self, indices: Sequence[int] | NDArray[np.intp], t: float) -> Vector:
+        r""":math:`-t \cdot \dot x(t)` of the tangential rows of ``indices`` at t [s], in [m/s].
+
+        In the order of :meth:`tangent_rows`; zero for fixed surfaces.
+        """
+        counts = self.tangent_count[np.asarray(indices, dtype=np.intp)]
+        rate = np.zeros(int(counts.sum()))
+        moving = {i: motion for i, motion, _ in self._moving}
+        start = 0
+        for i, count in zip(indices, counts.tolist(), strict=True):
+            if count and int(i) in moving:
+                tangents = self._plane_tangents[int(i)]
+                rate[start : start + count] = -tangents @ moving[int(i)](t)[1]
+            start += count
+        return rate
+
+    def _move(self, gap: Vector, velocity: Vector | None, t: float | None) -> None:
+        """Subtract the moving surfaces' displacement (and velocity) at t from the contacts."""
+        if t is None:
+            raise InvalidParameterError(
+                "t",
+                t,
+                "the time in [s]: contacts "
+                f"{[self.names[i] for i, _, _ in self._moving]} are against moving surfaces",
+            )
+        for i, motion, normal in self._moving:
+            displacement, speed, _ = motion(t)
+            gap[i] -= normal.dot(displacement)
+            if velocity is not None:
+                velocity[i] -= normal.dot(speed)
 
     def _gap(self, data: pin.Data, q: Vector) -> Vector:
         """Gaps from frame placements already in ``data``, shape (n,)."""

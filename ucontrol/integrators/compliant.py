@@ -171,14 +171,15 @@ class Compliant:
         #: Largest step solve_ivp took in the last segment, in [s]: the next one starts there.
         self._step_hint: float | None = None
 
-    def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
+    def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
         r"""Gaps, normal velocities and energies at (q, v).
 
         The potential energy includes the elastic energy of the penetrating contacts,
         :math:`k \delta^{p+1} / (p + 1)` (p = 1 linear, 3/2 Hunt–Crossley), so that the
-        mechanical energy of the compliant plant never rises without work.
+        mechanical energy of the compliant plant never rises without work. ``t`` [s] is
+        passed on to the constraints (the scene refuses moving surfaces for this integrator).
         """
-        state = self._dynamics.evaluate(q, v)
+        state = self._dynamics.evaluate(q, v, t)
         p = 1.0 if self.contact_model == "linear" else self.hunt_crossley_exponent
         depth = np.maximum(-state.gap, 0.0)  # [m]
         elastic = float(np.sum(self.stiffness * depth ** (p + 1.0) / (p + 1.0)))  # [J]

@@ -75,6 +75,17 @@ Coulomb's law at velocity level with Newton's restitution on the normal componen
 have friction). The energy guard applies unchanged, over normal and tangential rows (with e = 0
 Coulomb's impulses dissipate: :math:`P^T u^+ = -\mu P_n \|u_t^+\| + P_t \cdot u_t^+ \le 0`).
 
+**Moving surfaces.** Constraints against surfaces with a prescribed motion
+(:attr:`~ucontrol.contact.ConstraintSet.time_dependent`) have relative velocities
+:math:`u = J v + \partial g/\partial t`: Signorini and Newton's law hold on them,
+:math:`0 \le u_a(v_{k+1}, t_{k+1}) + e_a u_a(v_k, t_k) \perp P_a \ge 0`, so
+:math:`\partial g/\partial t` at :math:`t_{k+1}` enters :math:`b` (and the tangential
+:math:`-t \cdot \dot x` its friction rows: a conveyor). :meth:`MoreauJean.evaluate` then
+needs the time, which it keeps in the evaluation for :meth:`MoreauJean.step`. The energy guard
+measures the impulses' work with the same relative velocities (energy in the surface's frame,
+exact for a surface in uniform translation): a ball thrown up by a rising plate legitimately
+gains energy.
+
 **Unsolved problems.** A solve whose residual stays above its solver's tolerance raises
 :class:`~ucontrol.exceptions.ContactSolveError` (``on_unsolved = "raise"``), or issues a
 :class:`~ucontrol.exceptions.ContactSolveWarning` carrying the residual and goes on with the
@@ -205,10 +216,19 @@ class MoreauJean:
         """Forget which constraints carried an impulse in the last step (a new run)."""
         self._activation[:] = 0.0
 
-    def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
-        """Dynamics, kinematics and constraint gaps at (q, v); prepares :meth:`step`."""
+    def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
+        """Dynamics, kinematics and constraint gaps at (q, v) and time t; prepares :meth:`step`.
+
+        Args:
+            q: Configuration, shape (nq,) (nq + nf with flexible joints).
+            v: Velocity, shape (nv,) (nv + nf with flexible joints).
+            t: Time in [s]; required when the constraints have moving surfaces.
+
+        Raises:
+            InvalidParameterError: ``t`` is None and some surface moves.
+        """
         return evaluate_plant(
-            self._data, self.constraints, self.flexible, q, v, frames=self._has_contacts
+            self._data, self.constraints, self.flexible, q, v, frames=self._has_contacts, t=t
         )
 
     def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
@@ -246,6 +266,10 @@ class MoreauJean:
             Minv_Jt = inverse_inertia(J)
             D = J.dot(Minv_Jt)
             u_free = J.dot(v_free)
+            rate_now = None
+            if self.constraints.time_dependent:  # velocities relative to moving surfaces
+                rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
+                u_free = u_free + rate_next
             rebound, closure = self._offsets(indices, state)
             b = u_free if closure is None else u_free + _pad(closure, u_free.size)
             if tangents is not None:  # no restitution on the tangential rows
@@ -254,7 +278,7 @@ class MoreauJean:
             if np.count_nonzero(rebound):
                 # Energy the impulses add to T + V over the step [J] (module docstring).
                 u_plus = solution.velocity - rebound - (b - u_free)
-                u_k = J.dot(state.v)
+                u_k = J.dot(state.v) if rate_now is None else J.dot(state.v) + rate_now
                 gain = solution.impulses.dot(0.5 * (u_free + u_plus) - self.theta * (u_free - u_k))
                 if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
                     solution = self._solve(D, b, indices, tangents)
@@ -305,6 +329,28 @@ class MoreauJean:
             return rebound, None
         rebound[held_open] = 0.0
         return rebound, np.where(held_open, gap / h, 0.0)
+
+    def _surface_rates(
+        self, indices: NDArray[np.intp], tangents: NDArray[np.intp] | None, t: float | None
+    ) -> tuple[Vector, Vector]:
+        r""":math:`\partial u / \partial t` terms of the rows at :math:`t_k` and :math:`t_{k+1}`.
+
+        Normal rows first, then the tangential ones, in [m/s].
+        """
+        if t is None:
+            raise InvalidParameterError(
+                "state.t",
+                t,
+                "the time of the evaluation in [s] (evaluate(q, v, t)): the "
+                "constraints have moving surfaces",
+            )
+        rates = []
+        for time in (t, t + self.dt):
+            rate = self.constraints.normal_rate(indices, time)
+            if tangents is not None:
+                rate = np.concatenate((rate, self.constraints.tangent_rate(indices, time)))
+            rates.append(rate)
+        return rates[0], rates[1]
 
     def _rigid_inverse_inertia(self, J: Vector) -> Vector:
         """:math:`M^{-1} J^T` for rows J (m, nv), with M factorized in the data buffer."""

@@ -111,12 +111,13 @@ class SmoothDynamics:
         self._euclidean = robot.nq == robot.nv
         self._zero_acceleration = np.zeros(robot.nv)
 
-    def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
+    def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
         """Gaps, normal velocities and energies at (q, v): the protocol's evaluate.
 
-        The energies include the motors' kinetic and the springs' elastic energy.
+        The energies include the motors' kinetic and the springs' elastic energy; ``t`` [s]
+        is passed to constraints that depend on time.
         """
-        return evaluate_plant(self.data, self.constraints, self.flexible, q, v)
+        return evaluate_plant(self.data, self.constraints, self.flexible, q, v, t=t)
 
     def configuration(self, q0: Vector, dq: Vector) -> Vector:
         """The configuration ``q0 ⊕ dq``, shape (nq,), for a chart offset ``dq`` (nv,)."""

@@ -25,8 +25,9 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
     Raises:
         InvalidParameterError: The scene has friction and the integrator is not
             ``moreau_jean`` (the others are frictionless), a ``qpsolvers:`` contact
-            solver was asked for a scene with friction, or an event-driven integrator for a
-            scene with collision pairs.
+            solver was asked for a scene with friction, an event-driven integrator for a
+            scene with collision pairs, or another integrator than ``moreau_jean`` for a scene
+            with moving surfaces.
     """
     name = scene.integrator.name
     if scene.constraints.has_friction and name != "moreau_jean":
@@ -42,6 +43,13 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
             name,
             "'moreau_jean' or 'compliant' for scenes with [[collision_pairs]] (event_driven "
             "needs the constraint accelerations of collision rows, not implemented)",
+        )
+    if scene.constraints.time_dependent and name != "moreau_jean":
+        raise InvalidParameterError(
+            "[integrator] name",
+            name,
+            "'moreau_jean' for contacts against moving surfaces (a surface `motion`; "
+            f"{name} does not handle time-dependent constraints)",
         )
     return _BUILDERS[name](scene, scene.integrator.dt if dt is None else dt)
 

@@ -47,7 +47,11 @@ _TOP_KEYS = {
 }
 _ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity", "planar_axis", "flexible"}
 _FLEXIBLE_KEYS = {"joints", "stiffness", "motor_inertia", "damping", "q0", "v0"}
-_SURFACE_KEYS = {"type", "point", "normal"}
+_SURFACE_KEYS = {"type", "point", "normal", "motion"}
+_MOTION_KEYS = {
+    "sinusoid": {"type", "amplitude", "frequency", "phase"},
+    "polynomial": {"type", "coefficients"},
+}
 _CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
 _SPHERE_CONTACT_KEYS = {
     "frame",
@@ -192,11 +196,32 @@ def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
     kind = spec.get("type", "plane")
     if kind != "plane":
         raise InvalidParameterError(f"{section} type", kind, "'plane'")
+    motion = spec.get("motion")
     return Plane(
         point=spec.get("point", [0.0, 0.0, 0.0]),
         normal=require_key(spec, section, "normal"),
         name=name,
+        motion=None if motion is None else _motion(f"{section} motion", motion),
     )
+
+
+def _motion(section: str, spec: Any) -> Any:
+    """A surface's ``motion`` table: a sinusoid or a polynomial translation."""
+    from ucontrol.contact.surface_motion import Polynomial, Sinusoid
+
+    if not isinstance(spec, Mapping):
+        raise SceneError(f"{section} must be a table, got {spec!r}")
+    kind = require_key(spec, section, "type")
+    if kind not in _MOTION_KEYS:
+        raise NotFoundError("motion type", str(kind), _MOTION_KEYS)
+    check_keys(section, spec, _MOTION_KEYS[kind])
+    if kind == "sinusoid":
+        return Sinusoid(
+            amplitude=require_key(spec, section, "amplitude"),
+            frequency=require_key(spec, section, "frequency"),
+            phase=spec.get("phase", 0.0),
+        )
+    return Polynomial(coefficients=require_key(spec, section, "coefficients"))
 
 
 def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointContact:
