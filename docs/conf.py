@@ -41,4 +41,6 @@ autodoc_typehints = "description"
 autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-module-all": True}
 
 html_theme = "alabaster"
+# A wider column: the long formulas and tables of the pages fit at 1200 px.
+html_theme_options = {"page_width": "1160px"}
 html_title = f"ucontrol {release}"

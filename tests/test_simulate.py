@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -196,3 +198,19 @@ def test_folded_arm_hitting_ground_and_elbow_stop_gains_no_energy(two_link_scene
     assert result.summary["n_plastic_steps"] >= 1
     assert np.max(np.diff(result.log.energy)) <= 1e-9
     assert result.summary["max_complementarity_residual"] < 1e-8
+
+
+@pytest.mark.parametrize(
+    "first", ["", "import ucontrol.simulate\n", "from ucontrol.simulate import SimulationResult\n"]
+)
+def test_from_ucontrol_import_simulate_runs_a_simulation(first: str) -> None:
+    """`ucontrol.simulate` is both the module and the function's name: either runs a run."""
+    code = (
+        first + "from ucontrol import load_scene, simulate\n"
+        "result = simulate(load_scene('ball'), duration=0.01)\n"
+        "print(result.summary['steps'])\n"
+    )
+    completed = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert completed.stdout.strip() == "10"

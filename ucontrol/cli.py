@@ -164,7 +164,32 @@ def _parser() -> argparse.ArgumentParser:
     view.add_argument(
         "--html", type=Path, default=None, help="write the animation to this HTML file and exit"
     )
-    view.add_argument("--fps", type=float, default=30.0, help="frames per second of simulated time")
+    view.add_argument(
+        "--fps",
+        type=float,
+        default=30.0,
+        help="frames per second (of simulated time in meshcat; of video with --video)",
+    )
+    view.add_argument(
+        "--video",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="write the run as a video (.mp4 or .gif, needs ffmpeg) and exit",
+    )
+    view.add_argument(
+        "--speed", type=float, default=1.0, help="simulated seconds per second of --video"
+    )
+    view.add_argument(
+        "--still",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="write one figure-quality image (.png, .pdf or .svg) of the run and exit",
+    )
+    view.add_argument(
+        "--time", type=float, default=None, help="time of --still in [s] (default: the end)"
+    )
     plot = commands.add_parser("plot", help="figures (PNG) of a saved run or of a campaign")
     plot.add_argument(
         "directory", type=Path, help="run directory (holds log.npz) or campaign directory"
@@ -230,6 +255,8 @@ def _live_viewer(scene: Scene) -> tuple[MeshcatServer, LiveViewer]:
 
 
 def _view(args: argparse.Namespace) -> int:
+    if args.video is not None or args.still is not None:
+        return _export(args)
     if args.html is not None:
         check_output_file("--html", args.html)
     run = SavedRun.load(args.directory, args.scene)
@@ -245,6 +272,28 @@ def _view(args: argparse.Namespace) -> int:
         replay(server.viewer, scene, run.log, fps=args.fps)
         print(f"replay of {args.directory}: open {server.url}; Ctrl-C to quit", flush=True)
         _wait_for_interrupt()
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    """``ucontrol view DIR --video FILE`` / ``--still FILE``: files rendered offline."""
+    for option, path in (("--video", args.video), ("--still", args.still)):
+        if path is not None:
+            check_output_file(option, path)
+    try:
+        from ucontrol.viz.video import write_still, write_video
+    except ModuleNotFoundError as error:
+        if (error.name or "").partition(".")[0] != "matplotlib":
+            raise
+        raise OptionalDependencyError("matplotlib", "viz") from error
+    if args.video is not None:
+        written = write_video(
+            args.directory, args.video, fps=args.fps, speed=args.speed, scene=args.scene
+        )
+        print(f"wrote {written}")
+    if args.still is not None:
+        written = write_still(args.directory, args.still, time=args.time, scene=args.scene)
+        print(f"wrote {written}")
     return 0
 
 

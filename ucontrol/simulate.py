@@ -1,4 +1,8 @@
-"""The closed loop: plant + controller (zero-order hold) + log."""
+"""The closed loop: plant + controller (zero-order hold) + log.
+
+The module is callable: ``ucontrol.simulate(scene, ...)`` is :func:`simulate`, whether
+``from ucontrol import simulate`` finds this module (imported before) or the function.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +10,7 @@ import json
 import math
 import sys
 import time
+import types
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -484,3 +489,17 @@ def _progress_bar(n_steps: int, progress: bool | None) -> Any:
     from tqdm import tqdm
 
     return tqdm(total=n_steps, unit="step", unit_scale=True, desc="simulate")
+
+
+class _CallableModule(types.ModuleType):
+    """This module, calling :func:`simulate` when called.
+
+    The package's attribute ``simulate`` names the function, but once this module is imported
+    the import system binds the module there: both must run a simulation.
+    """
+
+    def __call__(self, *args: Any, **kwargs: Any) -> SimulationResult:
+        return simulate(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule
