@@ -34,6 +34,7 @@ MJ = "ucontrol/integrators/moreau_jean.py"
 COULOMB = "ucontrol/solvers/proxsuite_coulomb.py"
 REFINE = "ucontrol/solvers/lcp_refinement.py"
 BROGLIATO = "ucontrol/control/brogliato_controller.py"
+FLEXIBLE = "ucontrol/control/flexible_brogliato_controller.py"
 
 ED_TESTS = ("tests/integrators/test_zeno_rule.py", "tests/integrators/test_event_driven.py")
 MJ_TESTS = (
@@ -49,7 +50,7 @@ LCP_TESTS = (
     "tests/extreme/test_redundant_contacts.py",
 )
 FEEDBACK_TESTS = (
-    "tests/closed_loop/test_brogliato_law.py",
+    "tests/closed_loop/test_robustness.py::test_force_feedback_divides_the_force_error_by_one_plus_kf",
     "tests/closed_loop/test_one_constraint.py",
 )
 
@@ -160,17 +161,33 @@ MUTANTS = (
         "feedback-sign",
         "force feedback",
         BROGLIATO,
-        "tau += J_c.T @ (-lambda_d + gains.force_gain * (force - lambda_d))",
-        "tau += J_c.T @ (-lambda_d + gains.force_gain * (lambda_d - force))",
+        "-lambda_d + self.gains.force_gain * (\n                measured - lambda_d\n            )",
+        "-lambda_d + self.gains.force_gain * (\n                lambda_d - measured\n            )",
         FEEDBACK_TESTS,
     ),
     Mutant(
         "feedback-off",
         "force feedback",
         BROGLIATO,
-        "tau += J_c.T @ (-lambda_d + gains.force_gain * (force - lambda_d))",
-        "tau += J_c.T @ (-lambda_d + 0.0 * (force - lambda_d))",
+        "-lambda_d + self.gains.force_gain * (\n                measured - lambda_d\n            )",
+        "-lambda_d + 0.0 * (\n                measured - lambda_d\n            )",
         FEEDBACK_TESTS,
+    ),
+    Mutant(
+        "feedback-sign-interpreted",
+        "force feedback",
+        BROGLIATO,
+        "tau += J_c.T @ (-lambda_d + gains.force_gain * (force - lambda_d))",
+        "tau += J_c.T @ (-lambda_d + gains.force_gain * (lambda_d - force))",
+        FEEDBACK_TESTS,
+    ),
+    Mutant(
+        "feedback-sign-flexible",
+        "force feedback",
+        FLEXIBLE,
+        "force_term = -lambda_d + self.gains.force_gain * (lambda_m - lambda_d)",
+        "force_term = -lambda_d + self.gains.force_gain * (lambda_d - lambda_m)",
+        ("tests/closed_loop/test_flexible_cycles.py",),
     ),
     Mutant(
         "zeno-rebound-without-e",

@@ -163,3 +163,22 @@ def test_a_coulomb_solve_below_round_off_stalls_on_the_solution(rng: np.random.G
         assert solution.residual <= 1e-14
         np.testing.assert_allclose(solution.impulses, _coulomb_reference(D, b, mu), atol=2e-14)
     assert "stalled" in statuses
+
+
+@pytest.mark.parametrize("tangential", [0.1, 3.0])  # [m/s]: mostly sticking, mostly slipping
+def test_the_tresca_fixed_point_alone_converges_to_coulomb(
+    rng: np.random.Generator, tangential: float
+) -> None:
+    # Without the polish (the fallback that solves the stick/slip pattern directly), the
+    # fixed point of Tresca QPs with thresholds s = mu P_n must itself end on Coulomb's law:
+    # the case analysis of one planar contact, approaching at 1 m/s.
+    mu = 0.5
+    for _ in range(4):
+        A = rng.normal(size=(2, 2))
+        D = A @ A.T + 0.5 * np.eye(2)
+        b = np.array([-1.0, tangential * rng.choice([-1.0, 1.0])])
+        solver = ProxsuiteCoulombSolver(polish=False)
+        solution = solver.solve_coulomb(CoulombProblem(D, b, np.array([mu]), np.array([1])))
+        assert solution.status == "solved" and not solution.polished
+        # Measured: impulses within 5.6e-9 N s of the case analysis (residual tolerance 1e-8).
+        np.testing.assert_allclose(solution.impulses, _coulomb_reference(D, b, mu), atol=5e-8)
