@@ -124,3 +124,18 @@ def test_plan_reaches_the_hit_state() -> None:
     e, mu = 0.8, controller.mass_ratio
     ball_out = ((mu - e) * hit.ball_velocity + (1 + e) * hit.paddle_velocity) / (1 + mu)
     assert abs(ball_out - controller.takeoff_speed) <= 1e-12
+
+
+def test_measured_restitution_removes_the_apex_offset() -> None:
+    """The controller assumes e = 0.8, the ball has 0.7: measuring e at each hit recovers."""
+    scene, _ = juggler(0.7)
+    table = {"type": "juggling", "apex": _APEX, "contact": _CONTACT, "restitution": 0.8}
+    plain = juggling_from_table(scene, table)
+    adaptive = juggling_from_table(scene, {**table, "estimate_restitution": True})
+    offsets = []
+    for controller in (plain, adaptive):
+        heights = apexes(simulate(scene, controller, duration=2.4, dt=_DT, progress=False).log)
+        offsets.append(abs(heights[-1] / _APEX - 1.0))
+    assert offsets[0] > 0.05  # a wrong e leaves an offset (no integral action)
+    assert offsets[1] <= 1e-3
+    assert abs(adaptive.restitution - 0.7) <= 1e-3

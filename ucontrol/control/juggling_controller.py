@@ -36,7 +36,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol._validation import as_float, as_in_interval, as_positive, check_keys, require_key
+from ucontrol._validation import (
+    as_bool,
+    as_float,
+    as_in_interval,
+    as_positive,
+    check_keys,
+    require_key,
+)
 from ucontrol.control.controller import ContactState
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
 
@@ -59,6 +66,7 @@ JUGGLING_KEYS = {
     "kp",
     "kd",
     "max_paddle_speed",
+    "estimate_restitution",
 }
 
 
@@ -74,6 +82,9 @@ class JugglingSettings:
         kd: Velocity gain in [1/s].
         max_paddle_speed: Largest paddle speed at a hit in [m/s]; an apex needing more is
             out of reach.
+        estimate_restitution: Replace the assumed e after every hit by the one measured
+            there, ``-(v_b+ - v_p)/(v_b- - v_p)`` (ball velocity extrapolated back to the
+            planned hit time): removes the apex offset a wrong e leaves.
     """
 
     apex: float
@@ -82,6 +93,7 @@ class JugglingSettings:
     kp: float = 900.0
     kd: float = 60.0
     max_paddle_speed: float = 10.0
+    estimate_restitution: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "apex", as_float("apex", self.apex))
@@ -92,6 +104,9 @@ class JugglingSettings:
         object.__setattr__(self, "restitution", e)
         for key in ("kp", "kd", "max_paddle_speed"):
             object.__setattr__(self, key, as_positive(key, getattr(self, key)))
+        object.__setattr__(
+            self, "estimate_restitution", as_bool("estimate_restitution", self.estimate_restitution)
+        )
 
 
 @dataclass(frozen=True)
@@ -149,6 +164,7 @@ class JugglingController:
         M = robot.mass_matrix(robot.neutral())
         self.paddle_mass = float(M[self.paddle, self.paddle])  # [kg]
         self.mass_ratio = float(M[self.ball, self.ball]) / self.paddle_mass
+        self.restitution = settings.restitution  # assumed, or measured at the last hit
         rise = settings.apex - settings.hit_height - self.distance  # [m]
         if rise <= 0.0:
             raise InvalidParameterError(
@@ -171,10 +187,24 @@ class JugglingController:
 
     def _paddle_velocity(self, ball_velocity: float) -> float:
         """Paddle velocity at the hit sending the ball up at the take-off speed, in [m/s]."""
-        e, mu = self.settings.restitution, self.mass_ratio
+        e, mu = self.restitution, self.mass_ratio
         return ((1.0 + mu) * self.takeoff_speed - (mu - e) * ball_velocity) / (1.0 + e)
 
+    def _measure_restitution(self, t: float, v: Vector) -> None:
+        """Measure the restitution of the last hit from its planned approach and the take-off."""
+        hit = self.hits[-1]
+        ball_out = float(v[self.ball]) + self.g * (t - hit.hit_time)  # back to the hit [m/s]
+        approach = hit.ball_velocity - hit.paddle_velocity  # [m/s], < 0
+        # paddle after the hit by momentum conservation (its velocity now is already changed
+        # by its own force since the hit)
+        paddle_out = hit.paddle_velocity + self.mass_ratio * (hit.ball_velocity - ball_out)
+        measured = -(ball_out - paddle_out) / approach
+        if 0.0 <= measured < 1.0:
+            self.restitution = measured
+
     def _replan(self, t: float, q: Vector, v: Vector) -> None:
+        if self.settings.estimate_restitution and self.hits:
+            self._measure_restitution(t, v)
         z_b, v_b = float(q[self.ball]), float(v[self.ball])
         target = self.settings.hit_height + self.distance  # ball height at the hit [m]
         # z_b + v_b s - g s²/2 = target, the later root
@@ -238,7 +268,8 @@ def juggling_from_table(scene: Scene, table: Mapping[str, Any]) -> JugglingContr
 
     Keys: ``paddle_joint``, ``ball_joint``, ``contact`` (name of the ball/paddle sphere
     contact), ``apex`` [m] (required), ``hit_height`` [m], ``restitution`` (default the
-    contact's), ``kp`` [1/s²], ``kd`` [1/s], ``max_paddle_speed`` [m/s].
+    contact's), ``kp`` [1/s²], ``kd`` [1/s], ``max_paddle_speed`` [m/s],
+    ``estimate_restitution`` (true/false).
 
     Raises:
         UnknownKeyError: A key not in :data:`JUGGLING_KEYS`.
@@ -261,6 +292,7 @@ def juggling_from_table(scene: Scene, table: Mapping[str, Any]) -> JugglingContr
         kp=table.get("kp", 900.0),
         kd=table.get("kd", 60.0),
         max_paddle_speed=table.get("max_paddle_speed", 10.0),
+        estimate_restitution=table.get("estimate_restitution", False),
     )
     return JugglingController(
         scene.robot,
