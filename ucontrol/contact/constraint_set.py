@@ -9,6 +9,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_vector
+from ucontrol.contact.bilateral import BilateralConstraint, BilateralSet
 from ucontrol.contact.collision_pair import CollisionPair
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
@@ -53,6 +54,8 @@ class ConstraintSet:
         planar_axis: Unit normal of the plane the robot moves in, shape (3,), or None: with it
             every frictional contact is planar (one tangent), without it spatial (two).
         collision_pairs: Pairs of collision shapes (link ↔ environment shape or link).
+        bilateral: Bilateral constraints h(q) = 0 (loop closures, joint couplings), kept
+            apart from the unilateral list (:attr:`bilateral`).
 
     Attributes:
         robot: The robot whose data buffer is read.
@@ -61,6 +64,9 @@ class ConstraintSet:
         stops: The joint stops.
         collision_pairs: The collision pairs.
         collision: Their rows' geometry, or None without pairs.
+        bilateral: The bilateral constraints'
+            :class:`~ucontrol.contact.bilateral.BilateralSet`, or None without any (they are
+            not among the n unilateral constraints, gaps and impulses).
         planar_axis: The axis of planar motion, or None.
         names: One label per constraint.
         restitution: Restitution coefficients, shape (n,).
@@ -85,8 +91,10 @@ class ConstraintSet:
         sphere_contacts: Sequence[SphereSphereContact] = (),
         planar_axis: Vector | None = None,
         collision_pairs: Sequence[CollisionPair] = (),
+        bilateral: Sequence[BilateralConstraint] = (),
     ) -> None:
         self.robot = robot
+        self.bilateral = BilateralSet(robot, bilateral) if bilateral else None
         self.collision_pairs = tuple(collision_pairs)
         self.collision = None
         if self.collision_pairs:  # geometry loaded only for declared pairs

@@ -44,6 +44,13 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
             "'moreau_jean' or 'compliant' for scenes with [[collision_pairs]] (event_driven "
             "needs the constraint accelerations of collision rows, not implemented)",
         )
+    if scene.constraints.bilateral is not None and name != "moreau_jean":
+        raise InvalidParameterError(
+            "[integrator] name",
+            name,
+            f"'moreau_jean' for scenes with [[bilateral]] constraints ({name} does not hold "
+            "bilateral constraints)",
+        )
     if scene.constraints.time_dependent and name != "moreau_jean":
         raise InvalidParameterError(
             "[integrator] name",

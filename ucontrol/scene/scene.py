@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
+from ucontrol.contact.bilateral import BilateralConstraint
 from ucontrol.contact.collision_pair import CollisionPair
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
@@ -44,6 +45,8 @@ class Scene:
         sphere_contacts: Contacts between two spheres on robot frames.
         collision_pairs: Pairs of collision shapes (URDF ``<collision>`` elements against
             environment shapes or other links); the geometry is loaded only when there is one.
+        bilateral: Bilateral constraints h(q) = 0 (loop closures, joint couplings); ``q0``
+            must satisfy them to :data:`BILATERAL_TOLERANCE`.
         planar_axis: Unit normal of the plane the robot moves in, shape (3,): its frictional
             contacts are then planar (one tangent), else spatial (two); None: spatial.
         q0: Initial configuration of the links, shape (nq,).
@@ -71,6 +74,7 @@ class Scene:
     stops: tuple[JointStop, ...] = ()
     sphere_contacts: tuple[SphereSphereContact, ...] = ()
     collision_pairs: tuple[CollisionPair, ...] = ()
+    bilateral: tuple[BilateralConstraint, ...] = ()
     planar_axis: NDArray[np.float64] | None = None
     q0: NDArray[np.float64]
     v0: NDArray[np.float64]
@@ -109,7 +113,19 @@ class Scene:
             self.sphere_contacts,
             self.planar_axis,
             collision_pairs=self.collision_pairs,
+            bilateral=tuple(self.bilateral),
         )
+        object.__setattr__(self, "bilateral", tuple(self.bilateral))
+        if constraints.bilateral is not None:
+            residual = constraints.bilateral.residuals(self.q0)
+            worst = int(np.argmax(np.abs(residual)))
+            if abs(residual[worst]) > BILATERAL_TOLERANCE:
+                raise InvalidParameterError(
+                    f"q0 (bilateral constraint {constraints.bilateral.names[worst]!r})",
+                    self.q0.tolist(),
+                    f"a configuration where it holds to {BILATERAL_TOLERANCE:g}, residual "
+                    f"{residual[worst]:.3e}",
+                )
         repeated = sorted({name for name in constraints.names if constraints.names.count(name) > 1})
         if repeated:
             raise SceneError(
@@ -187,6 +203,8 @@ class Scene:
         return replace(scene, reference=check_reference(reference, scene.contacts))
 
 
+#: Largest residual of a bilateral constraint at q0, in [m] or [rad].
+BILATERAL_TOLERANCE = 1e-6
 #: Largest magnitude of an initial coordinate without joint limits, in [rad] or [m].
 MAX_COORDINATE = 1e6
 

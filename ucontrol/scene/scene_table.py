@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ucontrol._validation import as_bool, as_vector, check_keys, require_key
+from ucontrol.contact.bilateral import BilateralConstraint, FrameClosure, JointCoupling
 from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
@@ -38,6 +39,7 @@ _TOP_KEYS = {
     "sphere_contacts",
     "shapes",
     "collision_pairs",
+    "bilateral",
     "stops",
     "integrator",
     "controller",
@@ -69,6 +71,11 @@ _SHAPE_KEYS = {
     "sphere": {"type", "position", "radius"},
 }
 _PAIR_KEYS = {"link", "other", "restitution", "friction", "points", "name"}
+_BILATERAL_KEYS = {
+    "point": {"type", "frame", "other_frame", "name"},
+    "weld": {"type", "frame", "other_frame", "name"},
+    "coupling": {"type", "joint", "other_joint", "ratio", "offset", "name"},
+}
 _INTEGRATOR_KEYS = {
     "name",
     "dt",
@@ -141,6 +148,7 @@ def scene_fields(
         contacts=tuple(contacts),
         sphere_contacts=tuple(sphere_contacts),
         collision_pairs=tuple(collision_pairs),
+        bilateral=tuple(_bilateral(spec) for spec in table.get("bilateral", [])),
         planar_axis=None if planar_axis is None else as_vector("planar_axis", planar_axis, 3),
         stops=tuple(stops),
         q0=q0,
@@ -308,6 +316,32 @@ def _collision_pair(
         link=str(require_key(spec, "[[collision_pairs]]", "link")),
         other=other,
         **{key: spec[key] for key in ("restitution", "friction", "points", "name") if key in spec},
+    )
+
+
+def _bilateral(spec: Any) -> BilateralConstraint:
+    """A ``[[bilateral]]`` entry: a point or weld closure, or a joint coupling."""
+    section = "[[bilateral]]"
+    if not isinstance(spec, Mapping):
+        raise SceneError(f"{section} entries must be tables, got {spec!r}")
+    kind = require_key(spec, section, "type")
+    if kind not in _BILATERAL_KEYS:
+        raise NotFoundError("bilateral type", str(kind), _BILATERAL_KEYS)
+    check_keys(section, spec, _BILATERAL_KEYS[kind])
+    name = str(spec.get("name", ""))
+    if kind == "coupling":
+        return JointCoupling(
+            joint=str(require_key(spec, section, "joint")),
+            other_joint=str(require_key(spec, section, "other_joint")),
+            ratio=spec.get("ratio", 1.0),
+            offset=spec.get("offset", 0.0),
+            name=name,
+        )
+    return FrameClosure(
+        frame=str(require_key(spec, section, "frame")),
+        other_frame=str(require_key(spec, section, "other_frame")),
+        kind=kind,
+        name=name,
     )
 
 

@@ -8,6 +8,10 @@ The velocity-level Signorini–Newton problem of one Moreau–Jean step,
 is the optimality system of the convex QP :math:`\min_{P \ge 0} \tfrac12 P^T D P + b^T P`,
 solved here with proxsuite's dense solver. Redundant constraints make :math:`D` singular; the
 proximal method still converges and the velocity :math:`v = v_\text{free} + W^{-1} J^T P` is unique.
+
+With bilateral constraints (:meth:`ProxsuiteLCPSolver.solve_mixed`) the first rows are
+equalities, their impulses free in sign: :math:`D_{b\cdot} P + b_b = 0`, and the QP has the
+bounds :math:`P \ge 0` on the unilateral rows only (a mixed LCP).
 """
 
 from __future__ import annotations
@@ -18,8 +22,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
-from ucontrol.solvers.contact_solution import ContactSolution
-from ucontrol.solvers.lcp_refinement import refine_lcp_solution, single_constraint_solution
+from ucontrol.solvers.contact_solution import (
+    ContactSolution,
+    natural_map_residual,
+    velocity_scale,
+)
+from ucontrol.solvers.lcp_refinement import (
+    POLISH_THRESHOLD,
+    refine_lcp_solution,
+    single_constraint_solution,
+)
 from ucontrol.solvers.proxsuite_qp import INFINITY, WarmStartedQP
 
 
@@ -66,6 +78,7 @@ class ProxsuiteLCPSolver:
         self.eps_abs = self._qp.eps_abs
         self.max_iter = self._qp.max_iter
         self._bounds: dict[int, tuple[NDArray[np.float64], ...]] = {}
+        self._mixed_bounds: dict[tuple[int, int], tuple[NDArray[np.float64], ...]] = {}
 
     def solve(self, D: NDArray[np.float64], b: NDArray[np.float64]) -> ContactSolution:
         """Impulses P >= 0 with D P + b >= 0 and P · (D P + b) = 0.
@@ -92,3 +105,81 @@ class ProxsuiteLCPSolver:
             unsolved_status=str(results.info.status),
             start=start,
         )
+
+    def solve_mixed(
+        self, D: NDArray[np.float64], b: NDArray[np.float64], equalities: int
+    ) -> ContactSolution:
+        r"""Impulses of the mixed problem: the first ``equalities`` rows bilateral.
+
+        :math:`w = D P + b` with :math:`w_i = 0` (:math:`P_i` free) on the first rows and
+        :math:`0 \le P_i \perp w_i \ge 0` on the others. The QP's solution is polished on
+        its active set (least squares: dependent rows, as redundant closures give, keep the
+        minimum-norm impulses). The residual is the largest of :math:`|w_i|` on the bilateral
+        rows and the natural-map residual on the others, in [m/s].
+
+        Args:
+            D: Delassus matrix, symmetric positive semidefinite, shape (m, m).
+            b: Free constraint velocities plus offsets in [m/s], shape (m,).
+            equalities: Number of bilateral rows, first in ``D`` and ``b``.
+        """
+        if equalities == 0:
+            return self.solve(D, b)
+        start = time.perf_counter()
+        m = b.size
+        unilateral = m - equalities
+        if unilateral:
+            bounds = self._mixed_bounds.get((m, equalities))
+            if bounds is None:
+                C = np.zeros((unilateral, m))
+                C[:, equalities:] = np.eye(unilateral)
+                bounds = (C, np.zeros(unilateral), np.full(unilateral, INFINITY))
+                self._mixed_bounds[(m, equalities)] = bounds
+            results = self._qp.solve(D, b, *bounds)
+        else:
+            results = self._qp.solve(D, b, None, None, None)
+        impulses = np.array(results.x)
+        impulses[equalities:] = np.maximum(impulses[equalities:], 0.0)
+        scale = velocity_scale(D)[equalities:]
+        velocity = D @ impulses + b
+        residual = _mixed_residual(scale, impulses, velocity, equalities)
+        polished = False
+        if self.polish and residual > POLISH_THRESHOLD:
+            active = np.ones(m, dtype=bool)
+            active[equalities:] = scale * impulses[equalities:] > velocity[equalities:]
+            candidate = np.zeros(m)
+            rows = np.flatnonzero(active)
+            candidate[rows] = np.linalg.lstsq(D[np.ix_(rows, rows)], -b[rows], rcond=None)[0]
+            if np.all(candidate[equalities:] >= 0.0):
+                candidate_velocity = D @ candidate + b
+                candidate_residual = _mixed_residual(
+                    scale, candidate, candidate_velocity, equalities
+                )
+                if candidate_residual <= residual:
+                    impulses, velocity, residual = candidate, candidate_velocity, candidate_residual
+                    polished = True
+        status = "solved" if residual <= self.residual_tolerance else str(results.info.status)
+        return ContactSolution(
+            impulses,
+            velocity,
+            status,
+            int(results.info.iter),
+            residual,
+            time.perf_counter() - start,
+            polished,
+        )
+
+
+def _mixed_residual(
+    scale: NDArray[np.float64],
+    impulses: NDArray[np.float64],
+    velocity: NDArray[np.float64],
+    equalities: int,
+) -> float:
+    """Largest bilateral velocity and unilateral natural-map residual, in [m/s]."""
+    residual = float(np.max(np.abs(velocity[:equalities])))
+    if impulses.size > equalities:
+        residual = max(
+            residual,
+            natural_map_residual(scale, impulses[equalities:], velocity[equalities:]),
+        )
+    return residual
