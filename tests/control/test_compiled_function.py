@@ -131,3 +131,32 @@ def test_rigid_law_compiled_equals_numpy_law(name, tmp_path, monkeypatch):
         assert compiled.V == pytest.approx(numpy_law.V, rel=1e-12, abs=1e-12)
         np.testing.assert_allclose(compiled.X, numpy_law.X, rtol=0.0, atol=1e-14)
         assert compiled.phase == numpy_law.phase
+
+
+def test_gains_and_stiffness_are_parameters_of_one_library(tmp_path, monkeypatch):
+    """Sweeping gains (rigid) or gains and stiffness (flexible) reuses the compiled law."""
+    from dataclasses import replace
+
+    from ucontrol.control import BrogliatoController, FlexibleBrogliatoController
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    rigid = Scene.from_toml(ROBOTS / "two_link_one_constraint.toml").build_controller()
+    gains = replace(rigid.gains, gamma1=3.0 * rigid.gains.gamma1, gamma2=0.5)
+    swept = BrogliatoController(rigid.robot, rigid.task, rigid.cycle, gains)
+    assert swept._compiled_law.library_path == rigid._compiled_law.library_path
+    monkeypatch.setenv(NO_COMPILE_ENV, "1")
+    numpy_law = BrogliatoController(rigid.robot, rigid.task, rigid.cycle, gains)
+    scene = Scene.from_toml(ROBOTS / "two_link_one_constraint.toml")
+    for t, q, v, contacts in _inputs(scene, np.random.default_rng(4), 10):
+        np.testing.assert_allclose(
+            swept(t, q, v, contacts), numpy_law(t, q, v, contacts), rtol=0.0, atol=1e-11
+        )
+    monkeypatch.delenv(NO_COMPILE_ENV)
+    flexible = Scene.from_toml(ROBOTS / "two_link_flexible_one_constraint.toml").build_controller()
+    joints = flexible.flexible
+    stiffer = replace(joints, stiffness=10.0 * joints.stiffness)
+    other = FlexibleBrogliatoController(
+        flexible.robot, stiffer, flexible.task, flexible.cycle, gains
+    )
+    assert other._law.library_path == flexible._law.library_path

@@ -157,10 +157,11 @@ class BrogliatoController:
         self._all_actuated = bool(np.array_equal(robot.actuated, np.arange(robot.nv)))
         self._compiled_law: CompiledFunction | None = None
         if type(self)._order == 2:  # the rigid law (subclasses bring their own)
-            law = CompiledFunction(_rigid_law_function(robot.nv, task, gains, self._redundant))
+            law = CompiledFunction(_rigid_law_function(robot.nv, task.m, self._redundant))
             if law.compiled:  # M, C and h read in place from the Pinocchio data
                 for i, name in enumerate(("M", "C", "nle")):
                     law.bind_input(i, getattr(self._data, name))
+                law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
                 self._compiled_law = law
         self._force_input = np.zeros(task.m)
         self.reset()
@@ -351,9 +352,9 @@ class BrogliatoController:
         np.concatenate(desired.target, out=law.input_buffer(8))
         np.concatenate(desired.reference, out=law.input_buffer(9))
         if kinematics is None:
-            (out,) = law(None, None, None, None, None, None, None, None, None, None, force)
+            (out,) = law(None, None, None, None, None, None, None, None, None, None, force, None)
         else:
-            (out,) = law(*kinematics, posture, None, None, force)
+            (out,) = law(*kinematics, posture, None, None, force, None)
         return out
 
     def _sliding(self, state: TaskState, X_d: Vector, dX_d: Vector, dyn: _Dynamics) -> Vector:
@@ -408,9 +409,18 @@ class _Dynamics:
     coriolis: Matrix
 
 
-def _rigid_law_function(
-    nv: int, task: TaskCoordinates, gains: BrogliatoGains, redundant: bool
-) -> ca.Function:
+def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
+    """The parameter input of :func:`_rigid_law_function`: A, b, the gains."""
+    return np.concatenate(
+        [
+            task.A.ravel(order="F"),
+            task.b,
+            [gains.gamma1, gains.gamma2, gains.posture_gain, gains.null_space_gain],
+        ]
+    )
+
+
+def _rigid_law_function(nv: int, m: int, redundant: bool) -> ca.Function:
     r"""The rigid law of :class:`BrogliatoController` as one casadi Function (for C code).
 
     The same terms as :meth:`BrogliatoController._kinematics` and
@@ -418,32 +428,35 @@ def _rigid_law_function(
     C(q, v) (nv, nv), h (nv,), the frame Jacobian and its time variation in
     LOCAL_WORLD_ALIGNED (6, nv), the frame position (3,), v (nv,), :math:`q \ominus q_p`
     (nv,), the target (m, 3) (position, velocity, acceleration as columns), the reference
-    (m, 2), and the force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)` on the task
-    rows (m,) (0 off the held contacts). Output, stacked: tau (nv,), V1, V on the reference,
-    the task coordinates X (m,).
+    (m, 2), the force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)` on the task rows
+    (m,) (0 off the held contacts), and the parameters (:func:`_law_parameters`: the task map
+    A (m, 3) column-major, b (m,), γ1, γ2, γp, γN), so that one compiled library serves every
+    task geometry and every gain of a given size (sweeps do not recompile). Output, stacked:
+    tau (nv,), V1, V on the reference, the task coordinates X (m,).
     """
-    m = task.m
     M_upper, C = ca.SX.sym("M", nv, nv), ca.SX.sym("C", nv, nv)
     nle, v = ca.SX.sym("nle", nv), ca.SX.sym("v", nv)
     J6, dJ6 = ca.SX.sym("J", 6, nv), ca.SX.sym("dJ", 6, nv)
     p, posture_error = ca.SX.sym("p", 3), ca.SX.sym("posture_error", nv)
     target, reference = ca.SX.sym("target", m, 3), ca.SX.sym("reference", m, 2)
     force = ca.SX.sym("force", m)
+    parameters = ca.SX.sym("parameters", 3 * m + m + 4)
+    A = ca.reshape(parameters[: 3 * m], m, 3)
+    b = parameters[3 * m : 4 * m]
+    gamma1, gamma2, posture_gain, null_space_gain = ca.vertsplit(parameters[4 * m :], 1)
     M = ca.triu(M_upper) + ca.triu(M_upper, False).T
-    A = ca.DM(task.A)
     J, dJ = A @ J6[:3, :], A @ dJ6[:3, :]
-    X = A @ p - ca.DM(task.b)  # [m]
+    X = A @ p - b  # [m]
     dX = J @ v
     JJt = J @ J.T
     J_pinv = ca.solve(JJt, J).T
     dJ_pinv = -J_pinv @ dJ @ J_pinv
-    gamma1, gamma2 = gains.gamma1, gains.gamma2
     if redundant:
         N = ca.SX.eye(nv) - J_pinv @ J
         dJ_pinv += N @ ca.solve(JJt, dJ).T
         dN = -(dJ_pinv @ J + J_pinv @ dJ)
-        xi = -gains.posture_gain * posture_error  # [rad/s]
-        d_xi = -gains.posture_gain * v
+        xi = -posture_gain * posture_error  # [rad/s]
+        d_xi = -posture_gain * v
         N_xi, null_acceleration = N @ xi, dN @ xi + N @ d_xi
     else:
         N_xi = ca.SX.zeros(nv)
@@ -463,7 +476,7 @@ def _rigid_law_function(
     s = J @ s_q
     tau = M @ ddq_r + nle - C @ s_q - gamma1 * (J.T @ s)
     if redundant:
-        tau += M @ null_acceleration - gains.null_space_gain * (N.T @ (M @ (N @ s_q)))
+        tau += M @ null_acceleration - null_space_gain * (N.T @ (M @ (N @ s_q)))
     tau += J.T @ force
-    inputs = [M_upper, C, nle, J6, dJ6, p, v, posture_error, target, reference, force]
+    inputs = [M_upper, C, nle, J6, dJ6, p, v, posture_error, target, reference, force, parameters]
     return ca.Function("brogliato_law", inputs, [ca.vertcat(tau, V1, V, X)])

@@ -205,8 +205,9 @@ class FlexibleBrogliatoController(BrogliatoController):
             )
         )
         self._reference_derivatives = CompiledFunction(_reference_derivatives(q, X))
-        self._law = CompiledFunction(
-            _law_function(model, flexible, self.machine.coordinates, gains, X, q)
+        self._law = CompiledFunction(_law_function(model, flexible, self.machine.coordinates, X, q))
+        self._law.input_buffer(1)[:] = np.concatenate(  # parameters: constant per controller
+            [[gains.gamma1, gains.gamma2], flexible.stiffness, flexible.motor_inertia]
         )
         self._law_input = np.zeros(self._law.function.nnz_in(0))
         self._newton_input = np.zeros(2 * robot.nv)
@@ -278,7 +279,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             x[start + force_term.size :] = lambda_m[:2].ravel()
         else:
             x[start:] = 0.0  # no contact held: no force in the model
-        (out,) = self._law(x)
+        (out,) = self._law(x, None)
         out = out.copy()
         return _LawValues(
             u=out[:nv],
@@ -368,7 +369,6 @@ def _law_function(
     model: SymbolicModel,
     flexible: FlexibleJoints,
     coordinates: NDArray[np.int64],
-    gains: BrogliatoGains,
     X: ca.SX,
     q: ca.SX,
 ) -> ca.Function:
@@ -377,12 +377,15 @@ def _law_function(
     ``X`` is the task map of the symbol ``q``; ``coordinates`` are the task rows of the declared
     contacts. Input: q1, dq1 (nv,), q2, dq2 (nf,), q1d and its 4 derivatives (nv,), the force term
     :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and its 2 derivatives, the model's contact
-    force and its derivative (each (n,), n declared contacts). Output, stacked: u (nu,), the
-    task coordinates of the links X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
+    force and its derivative (each (n,), n declared contacts); second input, the parameters
+    γ1, γ2, K (nf,), B (nf,), so that one compiled library serves every gain and stiffness
+    (sweeps do not recompile). Output, stacked: u (nu,), the task coordinates of the links
+    X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
     """
     nv, nf, n = model.nv, flexible.nf, len(coordinates)
-    gamma1, gamma2 = gains.gamma1, gains.gamma2
-    K, B = ca.DM(flexible.stiffness), ca.DM(flexible.motor_inertia)
+    parameters = ca.SX.sym("parameters", 2 + 2 * nf)  # γ1, γ2, K (nf,), B (nf,)
+    gamma1, gamma2 = parameters[0], parameters[1]
+    K, B = parameters[2 : 2 + nf], parameters[2 + nf :]
     motors = [int(i) for i in flexible.v_index]
     rigid = [i for i in range(nv) if i not in motors]
     q1, dq1 = ca.SX.sym("q1", nv), ca.SX.sym("dq1", nv)
@@ -424,4 +427,4 @@ def _law_function(
     )
     inputs = ca.vertcat(q1, dq1, q2, dq2, *r, *f, *lam)
     outputs = ca.vertcat(u, link_X, V, V1, q2d, dq2d, ddq2d)
-    return ca.Function("flexible_brogliato_law", [inputs], [outputs])
+    return ca.Function("flexible_brogliato_law", [inputs, parameters], [outputs])
