@@ -169,6 +169,7 @@ class CollisionGeometry:
         self.restitution = np.array(restitution, dtype=float)
         self.friction = np.array(friction, dtype=float)
         self.size = len(names)
+        self._vectorize()
 
     # -- building ---------------------------------------------------------------------------
 
@@ -227,6 +228,65 @@ class CollisionGeometry:
                 )
         return rows
 
+    def _vectorize(self) -> None:
+        """Arrays of the rows' data, so that vertex rows and the broad phase run vectorized."""
+        objects = self.geometry_model.geometryObjects
+        vertices = [i for i, row in enumerate(self._rows) if isinstance(row, _Vertex)]
+        witnesses = [i for i, row in enumerate(self._rows) if isinstance(row, _Witness)]
+        joints = sorted({0} | {int(getattr(row, "joint", 0)) for row in self._rows})
+        joints += sorted(
+            {int(row.other_joint) for row in self._rows if isinstance(row, _Witness)} - set(joints)
+        )
+        self._joints = joints
+        position = {joint: k for k, joint in enumerate(joints)}
+        self._vertex_rows = np.array(vertices, dtype=np.intp)
+        vertex = [self._rows[i] for i in vertices]
+        self._vertex_joint = np.array([position[row.joint] for row in vertex], dtype=np.intp)
+        self._vertex_point = np.array([row.point for row in vertex]).reshape(-1, 3)
+        self._vertex_normal = np.array([row.normal for row in vertex]).reshape(-1, 3)
+        self._vertex_offset = np.array([row.offset + row.radius for row in vertex])  # [m]
+        self._witness_rows = np.array(witnesses, dtype=np.intp)
+        witness = [self._rows[i] for i in witnesses]
+        centres, radii, other_centres, other_radii, other_joints = [], [], [], [], []
+        for row in witness:
+            shape = self._shapes[row.first]
+            centres.append(objects[row.first].placement.act(np.asarray(shape.aabb_center)))
+            radii.append(float(shape.aabb_radius))
+            if row.second is None:
+                other_centres.append(row.centre)
+                other_radii.append(row.bound)
+                other_joints.append(0)
+            else:
+                other = self._shapes[row.second]
+                other_centres.append(
+                    objects[row.second].placement.act(np.asarray(other.aabb_center))
+                )
+                other_radii.append(float(other.aabb_radius))
+                other_joints.append(row.other_joint)
+        self._witness_joint = np.array([position[row.joint] for row in witness], dtype=np.intp)
+        self._witness_other_joint = np.array(
+            [position[joint] for joint in other_joints], dtype=np.intp
+        )
+        self._witness_centre = np.array(centres).reshape(-1, 3)
+        self._witness_other_centre = np.array(other_centres).reshape(-1, 3)
+        self._witness_radii = np.array(radii) + np.array(other_radii)  # [m], inf: halfspace
+
+    def _kinematics(self, data: pin.Data, velocities: bool) -> tuple[Vector, ...]:
+        """Rotations (k, 3, 3) and origins (k, 3) of the rows' joints, in the world.
+
+        With ``velocities`` also the world linear velocities of the origins [m/s] and the
+        angular velocities [rad/s], each (k, 3).
+        """
+        placements = [data.oMi[joint] for joint in self._joints]
+        rotation = np.array([placement.rotation for placement in placements])
+        origin = np.array([placement.translation for placement in placements])
+        if not velocities:
+            return rotation, origin
+        motions = [data.v[joint] for joint in self._joints]
+        linear = np.einsum("kij,kj->ki", rotation, np.array([m.linear for m in motions]))
+        angular = np.einsum("kij,kj->ki", rotation, np.array([m.angular for m in motions]))
+        return rotation, origin, linear, angular
+
     # -- evaluation -------------------------------------------------------------------------
 
     def evaluate(self, data: pin.Data) -> tuple[Vector, Vector]:
@@ -236,37 +296,70 @@ class CollisionGeometry:
         """
         gap = np.empty(self.size)
         velocity = np.empty(self.size)
-        self._place(data)
-        for i, row in enumerate(self._rows):
-            if isinstance(row, _Vertex):
-                placement = data.oMi[row.joint]
-                point = placement.act(row.point)
-                gap[i] = row.normal.dot(point) - row.offset - row.radius
-                velocity[i] = row.normal.dot(_point_velocity(data, row.joint, point))
-                continue
-            broad = self._broad_phase(row)
-            if broad is not None:
-                gap[i], normal, first, second = broad
-            else:
-                gap[i], normal, first, second = self._distance(row)
-            relative = _point_velocity(data, row.joint, first)
-            if row.other_joint:
-                relative = relative - _point_velocity(data, row.other_joint, second)
-            velocity[i] = normal.dot(relative)
+        rotation, origin, linear, angular = self._kinematics(data, True)
+        if self._vertex_rows.size:
+            j = self._vertex_joint
+            lever = np.einsum("kij,kj->ki", rotation[j], self._vertex_point)
+            normal = self._vertex_normal
+            gap[self._vertex_rows] = np.einsum("ki,ki->k", normal, lever + origin[j]) - (
+                self._vertex_offset
+            )
+            point_velocity = linear[j] + np.cross(angular[j], lever)
+            velocity[self._vertex_rows] = np.einsum("ki,ki->k", normal, point_velocity)
+        if self._witness_rows.size:
+            lower, normal, first, second = self._bounding_spheres(rotation, origin)
+            near = lower <= BROAD_PHASE_MARGIN
+            if near.any():
+                self._place(data)
+                for k in np.flatnonzero(near):
+                    row = self._rows[self._witness_rows[k]]
+                    assert isinstance(row, _Witness)
+                    lower[k], normal[k], first[k], second[k] = self._distance(row)
+            j, o = self._witness_joint, self._witness_other_joint
+            relative = (linear[j] + np.cross(angular[j], first - origin[j])) - (
+                linear[o] + np.cross(angular[o], second - origin[o])
+            )
+            gap[self._witness_rows] = lower
+            velocity[self._witness_rows] = np.einsum("ki,ki->k", normal, relative)
         return gap, velocity
 
     def gaps(self, data: pin.Data) -> Vector:
         """Gaps [m] from the joint placements in ``data``, shape (n,)."""
         gap = np.empty(self.size)
-        self._place(data)
-        for i, row in enumerate(self._rows):
-            if isinstance(row, _Vertex):
-                point = data.oMi[row.joint].act(row.point)
-                gap[i] = row.normal.dot(point) - row.offset - row.radius
-            else:
-                broad = self._broad_phase(row)
-                gap[i] = (broad if broad is not None else self._distance(row))[0]
+        rotation, origin = self._kinematics(data, False)
+        if self._vertex_rows.size:
+            j = self._vertex_joint
+            world = np.einsum("kij,kj->ki", rotation[j], self._vertex_point) + origin[j]
+            gap[self._vertex_rows] = (
+                np.einsum("ki,ki->k", self._vertex_normal, world) - self._vertex_offset
+            )
+        if self._witness_rows.size:
+            lower = self._bounding_spheres(rotation, origin)[0]
+            near = np.flatnonzero(lower <= BROAD_PHASE_MARGIN)
+            if near.size:
+                self._place(data)
+                for k in near:
+                    row = self._rows[self._witness_rows[k]]
+                    assert isinstance(row, _Witness)
+                    lower[k] = self._distance(row)[0]
+            gap[self._witness_rows] = lower
         return gap
+
+    def _bounding_spheres(self, rotation: Vector, origin: Vector) -> tuple[Vector, ...]:
+        """Distances [m] between the witness rows' bounding spheres, shape (k,).
+
+        A lower bound of each row's gap (-inf against a halfspace), followed by the unit
+        normals and both centres [m], each (k, 3).
+        """
+        j, o = self._witness_joint, self._witness_other_joint
+        first = np.einsum("kij,kj->ki", rotation[j], self._witness_centre) + origin[j]
+        second = np.einsum("kij,kj->ki", rotation[o], self._witness_other_centre) + origin[o]
+        delta = first - second
+        distance = np.sqrt(np.einsum("ki,ki->k", delta, delta))
+        lower = distance - self._witness_radii
+        lower[~np.isfinite(lower)] = -np.inf
+        normal = delta / np.maximum(distance, 1e-300)[:, None]
+        return lower, normal, first, second
 
     def contact_points(self, data: pin.Data, rows: Sequence[int]) -> ContactPoints:
         """Normals and contact points of ``rows`` (exact distances, no broad phase).
@@ -335,27 +428,6 @@ class CollisionGeometry:
         placement = self._geometry_data.oMg[index]
         return coal.Transform3s(placement.rotation, placement.translation)
 
-    def _bounding_sphere(self, index: int) -> tuple[Vector, float]:
-        shape = self._shapes[index]
-        centre = self._geometry_data.oMg[index].act(np.asarray(shape.aabb_center))
-        return centre, float(shape.aabb_radius)
-
-    def _broad_phase(self, row: _Witness) -> tuple[float, Vector, Vector, Vector] | None:
-        """Distance between bounding spheres when beyond the margin, else None."""
-        centre, radius = self._bounding_sphere(row.first)
-        if row.second is not None:
-            other_centre, other_radius = self._bounding_sphere(row.second)
-        elif np.isfinite(row.bound):
-            other_centre, other_radius = row.centre, row.bound
-        else:
-            return None
-        delta = centre - other_centre
-        distance = float(np.sqrt(delta.dot(delta)))
-        lower = distance - radius - other_radius
-        if lower <= BROAD_PHASE_MARGIN:
-            return None
-        return lower, delta / distance, centre, other_centre
-
     def _distance(self, row: _Witness) -> tuple[float, Vector, Vector, Vector]:
         """Signed distance [m], normal from the second shape to the first, witness points."""
         result = self._result
@@ -375,15 +447,6 @@ class CollisionGeometry:
         first = np.array(result.getNearestPoint1())
         second = np.array(result.getNearestPoint2())
         return float(distance), -np.array(result.normal), first, second
-
-
-def _point_velocity(data: pin.Data, joint: int, point: Vector) -> Vector:
-    """World velocity [m/s] of the point ``point`` (world coordinates) moving with ``joint``."""
-    placement = data.oMi[joint]
-    motion = data.v[joint]  # in the joint frame
-    rotation = placement.rotation
-    omega = rotation @ motion.angular
-    return rotation @ motion.linear + cross(omega, point - placement.translation)
 
 
 def _point_jacobian(model: pin.Model, data: pin.Data, joint: int, point: Vector) -> Vector:
