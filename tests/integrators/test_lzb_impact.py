@@ -283,3 +283,16 @@ def test_newton_cradle_scene_jacobians_give_the_chain_result() -> None:
     assert np.max(np.abs(result.v - chain.v)) <= 1e-12
     reference = compliant_chain(0.1 * np.ones(3), v, np.array([1e6, 1e6]), HERTZ)
     assert np.max(np.abs(result.v - reference)) <= _CHAIN_TOLERANCE
+
+
+def test_contact_at_rest_with_rounding_noise_terminates() -> None:
+    """A contact at rest whose velocity rounds to -1e-17 m/s (a block landing flat) is at rest.
+
+    Independent computation: with A lifting (D_AB > 0), LZB with e = 0 is the plastic impact at
+    B alone, P_B = -u_B / D_BB, and A takes no impulse.
+    """
+    D = np.array([[10.0, 7.0], [7.0, 10.0]]) / 17.0  # slender rocking block, m = 2 kg [1/kg]
+    u_minus = np.array([-0.2301102, -1.59e-17])
+    result = LZBImpactLaw(restitution=0.0).solve_contact_space(D, u_minus)
+    assert abs(result.impulse[0] + u_minus[0] / D[0, 0]) <= 1e-12
+    assert result.impulse[1] <= 1e-15

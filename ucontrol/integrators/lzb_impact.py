@@ -374,6 +374,7 @@ def _adaptive(sys: _Scaled, y: Vector, rtol: float) -> tuple[Vector, int, int, V
         s_event.direction = -1.0  # type: ignore[attr-defined]
         return u_event, s_event
 
+    y[:m][np.abs(y[:m]) <= 10.0 * atol] = 0.0  # at rest: not approaching
     while not _finished(sys, y, atol):
         segments += 1
         if segments > _MAX_SEGMENTS:
@@ -406,7 +407,7 @@ def _adaptive(sys: _Scaled, y: Vector, rtol: float) -> tuple[Vector, int, int, V
         s, u = y[m : 2 * m], y[:m]
         # at a switch: exact zero of the switching quantity; plastic contacts lose their energy
         small = 10.0 * atol
-        u[(np.abs(u) <= small) & (s > 0.0)] = 0.0
+        u[np.abs(u) <= small] = 0.0
         s[np.abs(s) <= small] = 0.0
         s[sys.plastic & (u >= 0.0) & (s > 0.0)] = 0.0
         if solution.status == 0 and not _finished(sys, y, atol):
