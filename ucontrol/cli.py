@@ -383,7 +383,7 @@ def _interrupt_on_signals() -> dict[int, Any]:
     def interrupt(signum: int, frame: Any) -> None:
         raise _Signalled(signum)
 
-    previous = {}
+    previous: dict[int, Any] = {}
     for signum in (signal.SIGTERM, signal.SIGHUP):
         previous[signum] = signal.signal(signum, interrupt)
     return previous
@@ -416,10 +416,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt as interrupt:  # Ctrl-C, SIGTERM, SIGHUP: one line
         signum = getattr(interrupt, "signum", signal.SIGINT)
         name = signal.Signals(signum).name
-        if hasattr(interrupt, "log_path"):
-            done = f"the log up to t = {interrupt.time:.6g} s is in {interrupt.log_path}"
-        elif hasattr(interrupt, "time"):
-            done = f"stopped at t = {interrupt.time:.6g} s, nothing written"
+        time_s, log_path = getattr(interrupt, "time", None), getattr(interrupt, "log_path", None)
+        if log_path is not None:
+            done = f"the log up to t = {time_s:.6g} s is in {log_path}"
+        elif time_s is not None:
+            done = f"stopped at t = {time_s:.6g} s, nothing written"
         else:
             done = "nothing was written"
         print(f"ucontrol: interrupted by {name}; {done}", file=sys.stderr)

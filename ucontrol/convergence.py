@@ -408,7 +408,7 @@ def run_convergence(
         "event_driven": _positive_range("tolerances", tolerances),
         "compliant": _positive_range("stiffnesses", stiffnesses),
     }
-    curves = [(name, name, {}) for name in integrators]
+    curves: list[tuple[str, str, dict[str, Any]]] = [(name, name, {}) for name in integrators]
     curves += [_variant(label, changes) for label, changes in (variants or {}).items()]
     settings = [
         (curve, name, value, _settings(name, value, sample_dt, changes))

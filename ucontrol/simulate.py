@@ -15,7 +15,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -137,8 +137,8 @@ def simulate(
         _report_physics(scene, log, summary)
         if out_dir is not None:
             log.save(out_dir / "log.npz")
-            text = json.dumps(summary, indent=2) + "\n"
-            write_atomically(out_dir / "summary.json", lambda stream: stream.write(text.encode()))
+            text = (json.dumps(summary, indent=2) + "\n").encode()
+            write_atomically(out_dir / "summary.json", lambda stream: _write(stream, text))
     except KeyboardInterrupt as interrupt:  # Ctrl-C (or a signal): keep what ran, then stop
         loop.close_row()
         interrupt.time = float(log.t[len(log) - 1]) if len(log) else 0.0  # type: ignore[attr-defined]
@@ -317,6 +317,10 @@ class _ClosedLoop:
         self.close_row()
         if self.observer is not None:
             self.observer(self.log)
+
+
+def _write(stream: IO[bytes], data: bytes) -> None:
+    stream.write(data)
 
 
 def _report_progress(

@@ -117,6 +117,7 @@ class CycleTranscription:
         if self.friction > 0.0 or (phase.landing is not None and phase.takeoff is not None):
             tangent = self._sliding_tangent(contact.surface.normal)
         if self.friction > 0.0:
+            assert tangent is not None  # set above whenever there is friction
             J_t = ca.jacobian(ca.dot(ca.DM(tangent), p_contact), q)
             W = J_n - self.friction * J_t
         Minv_Wt = ca.solve(M, W.T)
@@ -217,7 +218,11 @@ class CycleTranscription:
             phases.append(_PhaseVars(name, kind, X, U, T, N))
         impulses = [opti.variable() for _ in range(len(phases) - 1)]
 
-        effort = dynamic = impulse_cost = force_cost = smooth = 0
+        effort: Any = 0
+        dynamic: Any = 0
+        impulse_cost: Any = 0
+        force_cost: Any = 0
+        smooth: Any = 0
         contact_spec = task.contact_phase
         for i, ph in enumerate(phases):
             dt = ph.T / ph.N
@@ -235,9 +240,9 @@ class CycleTranscription:
             if ph.kind == "contact":
                 S = task.grid.substeps
                 n_fall = max(2, ph.N // 5)
-                weights = np.minimum(1.0, (ph.N - 1 - np.arange(ph.N)) / n_fall)
+                fall = np.minimum(1.0, (ph.N - 1 - np.arange(ph.N)) / n_fall)
                 starts = values[:S, :]
-                lower = np.tile(contact_spec.force_min * weights, (S, 1))  # (S, N) [N]
+                lower = np.tile(contact_spec.force_min * fall, (S, 1))  # (S, N) [N]
                 constrain(
                     "contact force >= force_min", "force", ca.vec(starts), lower.T.ravel(), np.inf
                 )

@@ -7,6 +7,7 @@ Joint and task trajectories with phase bands, torques against their limits, cont
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -24,7 +25,7 @@ def _bands(ax: Axes, cycle: DesignedCycle) -> None:
         ax.axvline(t, color="0.4", lw=0.8, ls=":")
 
 
-def _stairs(ax: Axes, cycle: DesignedCycle, column: int, **style: object) -> None:
+def _stairs(ax: Axes, cycle: DesignedCycle, column: int, **style: Any) -> None:
     for k, phase in enumerate(cycle.phases):
         label = style.pop("label", None) if k == 0 else None
         ax.stairs(phase.tau[:, column], phase.t, baseline=None, label=label, **style)

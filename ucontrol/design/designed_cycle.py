@@ -132,7 +132,7 @@ class DesignedCycle:
             The path of the ``.npz`` file.
         """
         path = Path(path).with_suffix(".npz")
-        arrays = {"impulses": np.asarray(self.impulses)}
+        arrays: dict[str, Any] = {"impulses": np.asarray(self.impulses)}
         for i, phase in enumerate(self.phases):
             for name in _ARRAYS:
                 arrays[f"phase{i}_{name}"] = getattr(phase, name)

@@ -35,7 +35,7 @@ def check_inertias(robot: RobotModel) -> None:
         body = _body_name(model, joint)
         if not np.isfinite(mass) or not np.all(np.isfinite(rotational)):
             raise InvalidInertiaError(body, mass, [float("nan")] * 3, "finite")
-        moments = np.linalg.eigvalsh(0.5 * (rotational + rotational.T))
+        moments = np.linalg.eigvalsh(0.5 * (rotational + rotational.T)).tolist()
         scale = max(float(moments[-1]), 1e-300)
         if mass < 0.0:
             raise InvalidInertiaError(body, mass, moments, "a mass >= 0")

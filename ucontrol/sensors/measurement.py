@@ -12,8 +12,9 @@ At an impact the true velocity jumps; such a filter then lags the jump by about
 :math:`1/\omega_c` and the controller acts on a velocity the robot no longer has (a
 transition controller reads it as a persisting approach speed). ``"observer"`` re-initialises
 the filter at impacts: when a constraint closes (it carries an impulse after a period
-without, as the contact switches tell: the true impulses, before any force noise), the estimate is set to the raw difference for that period
-and the next one, so the period that spans the jump is not carried forward. It is the simplest
+without, as the contact switches tell: the true impulses, before any force noise), the
+estimate is set to the raw difference for that period and the next one, so the period that
+spans the jump is not carried forward. It is the simplest
 of the observers designed for jumps (book §8.5.4 points at observers for complementarity
 systems): it needs no model of the plant, and costs the accuracy of one unfiltered period per
 impact. The velocity of the first period is the true initial velocity (the robot starts at
