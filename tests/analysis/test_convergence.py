@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from conftest import ROBOTS, ball_scene
 
-from ucontrol.convergence import run_convergence, write_report
 from ucontrol.cli import main
+from ucontrol.convergence import run_convergence, write_report
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, UnknownKeyError
 from ucontrol.scene import Scene, load_scene
 

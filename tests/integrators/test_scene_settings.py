@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from conftest import ROBOTS
 
-from ucontrol.convergence import run_convergence
 from ucontrol.cli import main
+from ucontrol.convergence import run_convergence
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError, UnknownKeyError
 from ucontrol.integrators import Compliant, EventDriven, MoreauJean
 from ucontrol.scene import IntegratorSettings, Scene, load_scene
