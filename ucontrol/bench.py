@@ -37,17 +37,19 @@ import tracemalloc
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
 from ucontrol.exceptions import InvalidParameterError
-from ucontrol.integrators import Compliant, EventDriven, MoreauJean
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 from ucontrol.solvers.pinocchio_constraint_solver import PinocchioStepper
+
+if TYPE_CHECKING:
+    from ucontrol.plant import Integrator
 
 Vector = NDArray[np.float64]
 #: One step ``(q, v, tau) -> (q_next, v_next, any_active)`` of a loop.
@@ -61,7 +63,7 @@ UCONTROL = "ucontrol"
 REFERENCES = {"pin ADMM": "admm", "pin PGS": "pgs"}
 
 
-def integrator_step(integrator: MoreauJean | EventDriven | Compliant) -> Step:
+def integrator_step(integrator: Integrator) -> Step:
     """The :data:`Step` of an integrator: ``evaluate`` at (q, v), then ``step``."""
 
     def step(q: Vector, v: Vector, tau: Vector) -> tuple[Vector, Vector, bool]:

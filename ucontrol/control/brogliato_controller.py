@@ -333,7 +333,7 @@ class BrogliatoController:
 
     def _compiled_values(
         self,
-        kinematics: tuple[Vector, ...] | None,
+        kinematics: tuple[Vector | None, ...] | None,
         posture: Vector | None,
         desired: DesiredState,
     ) -> Vector:

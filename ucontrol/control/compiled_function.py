@@ -34,6 +34,7 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -119,7 +120,7 @@ class CompiledFunction:
             if x is not None:
                 views[i][...] = x
         if not self.compiled:
-            values = self.function(
+            values: Any = self.function(
                 *(b.reshape(shape, order="F") for b, shape in zip(buffers, self._in_shapes))
             )
             if self.function.n_out() == 1:
@@ -191,7 +192,7 @@ def _densified(function: ca.Function) -> ca.Function:
     """``function`` with dense outputs (SX or MX Functions)."""
     if all(function.sparsity_out(i).is_dense() for i in range(function.n_out())):
         return function
-    symbols = function.sx_in() if function.is_a("SXFunction") else function.mx_in()
+    symbols: Any = function.sx_in() if function.is_a("SXFunction") else function.mx_in()
     outputs = function.call(symbols)
     return ca.Function(function.name(), symbols, [ca.densify(o) for o in outputs])
 
@@ -208,7 +209,7 @@ def _build(function: ca.Function) -> Path:
     compiler = _compiler()
     key = hashlib.sha256()
     key.update(function.serialize().encode())
-    key.update(ca.__version__.encode())
+    key.update(ca.CasadiMeta.version().encode())
     key.update(" ".join([*compiler, *CFLAGS]).encode())
     digest = key.hexdigest()[:24]
     directory = cache_dir()

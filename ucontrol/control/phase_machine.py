@@ -33,6 +33,7 @@ declared values: nothing of cycle k leaks into cycle k + 1 except the state of t
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -122,8 +123,9 @@ class PhaseMachine:
         self._A_t = np.ascontiguousarray(task.A.T)  # (3, m)
         # a path in a plane (u, w) around c: task components of u, w and of c
         self._plane: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
-        if hasattr(cycle.path, "plane_coefficients"):
-            axes, centre = cycle.path.axes, cycle.path.centre
+        path: Any = cycle.path
+        if hasattr(path, "plane_coefficients"):
+            axes, centre = path.axes, path.centre
             self._plane = (axes @ self._A_t, centre @ self._A_t - task.b)
         self.reset()
 
@@ -165,7 +167,8 @@ class PhaseMachine:
         order, task = self.order, self.task
         if self._plane is not None:  # a planar path: p - c and its derivatives along (u, w)
             basis, offset = self._plane
-            nominal = self.cycle.path.plane_coefficients(t, order) @ basis  # (order + 1, m)
+            path: Any = self.cycle.path
+            nominal = path.plane_coefficients(t, order) @ basis  # (order + 1, m)
             nominal[0] += offset
         else:
             nominal = np.array(self.cycle.path.derivatives(t, order)) @ self._A_t
