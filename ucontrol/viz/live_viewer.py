@@ -78,6 +78,6 @@ class LiveViewer:
         row = row % len(log)
         force = mean_force(log, min(self._last_row, row), row)
         phase = int(log.phase[row]) if "phase" in log.fields else None
-        self.drawing.place(self._viewer, np.asarray(log.q[row]), force, phase)
+        self.drawing.place(self._viewer, np.asarray(log.q[row]), force, phase, float(log.t[row]))
         self._last_row = row
         self.frames += 1

@@ -80,7 +80,9 @@ def animation(
     for j, row in enumerate(rows):
         force = mean_force(log, previous, row)
         with result.at_frame(viewer, j) as frame:
-            drawing.place(frame, log.q[row], force, None if phase is None else phase[row])
+            drawing.place(
+                frame, log.q[row], force, None if phase is None else phase[row], log.t[row]
+            )
         previous = row
     return result
 

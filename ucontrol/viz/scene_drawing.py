@@ -122,7 +122,9 @@ class SceneDrawing:
         root = viewer[ROOT]
         root.delete()
         root.set_transform(_pose(self.up_rotation, -self.up_rotation @ self.centre))
+        self._moving: dict[str, tuple[Vector, Matrix, Any]] = {}
         self._draw_surfaces(root, scene)
+        self._draw_shapes(root, scene)
         self._draw_contacts(root)
         self._labels = _draw_labels(root, self, direction) if phases else {}
         visualizer = MeshcatVisualizer(self._model, None, self._geometry)
@@ -132,7 +134,7 @@ class SceneDrawing:
             visualizer.getViewerNodeName(obj, pin.GeometryType.VISUAL)
             for obj in self._geometry.geometryObjects
         ]
-        self.place(viewer, scene.q0, np.zeros(len(scene.contacts)), Phase.FREE)
+        self.place(viewer, scene.q0, np.zeros(len(scene.contacts)), Phase.FREE, t=0.0)
 
     def place(
         self,
@@ -140,8 +142,11 @@ class SceneDrawing:
         q: Vector,
         force: Vector,
         phase: Phase | int | None = None,
+        t: float | None = None,
     ) -> None:
         """Draw the robot at ``q`` with the contact forces ``force`` and the phase ``phase``.
+
+        Moving surfaces are drawn where they are at time ``t`` [s] (not moved when None).
 
         Args:
             target: The viewer (live drawing) or one frame of a meshcat animation of it
@@ -150,6 +155,7 @@ class SceneDrawing:
             force: Normal force of each constraint in [N], shape (n,) with contacts first
                 (stops are not drawn); e.g. impulse / dt.
             phase: Phase of the controller; None or ignored without ``phases``.
+            t: Time in [s] at which moving surfaces are drawn; None leaves them in place.
         """
         model, data = self._model, self._data
         pin.framesForwardKinematics(model, data, q)
@@ -175,6 +181,10 @@ class SceneDrawing:
                 _pose(rotation, point + length * normal),
                 (head, head, head),
             )
+        if t is not None:
+            for name, (foot, rotation, motion) in self._moving.items():
+                displacement = motion(t)[0]  # [m]
+                _place(target[f"{ROOT}/surfaces/{name}"], _pose(rotation, foot + displacement))
         for label, pose in self._labels.items():
             size = 1.0 if phase is not None and int(phase) == label else _HIDDEN
             _place(target[f"{ROOT}/phase/{label.name.lower()}"], pose, (size, size, size))
@@ -205,6 +215,35 @@ class SceneDrawing:
             node = root[f"surfaces/{name}"]
             node.set_object(mg.Box([side, side, thickness]), material)
             node.set_transform(_pose(_rotation_z_to(normal), foot - 0.5 * thickness * normal))
+            if plane.motion is not None:
+                self._moving[name] = (
+                    foot - 0.5 * thickness * normal,
+                    _rotation_z_to(normal),
+                    plane.motion,
+                )
+
+    def _draw_shapes(self, root: meshcat.Visualizer, scene: Scene) -> None:
+        """The environment shapes of the scene's collision pairs (halfspaces as planes)."""
+        material = mg.MeshPhongMaterial(color=SURFACE_COLOUR, opacity=0.6)
+        side, thickness = 2.4 * self.radius, 0.02 * self.radius  # [m]
+        shapes = {
+            pair.other.name: pair.other
+            for pair in scene.collision_pairs
+            if not isinstance(pair.other, str)
+        }
+        for name, shape in shapes.items():
+            node = root[f"shapes/{name}"]
+            if shape.type == "halfspace":
+                normal = shape.normal
+                foot = self.centre - normal * (normal @ (self.centre - shape.position))
+                node.set_object(mg.Box([side, side, thickness]), material)
+                node.set_transform(_pose(_rotation_z_to(normal), foot - 0.5 * thickness * normal))
+            elif shape.type == "box":
+                node.set_object(mg.Box(list(shape.size)), material)
+                node.set_transform(shape.placement.homogeneous)
+            else:
+                node.set_object(mg.Sphere(shape.radius), material)
+                node.set_transform(_pose(np.eye(3), shape.position))
 
     def _draw_contacts(self, root: meshcat.Visualizer) -> None:
         """A marker, an arrow shaft of unit length and an arrow head per contact."""
