@@ -283,3 +283,11 @@ def test_scene_stroboscopic_map_converges_to_the_oscillator_map() -> None:
         errors.append(np.max(np.abs(P(found.z) - found.z)))
     assert errors[1] < 0.7 * errors[0]  # first order in h (zero-order hold)
     assert errors[1] < 1e-2
+
+
+def test_impact_oscillator_experiment_runs(tmp_path) -> None:
+    from tests.conftest import load_experiment
+
+    written = load_experiment("impact_oscillator").main(["--out", str(tmp_path), "--points", "2"])
+    assert all(path.exists() for path in written)
+    assert "period doubling" in (tmp_path / "impact_oscillators.md").read_text()

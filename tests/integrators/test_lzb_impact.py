@@ -296,3 +296,11 @@ def test_contact_at_rest_with_rounding_noise_terminates() -> None:
     result = LZBImpactLaw(restitution=0.0).solve_contact_space(D, u_minus)
     assert abs(result.impulse[0] + u_minus[0] / D[0, 0]) <= 1e-12
     assert result.impulse[1] <= 1e-15
+
+
+def test_lzb_cases_experiment_runs(tmp_path) -> None:
+    from tests.conftest import load_experiment
+
+    written = load_experiment("lzb_cases").main(["--out", str(tmp_path), "--max-balls", "3"])
+    assert all(path.exists() for path in written)
+    assert "Newton's cradle" in (tmp_path / "lzb_cases.md").read_text()

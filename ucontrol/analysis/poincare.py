@@ -437,7 +437,7 @@ def _damped(residual: Callable[[Vector], float], z: Vector, step: Vector, r0: fl
 
 
 def _fixed(z: Vector, Jk: Matrix, residual: float, iterations: int, drop: int) -> FixedPoint:
-    multipliers = np.linalg.eigvals(Jk)
+    multipliers = np.asarray(np.linalg.eigvals(Jk), dtype=np.complex128)
     multipliers = multipliers[np.argsort(-np.abs(multipliers))]
     if drop:
         multipliers = multipliers[:-drop]

@@ -282,7 +282,8 @@ def juggling_from_table(scene: Scene, table: Mapping[str, Any]) -> JugglingContr
     if name not in constraints.names:
         raise NotFoundError("contact", name, constraints.names)
     index = constraints.names.index(name)
-    pair = next((c for c in (*scene.contacts, *scene.sphere_contacts) if c.name == name), None)
+    pairs: list[Any] = [*scene.contacts, *scene.sphere_contacts]
+    pair = next((c for c in pairs if c.name == name), None)
     restitution = table.get("restitution", getattr(pair, "restitution", 0.8))
     distance = float(getattr(pair, "radius", 0.0)) + float(getattr(pair, "other_radius", 0.0))
     settings = JugglingSettings(
