@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ucontrol import __version__, convergence
-from ucontrol.bench import bench_scene
+from ucontrol.bench import bench_closed_loop, bench_scene, closed_loop_markdown
 from ucontrol.campaign.command import add_sweep_parser, is_campaign, plot_campaign, run_sweep
 from ucontrol.campaign.overrides import scene_with_overrides
 from ucontrol.design.command import add_design_parser, run_design
@@ -153,6 +153,24 @@ def _parser() -> argparse.ArgumentParser:
     )
     bench.add_argument(
         "--out", type=Path, default=None, help="also write the table to this markdown file"
+    )
+    bench.add_argument(
+        "--closed-loop",
+        action="store_true",
+        help="time the scene's closed loop (its controller), split controller / plant / contact "
+        "solve / log",
+    )
+    bench.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="simulated time per closed-loop run in [s] (default: the scene's)",
+    )
+    bench.add_argument(
+        "--clock",
+        choices=("wall", "cpu"),
+        default="wall",
+        help="closed loop: wall time or this process's CPU time",
     )
     view = commands.add_parser(
         "view", help="replay a saved run in meshcat, or export it as a standalone HTML page"
@@ -357,10 +375,16 @@ def _bench(args: argparse.Namespace) -> int:
     if args.out is not None:
         check_output_file("--out", args.out)
     scene = load_scene(BENCH_SCENE if args.scene is None else args.scene)
-    report = bench_scene(
-        scene, steps=args.steps, repeats=args.repeats, warmup=args.warmup, dt=args.dt
-    )
-    table = report.markdown()
+    if args.closed_loop:
+        result = bench_closed_loop(
+            scene, duration=args.duration, repeats=args.repeats, dt=args.dt, clock=args.clock
+        )
+        table = closed_loop_markdown([result])
+    else:
+        report = bench_scene(
+            scene, steps=args.steps, repeats=args.repeats, warmup=args.warmup, dt=args.dt
+        )
+        table = report.markdown()
     print(table)
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
