@@ -139,3 +139,22 @@ def test_measured_restitution_removes_the_apex_offset() -> None:
     assert offsets[0] > 0.05  # a wrong e leaves an offset (no integral action)
     assert offsets[1] <= 1e-3
     assert abs(adaptive.restitution - 0.7) <= 1e-3
+
+
+def test_two_link_arm_juggles_with_its_tip() -> None:
+    """robots/juggler_arm.toml: the tip tracks the plan in task space, 20 hits at the apex."""
+    scene = Scene.from_toml(ROBOTS / "juggler_arm.toml")
+    apex = 0.35
+    table = {
+        "type": "juggling",
+        "frame": "end_effector",
+        "apex": apex,
+        "hit_height": 0.2,
+        "hit_x": 0.6,
+        "contact": "ball/tip",
+    }
+    log = simulate(scene, juggling_from_table(scene, table), duration=6.3, progress=False).log
+    hits = np.flatnonzero(log.impulse_of("ball/tip") > 0.0)
+    heights = np.array([log.q[a:b, 0].max() for a, b in itertools.pairwise(hits)])
+    assert heights.size >= 20
+    assert np.max(np.abs(heights[1:] / apex - 1.0)) <= 0.01

@@ -67,6 +67,9 @@ JUGGLING_KEYS = {
     "kd",
     "max_paddle_speed",
     "estimate_restitution",
+    "frame",
+    "arm_joints",
+    "hit_x",
 }
 
 
@@ -137,6 +140,8 @@ class JugglingController:
         distance: Distance between the joint coordinates at contact, z_ball - z_paddle, in [m].
         settings: Apex, hit height, restitution and gains.
         gravity: g in [m/s²] (the magnitude of the robot's gravity).
+        q_hit: Configuration near the hits, shape (nq,), where a subclass evaluates the
+            paddle's effective mass for the reach check (default the neutral one).
 
     Raises:
         InvalidParameterError: The apex is out of the paddle's reach.
@@ -146,24 +151,28 @@ class JugglingController:
         self,
         robot: RobotModel,
         *,
-        paddle_joint: str,
+        paddle_joint: str | None,
         ball_joint: str,
         contact: int,
         distance: float,
         settings: JugglingSettings,
         gravity: float | None = None,
+        q_hit: Vector | None = None,
     ) -> None:
         self.robot = robot
         model = robot.model
-        self.paddle = int(model.joints[robot.joint_id(paddle_joint)].idx_v)
         self.ball = int(model.joints[robot.joint_id(ball_joint)].idx_v)
         self.contact = int(contact)
         self.distance = float(distance)
         self.settings = settings
         self.g = float(np.linalg.norm(robot.gravity)) if gravity is None else float(gravity)
         M = robot.mass_matrix(robot.neutral())
-        self.paddle_mass = float(M[self.paddle, self.paddle])  # [kg]
-        self.mass_ratio = float(M[self.ball, self.ball]) / self.paddle_mass
+        self.ball_mass = float(M[self.ball, self.ball])  # [kg]
+        if paddle_joint is not None:
+            self.paddle = int(model.joints[robot.joint_id(paddle_joint)].idx_v)
+            self.paddle_mass = float(M[self.paddle, self.paddle])  # [kg]
+            self.mass_ratio = self.ball_mass / self.paddle_mass
+        self._update_mass_ratio(robot.neutral() if q_hit is None else q_hit)
         self.restitution = settings.restitution  # assumed, or measured at the last hit
         rise = settings.apex - settings.hit_height - self.distance  # [m]
         if rise <= 0.0:
@@ -202,9 +211,27 @@ class JugglingController:
         if 0.0 <= measured < 1.0:
             self.restitution = measured
 
+    def _paddle_state(self, q: Vector, v: Vector) -> tuple[float, float]:
+        """Paddle height [m] and vertical velocity [m/s]."""
+        return float(q[self.paddle]), float(v[self.paddle])
+
+    def _update_mass_ratio(self, q: Vector) -> None:
+        """Ball mass over the paddle's effective mass at q (constant for a prismatic paddle)."""
+
+    def _torque(self, q: Vector, v: Vector, z_r: float, dz_r: float, ddz_r: float) -> Vector:
+        """Generalized forces tracking the reference, shape (nv,)."""
+        s = self.settings
+        acceleration = ddz_r + s.kd * (dz_r - v[self.paddle]) + s.kp * (z_r - q[self.paddle])
+        tau = np.zeros(self.robot.nv)
+        tau[self.paddle] = (
+            self.paddle_mass * acceleration + self.robot.gravity_torque(q)[self.paddle]
+        )
+        return tau
+
     def _replan(self, t: float, q: Vector, v: Vector) -> None:
         if self.settings.estimate_restitution and self.hits:
             self._measure_restitution(t, v)
+        self._update_mass_ratio(q)
         z_b, v_b = float(q[self.ball]), float(v[self.ball])
         target = self.settings.hit_height + self.distance  # ball height at the hit [m]
         # z_b + v_b s - g s²/2 = target, the later root
@@ -215,7 +242,7 @@ class JugglingController:
         s = (v_b + math.sqrt(disc)) / self.g  # [s]
         ball_in = v_b - self.g * s
         paddle_in = self._paddle_velocity(ball_in)
-        z0, v0 = float(q[self.paddle]), float(v[self.paddle])
+        z0, v0 = self._paddle_state(q, v)
         z1 = self.settings.hit_height
         T = max(s, 1e-6)
         a2 = (3.0 * (z1 - z0) - (2.0 * v0 + paddle_in) * T) / T**2
@@ -243,12 +270,7 @@ class JugglingController:
         if (self._plan is None and not self.hits) or hit:
             self._replan(t, q, v)
         z_r, dz_r, ddz_r = self.reference(t)
-        s = self.settings
-        acceleration = ddz_r + s.kd * (dz_r - v[self.paddle]) + s.kp * (z_r - q[self.paddle])
-        tau = np.zeros(self.robot.nv)
-        tau[self.paddle] = (
-            self.paddle_mass * acceleration + self.robot.gravity_torque(q)[self.paddle]
-        )
+        tau = self._torque(q, v, z_r, dz_r, ddz_r)
         self._last = {"z_ref": z_r, "hit_time": self.hits[-1].hit_time if self.hits else math.nan}
         return tau[self.robot.actuated]
 
@@ -263,13 +285,116 @@ class JugglingController:
         log.record_extra("planned_hit_time", self._last["hit_time"])
 
 
+class ArmJugglingController(JugglingController):
+    r"""Juggling with the tip of an arm: the same plan, tracked in task space.
+
+    The tip (a frame) follows the cubic along the vertical axis and holds the ball's
+    horizontal coordinate; the joint torques are the computed torque
+    :math:`\tau = M J^{-1}(\ddot p_\text{cmd} - \dot J \dot q) + h` of the arm's joints (J the
+    tip's in-plane position rows, square). The paddle mass of the plan is the arm's effective mass
+    along the vertical at the present configuration, :math:`1/(J_v M^{-1} J_v^T)`, re-evaluated
+    at every hit.
+
+    Args:
+        robot: The arm plus the ball's prismatic joint along the vertical axis.
+        frame: The tip frame (the ball's contact partner).
+        arm_joints: Names of the arm's joints (as many as the plane's two axes).
+        ball_joint: Name of the ball's joint.
+        contact: Index of the ball/tip constraint.
+        distance: Ball centre above the tip at contact, in [m].
+        settings: Apex and hit height (of the tip along the vertical), restitution, gains.
+        hit_x: Horizontal coordinate of the hits (the ball's line), in [m].
+        axes: Indices (horizontal, vertical) of the plane's axes in world coordinates.
+        q_hit: A configuration near the hits for the reach check, shape (nq,).
+    """
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        *,
+        frame: str,
+        arm_joints: tuple[str, ...],
+        ball_joint: str,
+        contact: int,
+        distance: float,
+        settings: JugglingSettings,
+        hit_x: float,
+        axes: tuple[int, int] = (0, 1),
+        q_hit: Vector | None = None,
+    ) -> None:
+        import pinocchio as pin  # the arm's kinematics; pinocchio is the model layer's backend
+
+        self._pin = pin
+        self._data = robot.model.createData()
+        self._frame = robot.frame_id(frame)
+        self.arm = np.array(
+            [int(robot.model.joints[robot.joint_id(name)].idx_v) for name in arm_joints]
+        )
+        if self.arm.size != 2:
+            raise InvalidParameterError("arm_joints", arm_joints, "two joints of a planar arm")
+        self.axes = axes
+        self.hit_x = float(hit_x)
+        self.robot = robot
+        super().__init__(
+            robot,
+            paddle_joint=None,
+            ball_joint=ball_joint,
+            contact=contact,
+            distance=distance,
+            settings=settings,
+            q_hit=q_hit,
+        )
+
+    def _kinematics(self, q: Vector, v: Vector) -> tuple[Vector, Vector, Vector, Vector]:
+        """Tip position (3,), velocity (3,), J̇ q̇ (3,) and Jacobian rows (3, nv), world."""
+        pin, model, data = self._pin, self.robot.model, self._data
+        pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        J = pin.getFrameJacobian(model, data, self._frame, frame)[:3]
+        bias = pin.getFrameClassicalAcceleration(model, data, self._frame, frame).linear
+        return data.oMf[self._frame].translation.copy(), J @ v, np.asarray(bias), J
+
+    def _paddle_state(self, q: Vector, v: Vector) -> tuple[float, float]:
+        p, dp, _, _ = self._kinematics(q, v)
+        return float(p[self.axes[1]]), float(dp[self.axes[1]])
+
+    def _update_mass_ratio(self, q: Vector) -> None:
+        _, _, _, J = self._kinematics(q, np.zeros(self.robot.nv))
+        M = self.robot.mass_matrix(q)[np.ix_(self.arm, self.arm)]
+        Jv = J[self.axes[1], self.arm]
+        self.paddle_mass = 1.0 / float(Jv @ np.linalg.solve(M, Jv))  # effective mass [kg]
+        self.mass_ratio = self.ball_mass / self.paddle_mass
+
+    def _torque(self, q: Vector, v: Vector, z_r: float, dz_r: float, ddz_r: float) -> Vector:
+        s, (h_axis, v_axis) = self.settings, self.axes
+        p, dp, bias, J = self._kinematics(q, v)
+        command = np.array(
+            [
+                s.kp * (self.hit_x - p[h_axis]) - s.kd * dp[h_axis],
+                ddz_r + s.kd * (dz_r - dp[v_axis]) + s.kp * (z_r - p[v_axis]),
+            ]
+        )  # [m/s²]
+        rows = J[np.ix_([h_axis, v_axis], self.arm)]
+        ddq = np.linalg.solve(rows, command - bias[[h_axis, v_axis]])
+        M = self.robot.mass_matrix(q)
+        h = self.robot.nonlinear_effects(q, v)
+        tau = np.zeros(self.robot.nv)
+        tau[self.arm] = M[np.ix_(self.arm, self.arm)] @ ddq + h[self.arm]
+        return tau
+
+
 def juggling_from_table(scene: Scene, table: Mapping[str, Any]) -> JugglingController:
     """The juggling controller of a ``[controller] type = "juggling"`` table.
 
     Keys: ``paddle_joint``, ``ball_joint``, ``contact`` (name of the ball/paddle sphere
     contact), ``apex`` [m] (required), ``hit_height`` [m], ``restitution`` (default the
     contact's), ``kp`` [1/s²], ``kd`` [1/s], ``max_paddle_speed`` [m/s],
-    ``estimate_restitution`` (true/false).
+    ``estimate_restitution`` (true/false). With ``frame`` (a tip frame) the paddle is that
+    frame of an arm: :class:`ArmJugglingController` with ``arm_joints`` (default shoulder,
+    elbow) and ``hit_x`` [m] (required, the ball's horizontal line); ``hit_height`` is then
+    the tip's height at the hits.
 
     Raises:
         UnknownKeyError: A key not in :data:`JUGGLING_KEYS`.
@@ -295,6 +420,18 @@ def juggling_from_table(scene: Scene, table: Mapping[str, Any]) -> JugglingContr
         max_paddle_speed=table.get("max_paddle_speed", 10.0),
         estimate_restitution=table.get("estimate_restitution", False),
     )
+    if "frame" in table:
+        return ArmJugglingController(
+            scene.robot,
+            frame=str(table["frame"]),
+            arm_joints=tuple(str(name) for name in table.get("arm_joints", ("shoulder", "elbow"))),
+            ball_joint=str(table.get("ball_joint", "ball_height")),
+            contact=index,
+            distance=distance,
+            settings=settings,
+            hit_x=as_float("hit_x", require_key(table, "[controller]", "hit_x")),
+            q_hit=scene.q0,
+        )
     return JugglingController(
         scene.robot,
         paddle_joint=str(table.get("paddle_joint", "paddle_height")),
