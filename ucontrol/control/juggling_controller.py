@@ -376,8 +376,9 @@ class ArmJugglingController(JugglingController):
                 ddz_r + s.kd * (dz_r - dp[v_axis]) + s.kp * (z_r - p[v_axis]),
             ]
         )  # [m/s²]
-        rows = J[np.ix_([h_axis, v_axis], self.arm)]
-        ddq = np.linalg.solve(rows, command - bias[[h_axis, v_axis]])
+        plane = np.array([h_axis, v_axis])
+        rows = J[np.ix_(plane, self.arm)]
+        ddq = np.linalg.solve(rows, command - bias[plane])
         M = self.robot.mass_matrix(q)
         h = self.robot.nonlinear_effects(q, v)
         tau = np.zeros(self.robot.nv)
