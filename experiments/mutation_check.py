@@ -43,7 +43,11 @@ MJ_TESTS = (
     "tests/extreme/test_redundant_contacts.py",
     "tests/test_simulate.py",
 )
-COULOMB_TESTS = ("tests/solvers/test_proxsuite_coulomb.py", "tests/integrators/test_friction.py")
+COULOMB_TESTS = (
+    "tests/solvers/test_fallbacks.py",
+    "tests/solvers/test_proxsuite_coulomb.py",
+    "tests/integrators/test_friction.py",
+)
 LCP_TESTS = (
     "tests/solvers/test_fallbacks.py",
     "tests/solvers/test_proxsuite_lcp.py",
