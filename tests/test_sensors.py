@@ -178,3 +178,12 @@ def test_nothing_of_sensors_is_imported_without_the_tables() -> None:
 def test_log_fields_stay_absent_without_the_tables(tmp_path: Path) -> None:
     log = simulate(_scene("two_link_drop.toml"), duration=0.01).log
     assert not {"measured_q", "measured_v", "commanded_u"} & set(log.fields)
+
+
+def test_sensors_on_a_moving_surface_see_the_gap_at_their_time() -> None:
+    """The measured gaps of a vibrating table are those of the measurement's time."""
+    scene = _scene("ball_vibrating_table.toml", sensors={"delay": 0})
+    recorder = _Recorder(np.zeros(scene.robot.nu))
+    log = simulate(scene, recorder, duration=0.2).log
+    seen = np.array([contacts.gap[0] for _, _, _, contacts in recorder.seen])
+    np.testing.assert_allclose(seen, log.gap[: len(seen), 0], atol=1e-12)

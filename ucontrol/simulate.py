@@ -260,7 +260,7 @@ class _ClosedLoop:
         )
         q, v = self.q, self.v
         if self.sensors is not None:
-            q, v, contacts = self.sensors.measure(q, v, contacts)
+            q, v, contacts = self.sensors.measure(q, v, contacts, t)
             self.measured_q, self.measured_v = q, v
         output = _as_array(self.controller(t, q, v, contacts))
         if output.shape != (self.nu,):

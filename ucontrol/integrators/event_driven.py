@@ -168,9 +168,9 @@ class EventDriven:
         self._n = constraints.size
         self._carry: tuple[Vector, Vector, Mask] | None = None
 
-    def evaluate(self, q: Vector, v: Vector) -> PlantEvaluation:
-        """Gaps, normal velocities and energies at (q, v)."""
-        return self._dynamics.evaluate(q, v)
+    def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
+        """Gaps, normal velocities and energies at (q, v) (at time t [s] with moving surfaces)."""
+        return self._dynamics.evaluate(q, v, t)
 
     def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
         """Integrate over one step from ``state`` with ``tau`` held.

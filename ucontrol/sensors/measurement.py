@@ -92,7 +92,7 @@ class Sensors:
         self._queue: deque[tuple[Vector, Vector, ContactState]] = deque()
 
     def measure(
-        self, q: Vector, v: Vector, contacts: ContactState
+        self, q: Vector, v: Vector, contacts: ContactState, t: float | None = None
     ) -> tuple[Vector, Vector, ContactState]:
         """The measurement the controller receives now (delayed), from the true signals.
 
@@ -100,13 +100,14 @@ class Sensors:
             q: True configuration, shape (nq,) (+ nf motors).
             v: True velocity, shape (nv,) (+ nf motors).
             contacts: True contact information of the period that ends now.
+            t: Time of the measurement in [s] (the gaps of moving surfaces depend on it).
 
         Returns:
             Measured configuration, velocity and contact information.
         """
         q_m = self._position(q)
         v_m = self._velocity(q_m, v, contacts)
-        self._queue.append((q_m, v_m, self._contacts(q_m, v_m, contacts)))
+        self._queue.append((q_m, v_m, self._contacts(q_m, v_m, contacts, t)))
         if len(self._queue) > self.settings.delay + 1:
             self._queue.popleft()
         return self._queue[0]
@@ -148,12 +149,14 @@ class Sensors:
             self._estimate = self._estimate + self._alpha * (raw - self._estimate)
         return self._estimate.copy()
 
-    def _contacts(self, q_m: Vector, v_m: Vector, contacts: ContactState) -> ContactState:
+    def _contacts(
+        self, q_m: Vector, v_m: Vector, contacts: ContactState, t: float | None
+    ) -> ContactState:
         """Gaps and normal velocities at the measured state, noisy impulses."""
         model, data = self._robot.model, self._data
         pin.forwardKinematics(model, data, q_m[: self._nq], v_m[: self._nv])
         pin.updateFramePlacements(model, data)
-        gap, normal_velocity = self._constraints.evaluate(data, q_m[: self._nq], v_m[: self._nv])
+        gap, normal_velocity = self._constraints.evaluate(data, q_m[: self._nq], v_m[: self._nv], t)
         impulse = contacts.impulse
         sigma = self.settings.force_noise
         if sigma > 0.0:  # a force noise of σ [N] on the mean force over the period
