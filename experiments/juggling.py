@@ -11,6 +11,7 @@ r"""Juggling with a 1-DoF paddle: the measured figures of docs/impact_oscillator
 - ``robustness``: the controller assumes e = 0.8 while the ball has e in {0.7, 0.75, 0.85,
   0.9}, without and with e measured at each hit; apex commands 0.15 to 1 m; drops from 0.1
   to 1.5 m (the basin);
+- ``arm``: the two-link arm's tip juggling at apex 0.5 m (``robots/juggler_arm.toml``);
 - a figure of the ball and paddle heights over the first hits, and the apexes per hit.
 
 Run: ``python experiments/juggling.py`` (about 2 min; ``--hits 10`` for a smoke run); writes
@@ -151,6 +152,36 @@ def robustness(hits: int, dt: float) -> list[str]:
     return lines
 
 
+def arm(hits: int, dt: float) -> list[str]:
+    """The two-link arm's tip juggling at apex 0.5 m (robots/juggler_arm.toml)."""
+    scene = Scene.from_toml(ROOT / "robots" / "juggler_arm.toml")
+    lines = [
+        "| e | hits | apexes after the first hit: mean [m] | largest relative error |",
+        "|---|---|---|---|",
+    ]
+    for e in (0.6, 0.8, 0.9):
+        pair = dataclasses.replace(scene.sphere_contacts[0], restitution=e)
+        scene_e = dataclasses.replace(scene, sphere_contacts=(pair,))
+        table = {
+            "type": "juggling",
+            "frame": "end_effector",
+            "apex": 0.5,
+            "hit_height": 0.2,
+            "hit_x": 0.6,
+            "contact": "ball/tip",
+        }
+        controller = juggling_from_table(scene_e, table)
+        duration = (hits + 1.5) * 2.0 * math.sqrt(2.0 * 9.81 * 0.25) / 9.81 + 0.5
+        log = simulate(scene_e, controller, duration=duration, dt=dt, progress=False).log
+        impacts = np.flatnonzero(log.impulse_of("ball/tip") > 0.0)
+        heights = np.array([log.q[a:b, 0].max() for a, b in itertools.pairwise(impacts)])
+        errors = np.abs(heights[1:] / 0.5 - 1.0)
+        lines.append(
+            f"| {e:g} | {heights.size + 1} | {heights[1:].mean():.6f} | {errors.max():.2e} |"
+        )
+    return lines
+
+
 def figure(runs: dict[float, tuple[Log, np.ndarray]]) -> Figure:
     fig = Figure(figsize=(8.0, 5.0), layout="constrained")
     top, bottom = fig.subplots(2, 1)
@@ -197,6 +228,10 @@ def main(argv: Sequence[str] | None = None) -> list[Path]:
         "## Robustness",
         "",
         *robustness(min(args.hits, 20), args.dt),
+        "",
+        "## Two-link arm (robots/juggler_arm.toml), apex 0.5 m, tip at (0.6, 0.2) m at the hits",
+        "",
+        *arm(args.hits, args.dt),
         "",
     ]
     report = args.out / "juggling.md"
