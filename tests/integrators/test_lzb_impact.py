@@ -304,3 +304,34 @@ def test_lzb_cases_experiment_runs(tmp_path) -> None:
     written = load_experiment("lzb_cases").main(["--out", str(tmp_path), "--max-balls", "3"])
     assert all(path.exists() for path in written)
     assert "Newton's cradle" in (tmp_path / "lzb_cases.md").read_text()
+
+
+#: Siconos' published LZB run of a monodisperse chain of 10 steel balls (Hertz, e = 1, striker
+#: at 1 m/s, fixed impulse step 1e-6 N s): velocities after the impact, from
+#: siconos/siconos examples/Mechanics/ChainOfBalls/MonodisperseChainOfBalls-LZBModel.ref
+#: (row t = 0.2 s; Apache-2.0).
+_SICONOS_CHAIN = np.array(
+    [
+        -7.105929287758861e-02,
+        -3.018624045788600e-02,
+        -1.574960308766378e-02,
+        -8.808055289868551e-03,
+        -5.062343781337067e-03,
+        -2.936631945849190e-03,
+        -1.701856524055756e-03,
+        2.624517363818925e-03,
+        1.469233855937676e-01,
+        9.859561210066624e-01,
+    ]
+)
+
+
+def test_ten_ball_chain_against_siconos_reference() -> None:
+    """Agreement with Siconos to its own discretization error (its energy is off by 2.6e-5)."""
+    v0 = np.zeros(10)
+    v0[0] = 1.0
+    result = lzb_impact(np.eye(10), chain_jacobian(10), v0, restitution=1.0, exponent=HERTZ)
+    siconos_energy_error = abs(_SICONOS_CHAIN @ _SICONOS_CHAIN - 1.0)
+    assert siconos_energy_error > 1e-5
+    assert np.max(np.abs(result.v - _SICONOS_CHAIN)) <= 1e-3
+    assert abs(result.v @ result.v - 1.0) <= 1e-11  # ours conserves energy
