@@ -133,8 +133,9 @@ MUTANTS = (
         "mj-energy-guard-off",
         "energy guard",
         MJ,
-        "if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):",
-        "if False:",
+        "- self.theta * (u_free - u_k))\n"
+        "                if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):",
+        "- self.theta * (u_free - u_k))\n                if False:",
         MJ_TESTS,
     ),
     Mutant(
