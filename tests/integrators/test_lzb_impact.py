@@ -13,7 +13,13 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from ucontrol.exceptions import InvalidParameterError, ShapeError, SolverError
-from ucontrol.integrators.lzb_impact import HERTZ, LINEAR, LZBImpactLaw, lzb_impact
+from ucontrol.integrators.lzb_impact import (
+    HERTZ,
+    LINEAR,
+    LZBImpactLaw,
+    lzb_impact,
+    lzb_impact_with_friction,
+)
 
 #: Agreement asked of LZB against the compliant chain (issue 13).
 _CHAIN_TOLERANCE = 1e-6
@@ -335,3 +341,56 @@ def test_ten_ball_chain_against_siconos_reference() -> None:
     assert siconos_energy_error > 1e-5
     assert np.max(np.abs(result.v - _SICONOS_CHAIN)) <= 1e-3
     assert abs(result.v @ result.v - 1.0) <= 1e-11  # ours conserves energy
+
+
+# --- Coulomb friction -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("mu", "e"), [(0.1, 0.5), (0.05, 0.9), (0.5, 0.5), (2.0, 0.0)])
+def test_particle_oblique_impact_slides_or_sticks(mu: float, e: float) -> None:
+    """A point mass hits a plane at (u_t, u_n) = (0.3, -1) m/s.
+
+    Newton's law normally; the tangential impulse is -μ P_n while it slides, or stops the slip
+    (Coulomb, analytic).
+    """
+    m = 2.0
+    M, J, J_t = m * np.eye(2), np.array([[0.0, 1.0]]), np.array([[1.0, 0.0]])
+    result = lzb_impact_with_friction(LZBImpactLaw(restitution=e), M, J, J_t, [0.3, -1.0], mu)
+    P_n = m * (1.0 + e)
+    assert abs(result.impulse[0] - P_n) <= 1e-10
+    slip = max(0.3 - mu * P_n / m, 0.0)
+    assert abs(result.u_t[0] - slip) <= 1e-10
+    assert abs(result.friction_dissipated[0] - 0.5 * m * (0.3**2 - slip**2)) <= 1e-10
+    normal_loss = 0.5 * m * (1.0 - e**2)
+    assert abs(result.kinetic_change + normal_loss + result.friction_dissipated[0]) <= 1e-10
+
+
+@pytest.mark.parametrize("dimensions", [_SLENDER, (0.15, 0.4)])
+def test_rocking_block_with_sticking_friction_is_housner(dimensions: tuple[float, float]) -> None:
+    """A plastic corner that sticks: LZB with Coulomb friction gives Housner's ratio."""
+    b, h = dimensions
+    v0 = pre_impact_velocity(b, h, -1.0)
+    J_t = np.array([[1.0, 0.0, h], [1.0, 0.0, h]])  # d x_corner / d(x, z, θ) at θ = 0
+    result = lzb_impact_with_friction(
+        LZBImpactLaw(restitution=0.0), block_inertia(b, h), block_rows(b, h, 0.0), J_t, v0, 1.0
+    )
+    assert abs(result.v[2] / v0[2] - housner_ratio(b, h)) <= 1e-10
+    assert abs(result.u_t[1]) <= 1e-12 and result.impulse[0] == 0.0
+
+
+def test_frictionless_limit_equals_the_frictionless_law() -> None:
+    b, h = _SQUAT
+    v0 = pre_impact_velocity(b, h, -1.0)
+    law = LZBImpactLaw(restitution=0.5)
+    M, J = block_inertia(b, h), block_rows(b, h, 0.0)
+    J_t = np.array([[1.0, 0.0, h], [1.0, 0.0, h]])
+    with_friction = lzb_impact_with_friction(law, M, J, J_t, v0, 0.0)
+    assert np.max(np.abs(with_friction.v - law.solve(M, J, v0).v)) <= 1e-10
+
+
+def test_bad_friction_inputs_are_refused() -> None:
+    M, J, J_t = np.eye(2), np.array([[0.0, 1.0]]), np.array([[1.0, 0.0]])
+    with pytest.raises(InvalidParameterError, match="friction"):
+        lzb_impact_with_friction(LZBImpactLaw(), M, J, J_t, [0.3, -1.0], -0.1)
+    with pytest.raises(InvalidParameterError, match="impulse_step"):
+        lzb_impact_with_friction(LZBImpactLaw(impulse_step=1e-3), M, J, J_t, [0.3, -1.0], 0.1)

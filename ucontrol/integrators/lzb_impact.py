@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -459,3 +460,217 @@ def _fixed(sys: _Scaled, y: Vector, dP: float, max_steps: int) -> tuple[Vector, 
         switches += int(np.count_nonzero((u > 0.0) != phase))
         phase = u > 0.0
     return y, steps, switches + 1, max_energy
+
+
+# --- Coulomb friction -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LZBFrictionResult:
+    """Outcome of one multiple impact with Coulomb friction (planar: one tangent per contact).
+
+    Attributes:
+        v: Post-impact generalized velocity, shape (n,).
+        u: Post-impact normal velocities in [m/s], shape (m,).
+        u_t: Post-impact tangential velocities in [m/s], shape (m,).
+        impulse: Normal impulses in [N s], shape (m,).
+        impulse_t: Tangential impulses in [N s], shape (m,).
+        friction_dissipated: Energy dissipated by friction at each contact in [J], shape (m,).
+        kinetic_change: Kinetic energy after minus before in [J].
+        steps: solve_ivp steps.
+        segments: Integration segments (mode changes: compression, expansion, stick, slip).
+    """
+
+    v: Vector
+    u: Vector
+    u_t: Vector
+    impulse: Vector
+    impulse_t: Vector
+    friction_dissipated: Vector
+    kinetic_change: float
+    steps: int
+    segments: int
+
+
+def lzb_impact_with_friction(
+    law: LZBImpactLaw,
+    M: Vector,
+    J: Vector,
+    J_t: Vector,
+    v_minus: Vector,
+    friction: float | Vector,
+) -> LZBFrictionResult:
+    r"""LZB with Coulomb friction at the contacts (Nguyen & Brogliato 2014), planar.
+
+    During the impact each loaded contact's tangential force is, with :math:`f_n` its normal
+    compliance force, :math:`f_t = -\mu f_n\,\mathrm{sign}(u_t)` while it slides, and while it
+    sticks (:math:`u_t = 0`) the force that keeps :math:`\dot u_t = 0`, as long as
+    :math:`|f_t| \le \mu f_n`. Velocities follow :math:`d(u_n, u_t)/d\tau = W (f_n, f_t)`,
+    :math:`W = H M^{-1} H^T`, :math:`H = (J; J_t)`. Adaptive integration only.
+
+    Args:
+        law: Restitution, stiffness and exponent of the contacts (``gaps`` and ``rtol`` too).
+        M: Inertia matrix, shape (n, n).
+        J: Normal rows, shape (m, n).
+        J_t: Tangential rows (one tangent per contact), shape (m, n).
+        v_minus: Pre-impact velocity, shape (n,).
+        friction: Coulomb coefficients μ >= 0, scalar or shape (m,).
+
+    Raises:
+        InvalidParameterError: A negative μ, or a fixed impulse step (not supported here).
+        SolverError: The integration failed.
+    """
+    if law.impulse_step is not None:
+        raise InvalidParameterError(
+            "impulse_step", law.impulse_step, "None (friction is integrated adaptively)"
+        )
+    M = np.asarray(M, dtype=float)
+    J = np.atleast_2d(np.asarray(J, dtype=float))
+    J_t = np.atleast_2d(np.asarray(J_t, dtype=float))
+    n, m = M.shape[0], J.shape[0]
+    if J.shape != (m, n) or J_t.shape != (m, n):
+        raise ShapeError("J_t", (m, n), J_t.shape)
+    v_minus = as_vector("v_minus", v_minus, n)
+    mu = np.broadcast_to(np.atleast_1d(as_vector_or_scalar("friction", friction)), (m,)).copy()
+    if np.any(mu < 0.0):
+        raise InvalidParameterError("friction", float(mu.min()), ">= 0")
+    e, K, eta = law.parameters(m)
+    H = np.vstack((J, J_t))
+    Minv_Ht = np.linalg.solve(M, H.T)
+    W = H @ Minv_Ht
+    w_minus = H @ v_minus
+    if not np.any(w_minus[:m] < 0.0):
+        zero = np.zeros(m)
+        return LZBFrictionResult(
+            v_minus.copy(), w_minus[:m], w_minus[m:], zero, zero, zero, 0.0, 0, 0
+        )
+    sys = _Scaled(W[:m, :m], w_minus[:m], e, K, eta, law.gaps)
+    Ws = W / sys.d
+    y = np.concatenate((w_minus / sys.U, np.zeros(4 * m)))  # u_n, u_t, s, P_n, P_t, W_f
+    y, steps, segments = _adaptive_friction(sys, Ws, mu, y, law.rtol)
+    P = np.concatenate((y[3 * m : 4 * m], y[4 * m : 5 * m])) * sys.U / sys.d  # [N s]
+    v_plus = v_minus + Minv_Ht @ P
+    w_plus = H @ v_plus
+    return LZBFrictionResult(
+        v_plus,
+        w_plus[:m],
+        w_plus[m:],
+        P[:m],
+        P[m:],
+        y[5 * m :] * sys.U**2 / sys.d,
+        float(w_minus @ P + 0.5 * P @ W @ P),
+        steps,
+        segments,
+    )
+
+
+def _friction_forces(
+    Ws: Vector, mu: Vector, f_n: Vector, stick: NDArray[np.bool_], sigma: Vector
+) -> Vector:
+    """Tangential forces: -μ f_n σ where sliding, the sticking ones by a linear solve."""
+    m = f_n.size
+    f_t = -mu * f_n * sigma
+    f_t[stick] = 0.0
+    if stick.any():
+        S = np.flatnonzero(stick)
+        rhs = -(Ws[m + S, :m] @ f_n + Ws[np.ix_(m + S, m + np.flatnonzero(~stick))] @ f_t[~stick])
+        f_t[S] = np.linalg.lstsq(Ws[np.ix_(m + S, m + S)], rhs, rcond=1e-12)[0]
+    return f_t
+
+
+def _adaptive_friction(
+    sys: _Scaled, Ws: Vector, mu: Vector, y: Vector, rtol: float
+) -> tuple[Vector, int, int]:
+    m = sys.m
+    atol = rtol * 1e-2
+    small = 10.0 * atol
+    steps = segments = 0
+    horizon = 1e3 * (1.0 + float(np.max(1.0 / np.sqrt(sys.kappa * np.diag(sys.D)))))
+    y[: 2 * m][np.abs(y[: 2 * m]) <= small] = 0.0
+
+    def finished(y: Vector) -> bool:
+        return bool(np.all(y[2 * m : 3 * m] <= 0.0) and np.all(y[:m] >= -atol))
+
+    while not finished(y):
+        segments += 1
+        if segments > _MAX_SEGMENTS:
+            raise SolverError("lzb", f"no separation after {_MAX_SEGMENTS} segments")
+        u_n, u_t, s = y[:m], y[m : 2 * m], y[2 * m : 3 * m]
+        loaded = (s > 0.0) | ((s >= 0.0) & (u_n < 0.0))
+        sigma = np.where(loaded, np.sign(u_t), 0.0)
+        stick = loaded & (u_t == 0.0)
+        f_probe = sys.force(s)
+        if not np.any(f_probe > 0.0):  # the start of a compression: the forces' direction
+            f_probe = np.where(loaded, sys.kappa * np.maximum(-u_n, 0.0) ** sys.eta, 0.0)
+        while stick.any():  # release the worst violator of the cone until none is left
+            f_t = _friction_forces(Ws, mu, f_probe, stick, sigma)
+            excess = np.where(stick, np.abs(f_t) - mu * f_probe * (1.0 + 1e-12), -np.inf)
+            worst = int(np.argmax(excess))
+            if excess[worst] <= 0.0:
+                break
+            stick[worst] = False
+            sigma[worst] = -np.sign(f_t[worst])  # it slips against the force it needed
+
+        def rate(t: float, y: Vector, stick: NDArray[np.bool_] = stick, sigma: Vector = sigma):
+            u_n, u_t, s = y[:m], y[m : 2 * m], y[2 * m : 3 * m]
+            f_n = sys.force(s)
+            f_t = _friction_forces(Ws, mu, f_n, stick, sigma)
+            f = np.concatenate((f_n, f_t))
+            expanding = (u_n > 0.0) & (s > 0.0)
+            c = np.where(expanding, np.where(sys.plastic, 0.0, sys.inverse_e2), 1.0)
+            ds = -c * u_n if sys.gaps else np.where((s > 0.0) | (u_n < 0.0), -c * u_n, 0.0)
+            return np.concatenate((Ws @ f, ds, f_n, f_t, -u_t * f_t))
+
+        events = []
+        du = rate(0.0, y)[:m]
+        for j in range(m):
+            if s[j] > 0.0 or (s[j] == 0.0 and u_n[j] < 0.0):
+                rising = u_n[j] < 0.0 or (u_n[j] == 0.0 and du[j] < 0.0)
+                events.append(_crossing(j, 1.0 if rising else -1.0))
+            if s[j] > 0.0 and u_n[j] > 0.0:
+                events.append(_crossing(2 * m + j, -1.0))
+            elif sys.gaps and s[j] < 0.0 and u_n[j] < 0.0:
+                events.append(_crossing(2 * m + j, 1.0))
+            if loaded[j] and not stick[j] and sigma[j] != 0.0:
+                events.append(_crossing(m + j, -sigma[j]))
+            if stick[j] and mu[j] > 0.0:
+                events.append(_cone_event(j, Ws, mu, stick, sigma, sys))
+        solution = solve_ivp(
+            rate, (0.0, horizon), y, method="DOP853", rtol=rtol, atol=atol, events=events or None
+        )
+        if solution.status < 0:
+            raise SolverError("lzb", solution.message)
+        steps += solution.t.size - 1
+        y = solution.y[:, -1].copy()
+        u_n, u_t, s = y[:m], y[m : 2 * m], y[2 * m : 3 * m]
+        u_n[np.abs(u_n) <= small] = 0.0
+        u_t[(np.abs(u_t) <= small) | stick] = 0.0
+        s[np.abs(s) <= small] = 0.0
+        s[sys.plastic & (u_n >= 0.0) & (s > 0.0)] = 0.0
+        if solution.status == 0 and not finished(y):
+            raise SolverError("lzb", "contacts not separated at the end of the horizon")
+    return y, steps, segments
+
+
+def _crossing(k: int, direction: float) -> Any:
+    def event(t: float, y: Vector) -> float:
+        return float(y[k])
+
+    event.terminal = True  # type: ignore[attr-defined]
+    event.direction = direction  # type: ignore[attr-defined]
+    return event
+
+
+def _cone_event(
+    j: int, Ws: Vector, mu: Vector, stick: NDArray[np.bool_], sigma: Vector, sys: _Scaled
+) -> Any:
+    m = sys.m
+
+    def event(t: float, y: Vector) -> float:
+        f_n = sys.force(y[2 * m : 3 * m])
+        f_t = _friction_forces(Ws, mu, f_n, stick, sigma)
+        return float(mu[j] * f_n[j] - abs(f_t[j]))
+
+    event.terminal = True  # type: ignore[attr-defined]
+    event.direction = -1.0  # type: ignore[attr-defined]
+    return event
