@@ -43,7 +43,8 @@ Two integrations are offered:
   First order in ΔP across switches and separations.
 
 Positions do not move during the impact; the post-impact velocity is
-:math:`v^+ = v^- + M^{-1} J^T P`.
+:math:`v^+ = v^- + M^{-1} J^T P`. :func:`lzb_impact_with_friction` adds Coulomb friction at the
+contacts (planar, stick and slip during the impact).
 """
 
 from __future__ import annotations
