@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import ROBOTS
-from ucontrol.analysis.poincare import finite_difference_jacobian
+from ucontrol.analysis.poincare import finite_difference_jacobian, scene_impact_map
 from ucontrol.control.juggling_controller import (
     JugglingController,
     JugglingSettings,
@@ -72,10 +72,10 @@ def test_closed_loop_floquet_multipliers_inside_unit_circle() -> None:
     x_star = np.concatenate((log.q[row], log.v[row]))
 
     def next_hit(x: np.ndarray) -> np.ndarray:
-        scene_x, controller_x = juggler(0.8, x[:2], x[2:])
-        run = simulate(scene_x, controller_x, duration=0.5, dt=_DT, progress=False).log
-        first = np.flatnonzero(run.impulse_of(_CONTACT) > 0.0)[0] + 1
-        return np.concatenate((run.q[first], run.v[first]))
+        scene_x, _ = juggler(0.8, x[:2], x[2:])
+        table = {"type": "juggling", "apex": _APEX, "contact": _CONTACT}
+        P = scene_impact_map(scene_x, lambda: juggling_from_table(scene_x, table), _CONTACT, 0.5)
+        return P(x)
 
     image = next_hit(x_star)
     # period-1 up to the sampling of the replanning instant: the hit falls anywhere in a step,
@@ -98,6 +98,14 @@ def test_apex_out_of_reach_is_refused() -> None:
     assert error.value.value == 0.04
     with pytest.raises(InvalidParameterError, match="paddle speed"):
         juggling_from_table(scene, {"type": "juggling", "apex": 500.0})
+
+
+def test_scene_impact_map_without_impact_is_refused() -> None:
+    scene, _ = juggler(0.8)
+    table = {"type": "juggling", "apex": _APEX, "contact": _CONTACT}
+    P = scene_impact_map(scene, lambda: juggling_from_table(scene, table), _CONTACT, 0.05)
+    with pytest.raises(InvalidParameterError, match="section"):
+        P(np.concatenate((scene.q0, scene.v0)))
 
 
 def test_bad_tables_are_refused() -> None:

@@ -927,3 +927,36 @@ def scene_stroboscopic_map(scene: object, controller: object, period: float) -> 
         return np.concatenate((log.q[-1], log.v[-1]))
 
     return P
+
+
+def scene_impact_map(
+    scene: object, controller: Callable[[], object], constraint: str, horizon: float
+) -> Map:
+    """The impact map of a scene, by :func:`ucontrol.simulate`: state after a hit -> the next.
+
+    x = (q, v) starts a run with a fresh controller (``controller()``, so that a controller's
+    memory starts anew); the image is the state at the first sample after the first step in
+    which ``constraint`` takes an impulse. The section is that sampling instant: a closed loop
+    that is autonomous has the trivial multiplier 1 along its flow.
+
+    Raises:
+        InvalidParameterError: No impact on ``constraint`` within ``horizon`` [s] (the section
+            is never crossed).
+    """
+    from dataclasses import replace as replace_scene
+
+    from ucontrol.simulate import simulate  # lazy: analysis sits below simulate
+
+    def P(x: Vector) -> Vector:
+        nq = scene.q0.size  # type: ignore[attr-defined]
+        start = replace_scene(scene, q0=x[:nq], v0=x[nq:])  # type: ignore[type-var]
+        log = simulate(start, controller(), duration=horizon, progress=False).log  # type: ignore[arg-type]
+        hits = np.flatnonzero(log.impulse_of(constraint) > 0.0)
+        if hits.size == 0 or hits[0] + 1 >= log.t.size:
+            raise InvalidParameterError(
+                "section", f"no impact on {constraint!r} within {horizon:g} s", "crossed"
+            )
+        row = int(hits[0]) + 1
+        return np.concatenate((log.q[row], log.v[row]))
+
+    return P
