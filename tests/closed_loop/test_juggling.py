@@ -166,3 +166,17 @@ def test_two_link_arm_juggles_with_its_tip() -> None:
     heights = np.array([log.q[a:b, 0].max() for a, b in itertools.pairwise(hits)])
     assert heights.size >= 20
     assert np.max(np.abs(heights[1:] / apex - 1.0)) <= 0.01
+
+
+@pytest.mark.parametrize(("name", "apex"), [("juggler_paddle", 0.3), ("juggler_arm", 0.5)])
+def test_shipped_juggling_scenes_declare_their_controller(name: str, apex: float) -> None:
+    from ucontrol.scene import load_scene
+
+    scene = load_scene(name)
+    log = simulate(scene, duration=6.0).log
+    contact = scene.constraints.names[0]
+    hits = np.flatnonzero(log.impulse_of(contact) > 0.0)
+    assert hits.size >= 8
+    late = log.t >= log.t[hits[3]]  # after the first hits settle the cycle
+    # The ball's centre height is its first coordinate (the URDFs' joint order).
+    assert np.max(log.q[late, 0]) == pytest.approx(apex, abs=1e-3)

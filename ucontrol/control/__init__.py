@@ -15,6 +15,12 @@ from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle, NominalPa
 from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
 from ucontrol.control.impedance_table import impedance_from_table
 from ucontrol.control.joint_pd import JointPD
+from ucontrol.control.juggling_controller import (
+    ArmJugglingController,
+    JugglingController,
+    JugglingSettings,
+    juggling_from_table,
+)
 from ucontrol.control.path_reach import check_reach
 from ucontrol.control.path_table import PATH_TYPES, path_from_table
 from ucontrol.control.phase import Event, Phase
@@ -30,6 +36,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "PATH_TYPES",
+    "ArmJugglingController",
     "BrogliatoController",
     "BrogliatoGains",
     "CirclePath",
@@ -43,6 +50,8 @@ __all__ = [
     "ImpedanceController",
     "ImpedanceGains",
     "JointPD",
+    "JugglingController",
+    "JugglingSettings",
     "LoggingController",
     "NominalPath",
     "Phase",
@@ -55,6 +64,7 @@ __all__ = [
     "ZeroTorque",
     "check_reach",
     "impedance_from_table",
+    "juggling_from_table",
     "path_from_table",
 ]
 

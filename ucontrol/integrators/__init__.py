@@ -1,7 +1,7 @@
 """How time advances.
 
-:class:`MoreauJean` is imported with the package; :class:`EventDriven` and :class:`Compliant`
-(which need ``scipy.integrate``) are imported on first use.
+:class:`MoreauJean` is imported with the package; :class:`EventDriven`, :class:`Compliant`
+and the LZB impact law (which need ``scipy.integrate``) are imported on first use.
 """
 
 from __future__ import annotations
@@ -14,13 +14,16 @@ from ucontrol.integrators.moreau_jean import MoreauJean
 if TYPE_CHECKING:
     from ucontrol.integrators.compliant import Compliant
     from ucontrol.integrators.event_driven import EventDriven
+    from ucontrol.integrators.lzb_impact import LZBImpactLaw, lzb_impact
 
 _LAZY = {
     "Compliant": "ucontrol.integrators.compliant",
     "EventDriven": "ucontrol.integrators.event_driven",
+    "LZBImpactLaw": "ucontrol.integrators.lzb_impact",
+    "lzb_impact": "ucontrol.integrators.lzb_impact",
 }
 
-__all__ = ["Compliant", "EventDriven", "MoreauJean"]
+__all__ = ["Compliant", "EventDriven", "LZBImpactLaw", "MoreauJean", "lzb_impact"]
 
 
 def __getattr__(name: str) -> Any:

@@ -43,7 +43,9 @@ compliant's Radau, or Moreau–Jean, for very stiff ones).
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,6 +56,7 @@ from scipy.integrate import solve_ivp
 from ucontrol._validation import as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import IntegrationError, InvalidParameterError, SolverError
+from ucontrol.integrators.lzb_impact import LZBImpactLaw
 from ucontrol.integrators.methods import IVP_METHODS
 from ucontrol.integrators.smooth_dynamics import ConstraintTerms, SmoothDynamics
 from ucontrol.model.flexible_joints import FlexibleJoints
@@ -148,6 +151,7 @@ class EventDriven:
         acceleration_solver: ProxsuiteLCPSolver | None = None,
         max_events: int = 10_000,
         flexible: FlexibleJoints | None = None,
+        impact_law: LZBImpactLaw | None = None,
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
@@ -164,6 +168,7 @@ class EventDriven:
         self.acceleration_solver = (
             acceleration_solver if acceleration_solver is not None else ProxsuiteLCPSolver()
         )
+        self.impact_law = impact_law
         self._dynamics = SmoothDynamics(robot, constraints, flexible)
         self._n = constraints.size
         self._carry: tuple[Vector, Vector, Mask] | None = None
@@ -290,8 +295,20 @@ class EventDriven:
     def _impact(
         self, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
     ) -> ContactSolution:
-        """Impulses of Newton's impact law on the constraints at contact."""
+        """Impulses of the impact law (Newton's, or LZB's) on the constraints at contact.
+
+        A rebound slower than ``zeno_velocity`` is plastic under either law (the accumulation
+        rule of the module docstring).
+        """
         restitution = self.constraints.restitution[indices]
+        if self.impact_law is not None:
+            law = self.impact_law.select(indices)
+            if np.max(-restitution * u_minus) < self.zeno_velocity:  # an accumulation: plastic
+                law = dataclasses.replace(law, restitution=np.zeros(indices.size))
+            start = time.perf_counter()
+            result = law.solve_contact_space(terms.delassus(), u_minus)
+            elapsed = time.perf_counter() - start
+            return ContactSolution(result.impulse, result.u, "solved", result.steps, 0.0, elapsed)
         bounces = (u_minus < 0.0) & (-restitution * u_minus >= self.zeno_velocity)
         e = np.where(bounces, restitution, 0.0)
         return self.impact_solver.solve(terms.delassus(), (1.0 + e) * u_minus)

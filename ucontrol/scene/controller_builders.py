@@ -19,6 +19,7 @@ from ucontrol.control.controller_table import CYCLE_KEYS, contact_phases, tracke
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.impedance_table import IMPEDANCE_KEYS, impedance_from_table
 from ucontrol.control.joint_pd import JointPD
+from ucontrol.control.juggling_controller import JUGGLING_KEYS, juggling_from_table
 from ucontrol.control.path_table import path_from_table
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
@@ -47,6 +48,7 @@ _CONTROLLER_KEYS = {
         *CYCLE_KEYS,
     },
     "impedance": IMPEDANCE_KEYS,
+    "juggling": JUGGLING_KEYS,
 }
 # Every controller may run on its own model of the scene ([controller.model]).
 _CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
@@ -173,4 +175,5 @@ _BUILDERS: dict[str, Callable[[Scene, Mapping[str, Any]], Controller]] = {
     "joint_pd": _joint_pd,
     "brogliato": _brogliato,
     "impedance": impedance_from_table,
+    "juggling": juggling_from_table,
 }

@@ -7,7 +7,7 @@ scene never loads ``scipy.integrate``.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.integrators.moreau_jean import MoreauJean
@@ -30,6 +30,12 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
             with moving surfaces.
     """
     name = scene.integrator.name
+    if scene.integrator.impact_law != "newton" and name != "event_driven":
+        raise InvalidParameterError(
+            "[integrator] impact_law",
+            scene.integrator.impact_law,
+            f"'newton' with {name} (the LZB law is an impact law of event_driven)",
+        )
     if scene.constraints.has_friction and name != "moreau_jean":
         raise InvalidParameterError(
             "[integrator] name",
@@ -102,7 +108,21 @@ def _event_driven(scene: Scene, dt: float) -> Integrator:
             eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
         ),
         flexible=scene.flexible,
+        impact_law=_lzb_law(scene) if settings.impact_law == "lzb" else None,
         **settings.solver_options(),
+    )
+
+
+def _lzb_law(scene: Scene) -> Any:
+    """The LZB impact law of a scene: its restitutions as energetic coefficients."""
+    from ucontrol.integrators.lzb_impact import LZBImpactLaw
+
+    settings = scene.integrator
+    return LZBImpactLaw(
+        restitution=scene.constraints.restitution,
+        stiffness=settings.lzb_stiffness,
+        exponent=settings.lzb_exponent,
+        impulse_step=settings.lzb_impulse_step,
     )
 
 

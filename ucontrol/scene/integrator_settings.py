@@ -6,9 +6,9 @@ from dataclasses import dataclass
 from itertools import chain
 from typing import Any
 
-from ucontrol._validation import as_float, as_in_interval, as_int, as_positive
+from ucontrol._validation import as_float, as_in_interval, as_int, as_positive, as_vector
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
-from ucontrol.integrators.methods import CONTACT_MODELS, INTEGRATORS, IVP_METHODS
+from ucontrol.integrators.methods import CONTACT_MODELS, IMPACT_LAWS, INTEGRATORS, IVP_METHODS
 from ucontrol.integrators.moreau_jean import ON_UNSOLVED, PERSISTENCE_TOLERANCE
 from ucontrol.solvers.contact_solver_choice import check_contact_solver
 
@@ -49,6 +49,14 @@ class IntegratorSettings:
             midpoint: second order between impacts (see :class:`MoreauJean`).
         persistence_tolerance: Predicted gap in [m] up to which Moreau–Jean keeps a constraint
             that carried an impulse in the previous step active; 0 turns it off.
+        impact_law: Impact law of event_driven, ``"newton"`` (generalized Newton law) or
+            ``"lzb"`` (Liu–Zhao–Brogliato's energetic law, docs/multiple_impacts.md; the
+            contacts' restitutions are then energetic coefficients).
+        lzb_stiffness: Contact stiffness of the LZB law, one or one per constraint (only
+            ratios matter with equal exponents).
+        lzb_exponent: Elasticity exponent of the LZB law (1 linear, 1.5 Hertz), one or one per
+            constraint.
+        lzb_impulse_step: Fixed impulse step of the LZB law in [N s]; None: adaptive.
         penetration_tolerance: Depth in [m] (or [rad]) beyond which a penetration is reported
             (a :class:`~ucontrol.exceptions.PenetrationWarning` and the summary's
             ``n_penetrations_beyond_tolerance``).
@@ -76,6 +84,10 @@ class IntegratorSettings:
     midpoint: bool = False
     persistence_tolerance: float = PERSISTENCE_TOLERANCE
     penetration_tolerance: float = 0.01
+    impact_law: str = "newton"
+    lzb_stiffness: float | list[float] = 1.0
+    lzb_exponent: float | list[float] = 1.5
+    lzb_impulse_step: float | None = None
 
     def __post_init__(self) -> None:
         check_contact_solver(self.contact_solver)
@@ -120,6 +132,15 @@ class IntegratorSettings:
         if self.method is not None and self.method not in methods:
             raise InvalidParameterError("method", self.method, f"one of {list(methods)}")
         object.__setattr__(self, "zeno_velocity", as_positive("zeno_velocity", self.zeno_velocity))
+        if self.impact_law not in IMPACT_LAWS:
+            raise InvalidParameterError("impact_law", self.impact_law, f"one of {IMPACT_LAWS}")
+        for key in ("lzb_stiffness", "lzb_exponent"):
+            value = getattr(self, key)
+            values = as_vector(key, value) if isinstance(value, list) else [as_float(key, value)]
+            if not all(v > 0.0 for v in values):
+                raise InvalidParameterError(key, value, "a number > 0 or a list of them")
+        if self.lzb_impulse_step is not None:
+            as_positive("lzb_impulse_step", self.lzb_impulse_step)
         threshold = as_float("restitution_threshold", self.restitution_threshold)
         if threshold < 0.0:
             raise InvalidParameterError("restitution_threshold", threshold, "a speed >= 0 in [m/s]")

@@ -96,6 +96,10 @@ _INTEGRATOR_KEYS = {
     "midpoint",
     "persistence_tolerance",
     "penetration_tolerance",
+    "impact_law",
+    "lzb_stiffness",
+    "lzb_exponent",
+    "lzb_impulse_step",
 }
 _REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
 

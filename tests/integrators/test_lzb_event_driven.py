@@ -1,0 +1,57 @@
+"""The LZB impact law as the event-driven integrator's impact law (``impact_law = "lzb"``)."""
+
+from __future__ import annotations
+
+import tomllib
+from typing import Any
+
+import numpy as np
+import pytest
+
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.scene import Scene, builtin_scene
+from ucontrol.simulate import simulate
+
+ROBOTS = builtin_scene().parent
+
+
+def _scene(scene: str, **integrator: Any) -> Scene:
+    table = tomllib.loads((ROBOTS / f"{scene}.toml").read_text())
+    table.pop("reference", None)
+    table["integrator"].update(integrator)
+    return Scene.from_dict(table, base_dir=ROBOTS)
+
+
+def test_cradle_disperses_its_energy_and_keeps_momentum_and_energy() -> None:
+    """Three touching balls, the first at 1 m/s, elastic Hertz contacts (m = 0.1 kg)."""
+    lzb = simulate(_scene("newton_cradle", impact_law="lzb"), duration=0.05).log
+    newton = simulate(_scene("newton_cradle"), duration=0.05).log
+    v = lzb.v[-1]
+    assert v.sum() == pytest.approx(1.0, abs=1e-9)  # momentum (equal masses) [kg m/s / m]
+    assert (v**2).sum() == pytest.approx(1.0, abs=1e-9)  # energy, energetic restitution 1
+    # The energy is dispersed: every ball moves, the last carries most of it.
+    np.testing.assert_allclose(v, [-0.0710, 0.0764, 0.9945], atol=2e-4)
+    assert not np.allclose(newton.v[-1], v, atol=1e-2)  # Newton's law gives another outcome
+
+
+def test_one_contact_lzb_is_newtons_law() -> None:
+    """With a single contact the energetic coefficient is Newton's: the same bouncing ball."""
+    newton = simulate(_scene("ball", name="event_driven"), duration=1.5).log
+    lzb = simulate(_scene("ball", name="event_driven", impact_law="lzb"), duration=1.5).log
+    assert int((newton.impulse[:, 0] > 0).sum()) >= 1
+    np.testing.assert_allclose(lzb.q, newton.q, atol=1e-9)
+    np.testing.assert_allclose(lzb.v, newton.v, atol=1e-8)
+
+
+@pytest.mark.parametrize(
+    ("settings", "match"),
+    [
+        ({"impact_law": "lzb", "name": "moreau_jean"}, r"impact_law.*'lzb'"),
+        ({"impact_law": "poisson"}, r"'poisson'"),
+        ({"impact_law": "lzb", "lzb_exponent": -1.0}, r"lzb_exponent"),
+        ({"impact_law": "lzb", "lzb_impulse_step": 0.0}, r"lzb_impulse_step"),
+    ],
+)
+def test_impact_law_settings_are_checked(settings: dict[str, Any], match: str) -> None:
+    with pytest.raises(InvalidParameterError, match=match):
+        _scene("newton_cradle", **settings).build_integrator()
