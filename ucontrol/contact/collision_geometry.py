@@ -240,13 +240,13 @@ class CollisionGeometry:
         self._joints = joints
         position = {joint: k for k, joint in enumerate(joints)}
         self._vertex_rows = np.array(vertices, dtype=np.intp)
-        vertex = [self._rows[i] for i in vertices]
+        vertex = [row for row in self._rows if isinstance(row, _Vertex)]  # in row order
         self._vertex_joint = np.array([position[row.joint] for row in vertex], dtype=np.intp)
         self._vertex_point = np.array([row.point for row in vertex]).reshape(-1, 3)
         self._vertex_normal = np.array([row.normal for row in vertex]).reshape(-1, 3)
         self._vertex_offset = np.array([row.offset + row.radius for row in vertex])  # [m]
         self._witness_rows = np.array(witnesses, dtype=np.intp)
-        witness = [self._rows[i] for i in witnesses]
+        witness = [row for row in self._rows if isinstance(row, _Witness)]  # in row order
         centres, radii, other_centres, other_radii, other_joints = [], [], [], [], []
         for row in witness:
             shape = self._shapes[row.first]
@@ -461,9 +461,9 @@ def _support_points(shape: Any) -> list[tuple[Vector, float]]:
     if isinstance(shape, coal.Sphere):
         return [(np.zeros(3), float(shape.radius))]
     if isinstance(shape, coal.Box):
-        half = np.asarray(shape.halfSide)
+        half_sides = np.asarray(shape.halfSide)
         signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-        return [(s * half, 0.0) for s in signs]
+        return [(s * half_sides, 0.0) for s in signs]
     if isinstance(shape, coal.Cylinder):
         angles = 2.0 * np.pi * np.arange(CYLINDER_RIM_POINTS) / CYLINDER_RIM_POINTS
         r, half = float(shape.radius), float(shape.halfLength)

@@ -277,6 +277,7 @@ class MoreauJean:
                 (nv + nf with flexible joints: the motor torques last).
         """
         model, data, h = self._model, self._data, self.dt
+        inverse_inertia: Callable[[Vector], Vector]
         if self.flexible is None and not self.midpoint:
             pin.cholesky.decompose(model, data)
             v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)

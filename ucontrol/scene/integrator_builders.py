@@ -9,6 +9,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.integrators.moreau_jean import MoreauJean
 from ucontrol.solvers.contact_solver_choice import build_contact_solvers
@@ -120,8 +122,8 @@ def _lzb_law(scene: Scene) -> Any:
     settings = scene.integrator
     return LZBImpactLaw(
         restitution=scene.constraints.restitution,
-        stiffness=settings.lzb_stiffness,
-        exponent=settings.lzb_exponent,
+        stiffness=np.asarray(settings.lzb_stiffness, dtype=float),
+        exponent=np.asarray(settings.lzb_exponent, dtype=float),
         impulse_step=settings.lzb_impulse_step,
     )
 
