@@ -243,6 +243,7 @@ def test_files_that_are_not_what_they_claim(tmp_path: Path) -> None:
         (["view", "{run}", "--html", "{dir}"], "{dir}"),
         (["bench", "ball", "--out", "{dir}"], "{dir}"),
         (["convergence", "ball", "--out", "{file}"], "{file}"),
+        (["design", "{robots}/two_link_one_constraint_task.toml", "--out", "{file}"], "{file}"),
     ],
 )
 def test_bad_command_lines_end_in_one_line_and_status_2(
@@ -256,7 +257,7 @@ def test_bad_command_lines_end_in_one_line_and_status_2(
     (garbage / "log.npz").write_bytes(b"garbage")
     run = tmp_path / "run"
     simulate(_ball(), duration=0.05, out=run)
-    names = {"file": file, "dir": tmp_path, "garbage": garbage, "run": run}
+    names = {"file": file, "dir": tmp_path, "garbage": garbage, "run": run, "robots": ROBOTS}
     capsys.readouterr()
     status = main([argument.format(**names) for argument in arguments])
     error = capsys.readouterr().err.strip()
@@ -265,7 +266,7 @@ def test_bad_command_lines_end_in_one_line_and_status_2(
 
 
 def test_the_table_has_at_least_a_hundred_cases() -> None:
-    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 12
+    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13
     assert cases >= 100
 
 

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from ucontrol.exceptions import InfeasibleDesignError
+from ucontrol.output_files import check_output_dir
 
 
 def add_design_parser(commands: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
@@ -44,7 +45,7 @@ def run_design(args: argparse.Namespace) -> int:
 
     task = DesignTask.from_toml(args.task)
     out = args.out if args.out is not None else Path("runs") / f"design_{Path(args.task).stem}"
-    out.mkdir(parents=True, exist_ok=True)
+    check_output_dir("--out", out)  # before the solve
 
     def progress(iteration: int, objective: float, inf_pr: float, inf_du: float) -> None:
         print(
