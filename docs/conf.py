@@ -43,4 +43,6 @@ autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-mo
 html_theme = "alabaster"
 # A wider column: the long formulas and tables of the pages fit at 1200 px.
 html_theme_options = {"page_width": "1160px"}
+html_static_path = ["_static"]
+html_css_files = ["wrap.css"]  # code wraps in the column: no horizontal scroll bars
 html_title = f"ucontrol {release}"
