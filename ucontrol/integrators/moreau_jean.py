@@ -441,6 +441,10 @@ class MoreauJean:
         """The mixed problem (bilateral rows first); unsolved as ``on_unsolved`` says."""
         solver: Any = self.solver
         solution: ContactSolution = solver.solve_mixed(D, b, equalities)
+        return self._checked(solver, solution)
+
+    def _checked(self, solver: Any, solution: ContactSolution) -> ContactSolution:
+        """``solution``, or :class:`ContactSolveError` / a warning when it is unsolved."""
         if solution.status != "solved":
             if self.on_unsolved == "raise":
                 raise ContactSolveError(
@@ -450,7 +454,7 @@ class MoreauJean:
                 ContactSolveWarning(
                     solver.name, solution.status, solution.residual, solver.residual_tolerance
                 ),
-                stacklevel=3,
+                stacklevel=4,
             )
         return solution
 
@@ -561,18 +565,7 @@ class MoreauJean:
             solver = self.friction_solver
             problem = CoulombProblem(D, b, self.constraints.friction[indices], tangents)
             solution = self.friction_solver.solve_coulomb(problem)
-        if solution.status != "solved":
-            if self.on_unsolved == "raise":
-                raise ContactSolveError(
-                    solver.name, solution.status, solution.residual, solver.residual_tolerance
-                )
-            warnings.warn(
-                ContactSolveWarning(
-                    solver.name, solution.status, solution.residual, solver.residual_tolerance
-                ),
-                stacklevel=3,
-            )
-        return solution
+        return self._checked(solver, solution)
 
 
 def _pad(rows: Vector, size: int) -> Vector:
