@@ -11,7 +11,6 @@ from ucontrol.control import BrogliatoController, ContactState, TaskCoordinates
 from ucontrol.exceptions import URDFError
 from ucontrol.model import example_robot_data_dir
 
-RNG = np.random.default_rng(20240611)
 _LWA = pin.LOCAL_WORLD_ALIGNED
 
 
@@ -32,9 +31,11 @@ def _no_contact(controller: BrogliatoController) -> ContactState:
     return ContactState(controller.machine.contacts, zeros, zeros, zeros, zeros > 0, 1e-3)
 
 
-def _state_near(controller: BrogliatoController, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    q = q0 + 0.05 * RNG.standard_normal(q0.shape)
-    return q, 0.3 * RNG.standard_normal(controller.robot.nv)
+def _state_near(
+    controller: BrogliatoController, q0: np.ndarray, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    q = q0 + 0.05 * rng.standard_normal(q0.shape)
+    return q, 0.3 * rng.standard_normal(controller.robot.nv)
 
 
 def _task(controller: BrogliatoController, q: np.ndarray, v: np.ndarray):
@@ -47,10 +48,12 @@ def _task(controller: BrogliatoController, q: np.ndarray, v: np.ndarray):
 
 
 @pytest.mark.parametrize("name", ["two_link_one_constraint", "panda_table"])
-def test_task_jacobian_and_its_derivative_match_finite_differences(name: str) -> None:
+def test_task_jacobian_and_its_derivative_match_finite_differences(
+    name: str, rng: np.random.Generator
+) -> None:
     controller = _controller(name)
     model, task = controller.robot.model, controller.task
-    q, v = _state_near(controller, scene(name).q0)
+    q, v = _state_near(controller, scene(name).q0, rng)
     state, _ = _task(controller, q, v)
     eps = 1e-6
 
@@ -71,13 +74,13 @@ def test_task_jacobian_and_its_derivative_match_finite_differences(name: str) ->
     assert state.X.shape == (task.m,) and task.n_gaps == 1
 
 
-def test_square_task_law_is_the_book_task_space_slotine_li_law() -> None:
+def test_square_task_law_is_the_book_task_space_slotine_li_law(rng: np.random.Generator) -> None:
     # τ = Jᵀ (M̄ ddX_r + C̄ dX_r + ḡ − γ1 s) with M̄ = J⁻ᵀ M J⁻¹, C̄ = J⁻ᵀ (C − M J⁻¹ J̇) J⁻¹,
     # ḡ = J⁻ᵀ g (Brogliato ch. 8) in free motion.
     controller = _controller("two_link_one_constraint")
     model, gains = controller.robot.model, controller.gains
     t = 1.0  # [s], free phase
-    q, v = _state_near(controller, scene("two_link_one_constraint").q0)
+    q, v = _state_near(controller, scene("two_link_one_constraint").q0, rng)
     tau = controller(t, q, v, _no_contact(controller))
     state, data = _task(controller, q, v)
     X_d, dX_d, ddX_d = controller.machine.desired(t).target
@@ -102,12 +105,12 @@ def test_square_task_law_is_the_book_task_space_slotine_li_law() -> None:
 
 
 @pytest.mark.parametrize(("name", "t"), [("two_link_one_constraint", 1.0), ("panda_table", 0.5)])
-def test_lyapunov_derivative_in_free_motion(name: str, t: float) -> None:
+def test_lyapunov_derivative_in_free_motion(name: str, t: float, rng: np.random.Generator) -> None:
     # Along the exact closed loop (acceleration M⁻¹ (τ − h)), the law gives
     # dV/dt = −γ1 (‖dX̃‖² + γ2² ‖X̃‖²) − γ_N ‖N s_q‖²_M, measured here by central differences.
     controller = _controller(name)
     model, gains = controller.robot.model, controller.gains
-    q, v = _state_near(controller, scene(name).q0)
+    q, v = _state_near(controller, scene(name).q0, rng)
     contact = _no_contact(controller)
 
     def V_after(dt: float, a: np.ndarray) -> float:

@@ -127,7 +127,7 @@ def test_lyapunov_function_and_input_are_continuous_at_tau0_and_takeoff(case: st
         _assert_continuous(log.u, rows, 1e-9)
 
 
-def test_contact_force_is_within_ten_percent_of_its_desired_value_mid_phase(
+def test_contact_force_is_within_a_thousandth_of_its_desired_value_mid_phase(
     one_constraint,
 ) -> None:
     controller, log = one_constraint
