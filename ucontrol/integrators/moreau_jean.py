@@ -146,6 +146,10 @@ PERSISTENCE_TOLERANCE = 1e-6
 BILATERAL_PROJECTION_TOLERANCE = 1e-12
 #: Gauss–Newton iterations of the projection at most.
 BILATERAL_PROJECTION_ITERATIONS = 5
+#: Whom Newton's law applies to: the closing constraints of the active set (the project's
+#: rule, with the energy guard), or every active constraint, separating ones included, with no
+#: guard (Siconos' MoreauJeanOSI, to reproduce its runs).
+NEWTON_LAWS = ("closing", "siconos")
 #: What a step does with a contact problem left above its residual tolerance.
 ON_UNSOLVED = ("raise", "warn")
 
@@ -176,6 +180,9 @@ class MoreauJean:
         persistence_tolerance: Predicted gap in [m] (or [rad]) up to which a constraint that
             carried an impulse in the previous step stays in the active set (module
             docstring); 0 turns persistence off.
+        newton_law: ``"closing"`` (default: restitution on closing constraints, energy guard)
+            or ``"siconos"`` (restitution on every active constraint, no guard: Siconos'
+            convention; with ``persistence_tolerance = 0`` it reproduces Siconos' runs).
 
     Attributes:
         friction_solver: The friction solver, or None for constraints without friction.
@@ -198,7 +205,11 @@ class MoreauJean:
         flexible: FlexibleJoints | None = None,
         midpoint: bool = False,
         persistence_tolerance: float = PERSISTENCE_TOLERANCE,
+        newton_law: str = "closing",
     ) -> None:
+        if newton_law not in NEWTON_LAWS:
+            raise InvalidParameterError("newton_law", newton_law, f"one of {NEWTON_LAWS}")
+        self.newton_law = newton_law
         self.robot = robot
         self.flexible = flexible
         self.midpoint = bool(midpoint)
@@ -315,7 +326,7 @@ class MoreauJean:
             if tangents is not None:  # no restitution on the tangential rows
                 rebound = np.concatenate((rebound, np.zeros(T.shape[0])))
             solution = self._solve(D, b + rebound, indices, tangents)
-            if np.count_nonzero(rebound):
+            if np.count_nonzero(rebound) and self.newton_law == "closing":
                 # Energy the impulses add to T + V over the step [J] (module docstring).
                 u_plus = solution.velocity - rebound - (b - u_free)
                 u_k = J.dot(state.v) if rate_now is None else J.dot(state.v) + rate_now
@@ -354,7 +365,11 @@ class MoreauJean:
             get no restitution), or None when there is none; each of shape (m,).
         """
         h, u_minus = self.dt, state.normal_velocity[indices]
-        closing = u_minus < -self.restitution_threshold
+        closing = (
+            u_minus < -self.restitution_threshold
+            if self.newton_law == "closing"
+            else np.ones(u_minus.size, dtype=bool)  # Siconos: every active constraint
+        )
         gap = state.gap[indices]
         if indices.size == 1:  # the common single contact, without array temporaries
             i = indices[0]

@@ -91,6 +91,7 @@ def _moreau_jean(scene: Scene, dt: float) -> Integrator:
         flexible=scene.flexible,
         midpoint=settings.midpoint,
         persistence_tolerance=settings.persistence_tolerance,
+        newton_law=settings.newton_law,
     )
 
 

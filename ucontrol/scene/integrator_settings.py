@@ -9,7 +9,7 @@ from typing import Any
 from ucontrol._validation import as_float, as_in_interval, as_int, as_positive, as_vector
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
 from ucontrol.integrators.methods import CONTACT_MODELS, IMPACT_LAWS, INTEGRATORS, IVP_METHODS
-from ucontrol.integrators.moreau_jean import ON_UNSOLVED, PERSISTENCE_TOLERANCE
+from ucontrol.integrators.moreau_jean import NEWTON_LAWS, ON_UNSOLVED, PERSISTENCE_TOLERANCE
 from ucontrol.solvers.contact_solver_choice import check_contact_solver
 
 #: Largest contact or friction tolerance accepted, in [m/s]: looser is no contact solve.
@@ -49,6 +49,8 @@ class IntegratorSettings:
             midpoint: second order between impacts (see :class:`MoreauJean`).
         persistence_tolerance: Predicted gap in [m] up to which Moreau–Jean keeps a constraint
             that carried an impulse in the previous step active; 0 turns it off.
+        newton_law: Whom Moreau–Jean's Newton law applies to: ``"closing"`` constraints (with
+            the energy guard) or, ``"siconos"``, every active one (Siconos' convention).
         impact_law: Impact law of event_driven, ``"newton"`` (generalized Newton law) or
             ``"lzb"`` (Liu–Zhao–Brogliato's energetic law, docs/multiple_impacts.md; the
             contacts' restitutions are then energetic coefficients).
@@ -84,6 +86,7 @@ class IntegratorSettings:
     midpoint: bool = False
     persistence_tolerance: float = PERSISTENCE_TOLERANCE
     penetration_tolerance: float = 0.01
+    newton_law: str = "closing"
     impact_law: str = "newton"
     lzb_stiffness: float | list[float] = 1.0
     lzb_exponent: float | list[float] = 1.5
@@ -132,6 +135,8 @@ class IntegratorSettings:
         if self.method is not None and self.method not in methods:
             raise InvalidParameterError("method", self.method, f"one of {list(methods)}")
         object.__setattr__(self, "zeno_velocity", as_positive("zeno_velocity", self.zeno_velocity))
+        if self.newton_law not in NEWTON_LAWS:
+            raise InvalidParameterError("newton_law", self.newton_law, f"one of {NEWTON_LAWS}")
         if self.impact_law not in IMPACT_LAWS:
             raise InvalidParameterError("impact_law", self.impact_law, f"one of {IMPACT_LAWS}")
         for key in ("lzb_stiffness", "lzb_exponent"):

@@ -96,6 +96,7 @@ _INTEGRATOR_KEYS = {
     "midpoint",
     "persistence_tolerance",
     "penetration_tolerance",
+    "newton_law",
     "impact_law",
     "lzb_stiffness",
     "lzb_exponent",
