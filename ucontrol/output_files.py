@@ -112,20 +112,33 @@ class OutputLock:
             OutputInUseError: A running process holds it.
         """
         for _ in range(3):  # a stale lock is removed, then created again
-            try:
-                descriptor = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:
-                owner = _owner(self.path)
-                if owner is not None and owner != os.getpid() and _alive(owner):
-                    raise OutputInUseError(str(self.path.parent), owner) from None
+            if self._create():
+                self._held = True
+                return
+            owner = _owner(self.path)
+            if owner is not None and owner != os.getpid() and _alive(owner):
+                raise OutputInUseError(str(self.path.parent), owner) from None
+            if _owner(self.path) == owner:  # still the stale one: take it over
                 with contextlib.suppress(FileNotFoundError):
                     self.path.unlink()
-                continue
+        raise OutputInUseError(str(self.path.parent), _owner(self.path) or -1)
+
+    def _create(self) -> bool:
+        """Create the lock file with this process's id in one step; False if it exists.
+
+        The id is written to a temporary file first and linked to the lock's name, so that
+        another process never reads a lock file without its owner.
+        """
+        descriptor, temporary = tempfile.mkstemp(prefix=".lock.", dir=self.path.parent)
+        try:
             with os.fdopen(descriptor, "w") as stream:
                 stream.write(str(os.getpid()))
-            self._held = True
-            return
-        raise OutputInUseError(str(self.path.parent), _owner(self.path) or -1)
+            os.link(temporary, self.path)
+        except FileExistsError:
+            return False
+        finally:
+            os.unlink(temporary)
+        return True
 
     def release(self) -> None:
         """Give the lock back (only if this process holds it)."""
