@@ -8,7 +8,11 @@ table back. ``import ucontrol`` does not import this package; dask and distribut
 only when a campaign runs, pandas only when a table is built.
 """
 
-from ucontrol.campaign.errors import (
+from ucontrol.campaign.overrides import apply_overrides
+from ucontrol.campaign.runner import CampaignOutcome, run_campaign, run_task
+from ucontrol.campaign.spec import Campaign, PlannedRun, check_campaign, load_campaign
+from ucontrol.campaign.table import load, wilson_interval
+from ucontrol.exceptions import (
     CampaignError,
     CampaignFileError,
     CampaignMismatchError,
@@ -20,10 +24,6 @@ from ucontrol.campaign.errors import (
     SchedulerUnreachableError,
     UnknownMetricError,
 )
-from ucontrol.campaign.overrides import apply_overrides
-from ucontrol.campaign.runner import CampaignOutcome, run_campaign, run_task
-from ucontrol.campaign.spec import Campaign, PlannedRun, check_campaign, load_campaign
-from ucontrol.campaign.table import load, wilson_interval
 
 __all__ = [
     "Campaign",

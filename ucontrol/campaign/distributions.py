@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ucontrol.campaign.errors import DistributionError
+from ucontrol.exceptions import DistributionError
 
 #: Distribution names accepted in the ``type`` key of a ``[distributions]`` entry.
 DISTRIBUTIONS = ("uniform", "normal", "log_uniform", "choice")

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from itertools import pairwise
 from typing import Any
 
-from ucontrol.campaign.errors import UnknownMetricError
+from ucontrol.exceptions import UnknownMetricError
 
 
 def _cycles(summary: Mapping[str, Any]) -> list[Mapping[str, Any]]:

@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ucontrol.campaign.errors import ParameterKeyError
+from ucontrol.exceptions import ParameterKeyError
 
 
 def split_key(key: str) -> list[str | int]:

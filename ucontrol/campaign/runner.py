@@ -24,11 +24,6 @@ from pathlib import Path
 from typing import Any
 
 from ucontrol.campaign.criterion import parse_criterion
-from ucontrol.campaign.errors import (
-    CampaignMismatchError,
-    OutputDirectoryError,
-    SchedulerUnreachableError,
-)
 from ucontrol.campaign.metrics import Metric
 from ucontrol.campaign.overrides import apply_overrides
 from ucontrol.campaign.spec import Campaign, scene_file
@@ -38,6 +33,11 @@ from ucontrol.campaign.table import (
     RUNS_DIR,
     finished_runs,
     write_table,
+)
+from ucontrol.exceptions import (
+    CampaignMismatchError,
+    OutputDirectoryError,
+    SchedulerUnreachableError,
 )
 
 #: Run statuses: completed, raised an exception, or its worker died twice (KilledWorker).

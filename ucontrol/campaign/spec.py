@@ -1,7 +1,7 @@
 """Campaign files: parse, check every part before any run, and plan the runs.
 
 The format is documented in ``docs/campaigns.md``. :func:`load_campaign` reads the file, checks
-each table (typed errors from :mod:`ucontrol.campaign.errors` naming the value), builds the base
+each table (typed errors from :mod:`ucontrol.exceptions` naming the value), builds the base
 scene with every swept key set, runs it for two steps to learn the ``summary.json`` keys the
 metrics may name, and returns a :class:`Campaign` whose :meth:`Campaign.plan` lists the runs.
 """
@@ -22,16 +22,17 @@ import numpy as np
 
 from ucontrol.campaign.criterion import Criterion, parse_criterion
 from ucontrol.campaign.distributions import Distribution, parse_distribution
-from ucontrol.campaign.errors import (
+from ucontrol.campaign.metrics import VERDICTS, Metric, check_metric
+from ucontrol.campaign.overrides import apply_overrides, child, lookup, split_key
+from ucontrol.exceptions import (
     CampaignError,
     CampaignFileError,
     EmptyGridError,
+    NotFoundError,
     ParameterKeyError,
+    UControlError,
     UnknownMetricError,
 )
-from ucontrol.campaign.metrics import VERDICTS, Metric, check_metric
-from ucontrol.campaign.overrides import apply_overrides, child, lookup, split_key
-from ucontrol.exceptions import NotFoundError, UControlError
 
 _TOP_KEYS = {"campaign", "grid", "distributions", "metrics"}
 _CAMPAIGN_KEYS = {"name", "scene", "duration", "dt", "seed", "runs", "metrics", "success", "worst"}

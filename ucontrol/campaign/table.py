@@ -19,8 +19,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ucontrol.campaign.errors import CampaignError
-from ucontrol.exceptions import InvalidParameterError, OptionalDependencyError
+from ucontrol.exceptions import CampaignError, InvalidParameterError, OptionalDependencyError
 
 CAMPAIGN_FILE = "campaign.json"
 PLAN_FILE = "plan.csv"
