@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from ucontrol.exceptions import (
     InvalidParameterError,
     NonFiniteValueError,
+    NotFoundError,
     SceneError,
     ShapeError,
     UnknownKeyError,
@@ -125,3 +126,26 @@ def require_key(table: Mapping[str, Any], section: str, key: str) -> Any:
     if key not in table:
         raise SceneError(f"{section} needs the key {key!r}")
     return table[key]
+
+
+def table_type(section: str, table: Any, keys: Mapping[str, set[str]], what: str) -> str:
+    """The ``type`` of a table that has one set of keys per type, its keys checked.
+
+    Args:
+        section: The table's name in messages, e.g. ``"[[bilateral]]"``.
+        table: The parsed TOML table.
+        keys: The keys each type accepts (``type`` included).
+        what: What the type names, e.g. ``"bilateral type"``.
+
+    Raises:
+        SceneError: ``table`` is not a table or has no ``type``.
+        NotFoundError: An unknown type (the message lists the known ones).
+        UnknownKeyError: A key the type does not accept.
+    """
+    if not isinstance(table, Mapping):
+        raise SceneError(f"{section} must be a table, got {table!r}")
+    kind = require_key(table, section, "type")
+    if kind not in keys:
+        raise NotFoundError(what, str(kind), list(keys))
+    check_keys(section, table, keys[kind])
+    return str(kind)

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ucontrol._validation import as_bool, as_vector, check_keys, require_key
+from ucontrol._validation import as_bool, as_vector, check_keys, require_key, table_type
 from ucontrol.contact.bilateral import BilateralConstraint, FrameClosure, JointCoupling
 from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.joint_stop import JointStop
@@ -189,12 +189,7 @@ def check_reference(table: Any, contacts: Sequence[PointContact]) -> dict[str, A
     ``bouncing_ball``: the gap of ``contact`` (default the first) follows
     :class:`ucontrol.analysis.BouncingBall`, its parameters read from the scene.
     """
-    if not isinstance(table, Mapping):
-        raise SceneError(f"[reference] must be a table, got {table!r}")
-    kind = require_key(table, "[reference]", "type")
-    if kind not in _REFERENCE_KEYS:
-        raise NotFoundError("reference type", str(kind), REFERENCES)
-    check_keys("[reference]", table, _REFERENCE_KEYS[kind])
+    kind = table_type("[reference]", table, _REFERENCE_KEYS, "reference type")
     names = [contact.name for contact in contacts]
     if not names:
         raise SceneError("[reference] type 'bouncing_ball' needs a [[contacts]] entry")
@@ -222,12 +217,7 @@ def _motion(section: str, spec: Any) -> Any:
     """A surface's ``motion`` table: a sinusoid or a polynomial translation."""
     from ucontrol.contact.surface_motion import Polynomial, Sinusoid
 
-    if not isinstance(spec, Mapping):
-        raise SceneError(f"{section} must be a table, got {spec!r}")
-    kind = require_key(spec, section, "type")
-    if kind not in _MOTION_KEYS:
-        raise NotFoundError("motion type", str(kind), _MOTION_KEYS)
-    check_keys(section, spec, _MOTION_KEYS[kind])
+    kind = table_type(section, spec, _MOTION_KEYS, "motion type")
     if kind == "sinusoid":
         return Sinusoid(
             amplitude=require_key(spec, section, "amplitude"),
@@ -272,12 +262,7 @@ def _sphere_contact(spec: Mapping[str, Any]) -> SphereSphereContact:
 
 def _shape(section: str, name: str, spec: Any) -> EnvironmentShape:
     """An ``[shapes.NAME]`` table: a halfspace, box or sphere fixed in the world."""
-    if not isinstance(spec, Mapping):
-        raise SceneError(f"{section} must be a table, got {spec!r}")
-    kind = require_key(spec, section, "type")
-    if kind not in _SHAPE_KEYS:
-        raise NotFoundError("shape type", str(kind), _SHAPE_KEYS)
-    check_keys(section, spec, _SHAPE_KEYS[kind])
+    kind = table_type(section, spec, _SHAPE_KEYS, "shape type")
     if kind == "halfspace":
         return EnvironmentShape(
             name=name,
@@ -327,12 +312,7 @@ def _collision_pair(
 def _bilateral(spec: Any) -> BilateralConstraint:
     """A ``[[bilateral]]`` entry: a point or weld closure, or a joint coupling."""
     section = "[[bilateral]]"
-    if not isinstance(spec, Mapping):
-        raise SceneError(f"{section} entries must be tables, got {spec!r}")
-    kind = require_key(spec, section, "type")
-    if kind not in _BILATERAL_KEYS:
-        raise NotFoundError("bilateral type", str(kind), _BILATERAL_KEYS)
-    check_keys(section, spec, _BILATERAL_KEYS[kind])
+    kind = table_type(section, spec, _BILATERAL_KEYS, "bilateral type")
     name = str(spec.get("name", ""))
     if kind == "coupling":
         return JointCoupling(
