@@ -226,8 +226,7 @@ class _ClosedLoop:
 
     def sample(self, t: float) -> PlantEvaluation:
         """Evaluate the plant at t [s] and open the log row of that sample."""
-        timed = (t,) if self.integrator.constraints.time_dependent else ()  # moving surfaces
-        state = self.integrator.evaluate(self.q, self.v, *timed)
+        state = self.integrator.evaluate(self.q, self.v, t)
         energy = state.kinetic_energy + state.potential_energy
         if not math.isfinite(energy):
             raise _NonFiniteState(f"the energy became non-finite ({energy}) at t = {t:.6g} s")
