@@ -594,10 +594,10 @@ class _TimedIntegrator:
         self._integrator = integrator
         self._timers = timers
 
-    def evaluate(self, q: Vector, v: Vector) -> Any:
+    def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> Any:
         timers = self._timers
         start = timers.now()
-        state = self._integrator.evaluate(q, v)
+        state = self._integrator.evaluate(q, v, t)
         timers.plant += timers.now() - start
         return state
 
