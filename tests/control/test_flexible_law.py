@@ -27,7 +27,6 @@ from ucontrol.control.brogliato_controller import LOG_FIELDS
 from ucontrol.control.flexible_brogliato_controller import FLEXIBLE_LOG_FIELDS
 from ucontrol.log import Log
 
-RNG = np.random.default_rng(20240613)
 #: Both joints flexible (the reference cases), or the elbow only (the shoulder is rigid).
 JOINTS = [("shoulder", "elbow"), ("elbow",)]
 
@@ -79,14 +78,16 @@ def test_link_reference_inverts_the_task_map_with_exact_derivatives(t: float) ->
         _assert_derivative(link[2][k + 1], [sample[k] for sample in link], h, 1e-7)
 
 
-def test_motor_reference_and_its_derivatives_along_the_closed_loop() -> None:
+def test_motor_reference_and_its_derivatives_along_the_closed_loop(
+    rng: np.random.Generator,
+) -> None:
     # q2d = S q1d + K⁻¹ S U_R, and dq2d, ddq2d are its time derivatives along the smooth
     # closed loop (integrated by scipy at rtol = 1e-12, free motion).
     law = controller()
     input_of = free_motion_input(law)
     rhs = plant(law, input_of)
     t0, h = 1.0, 1e-4
-    states = [initial_state(law, RNG)]
+    states = [initial_state(law, rng)]
     for k in range(4):
         span = (t0 + k * h, t0 + (k + 1) * h)
         solution = solve_ivp(rhs, span, states[-1], method="DOP853", rtol=1e-12, atol=1e-14)
@@ -103,7 +104,7 @@ def test_motor_reference_and_its_derivatives_along_the_closed_loop() -> None:
         _assert_derivative(motor[2][k + 1], [sample[k] for sample in motor], h, 1e-6)
 
 
-def test_motor_reference_derivatives_with_a_contact_force() -> None:
+def test_motor_reference_derivatives_with_a_contact_force(rng: np.random.Generator) -> None:
     # Constrained phase, desired force falling to 0 at t_d = 10 s, the ground pushing with
     # λ(t) = 4 N + λ_d(t) - λ_d(9.7 s), which falls as λ_d does, as the law assumes of the
     # measured force (its value is used, its derivatives are those of λ_d): the derivatives of
@@ -125,7 +126,7 @@ def test_motor_reference_derivatives_with_a_contact_force() -> None:
     rhs = plant(law, lambda t, y: law(t, y[:nq], y[nq:], contact_state(force(t))), force)
     h, steps = 5e-5, 5  # [s], RK4 steps per difference step
     times = 9.7 + h / steps * np.arange(4 * steps + 1)
-    x = initial_state(law, RNG)
+    x = initial_state(law, rng)
     motor = []
     for i, (t, t_next) in enumerate(itertools.pairwise(times)):
         if i % steps == 0:
@@ -142,7 +143,9 @@ def test_motor_reference_derivatives_with_a_contact_force() -> None:
 
 
 @pytest.mark.parametrize("joints", JOINTS)
-def test_lyapunov_derivative_in_free_motion(joints: tuple[str, ...]) -> None:
+def test_lyapunov_derivative_in_free_motion(
+    joints: tuple[str, ...], rng: np.random.Generator
+) -> None:
     # dV/dt along the exact closed loop (central difference along the vector field) is
     # -γ1 (|dq̃1|² + γ2²|q̃1|² + |dq̃2|² + γ2²|q̃2|²) - γ2 eᵀ K e, e = S q̃1 - q̃2.
     law = controller(joints)
@@ -152,7 +155,7 @@ def test_lyapunov_derivative_in_free_motion(joints: tuple[str, ...]) -> None:
     nv, nf = law.robot.nv, law.flexible.nf
     K, h = law.flexible.stiffness, 1e-5
     for t in (0.3, 1.7, 3.1):
-        x = initial_state(law, RNG)
+        x = initial_state(law, rng)
         dx = rhs(t, x)
         q1_error = x[:nv] - law.link_desired[0]
         dq1_error = x[nv + nf : 2 * nv + nf] - law.link_desired[1]
@@ -198,10 +201,10 @@ def test_closed_loop_tracks_the_circle_with_v_decreasing() -> None:
     assert errors[0] > 0.1 and errors[-1] < 1e-5  # [m]
 
 
-def test_stiff_joints_limit_is_the_rigid_law_with_motor_inertia() -> None:
+def test_stiff_joints_limit_is_the_rigid_law_with_motor_inertia(rng: np.random.Generator) -> None:
     # With q2 = S q1 + K⁻¹ U_R and dq2 = S dq1, u(K) -> (M + B) ddq1r + C dq1r + g - 2 γ1 s1
     # as K -> ∞ (the rigid joint-space law for the links plus the motors), with an O(1/K) gap.
-    x = initial_state(controller(), RNG)
+    x = initial_state(controller(), rng)
     t, nv = 1.0, 2
     stiffnesses = np.array([1e3, 1e4, 1e5, 1e6])  # [N m/rad]
     gaps = []

@@ -13,17 +13,16 @@ from ucontrol.exceptions import FrameNotFoundError, InvalidParameterError, URDFE
 from ucontrol.model import RobotModel, SymbolicModel, example_robot_data_dir, resolve_urdf
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
-RNG = np.random.default_rng(20240612)
 _LWA = pin.LOCAL_WORLD_ALIGNED
 #: Agreement with Pinocchio, relative to the size of the compared quantity.
 TOLERANCE = 1e-12
 
 
-def _two_link() -> RobotModel:
+def _two_link(rng: np.random.Generator) -> RobotModel:
     return RobotModel.from_urdf(ROBOTS / "two_link.urdf", gravity=[0.0, -9.81, 0.0])
 
 
-def _panda() -> RobotModel:
+def _panda(rng: np.random.Generator) -> RobotModel:
     try:
         example_robot_data_dir()
     except URDFError:
@@ -33,35 +32,49 @@ def _panda() -> RobotModel:
     )
 
 
-def _every_joint_type() -> RobotModel:
+def _placement(rng: np.random.Generator) -> pin.SE3:
+    """A random placement: a uniformly random rotation and a translation of order 1 m."""
+    quaternion = rng.standard_normal(4)
+    rotation = pin.Quaternion(*(quaternion / np.linalg.norm(quaternion))).matrix()
+    return pin.SE3(rotation, rng.standard_normal(3))
+
+
+def _inertia(rng: np.random.Generator) -> pin.Inertia:
+    """A random physical inertia: mass in [0.5, 2] kg, COM offset, positive definite I_c."""
+    A = rng.standard_normal((3, 3))
+    mass, lever = rng.uniform(0.5, 2.0), 0.1 * rng.standard_normal(3)
+    return pin.Inertia(mass, lever, A @ A.T + 0.1 * np.eye(3))
+
+
+def _every_joint_type(rng: np.random.Generator) -> RobotModel:
     """A random tree with every supported joint type, random placements and inertias."""
     model = pin.Model()
     joints = [
         pin.JointModelRX(),
         pin.JointModelRY(),
         pin.JointModelRZ(),
-        pin.JointModelRevoluteUnaligned(*RNG.standard_normal(3)),
+        pin.JointModelRevoluteUnaligned(*rng.standard_normal(3)),
         pin.JointModelPX(),
         pin.JointModelPY(),
         pin.JointModelPZ(),
-        pin.JointModelPrismaticUnaligned(*RNG.standard_normal(3)),
+        pin.JointModelPrismaticUnaligned(*rng.standard_normal(3)),
     ]
     parents = [0, 1, 2, 3, 2, 5, 1, 7]  # a tree in depth-first order: 3 branches
     for k, (joint, parent) in enumerate(zip(joints, parents, strict=True)):
-        joint_id = model.addJoint(parent, joint, pin.SE3.Random(), f"joint{k}")
-        model.appendBodyToJoint(joint_id, pin.Inertia.Random(), pin.SE3.Identity())
-        model.addFrame(pin.Frame(f"tip{k}", joint_id, 0, pin.SE3.Random(), pin.FrameType.OP_FRAME))
-    model.gravity.linear = RNG.standard_normal(3)
+        joint_id = model.addJoint(parent, joint, _placement(rng), f"joint{k}")
+        model.appendBodyToJoint(joint_id, _inertia(rng), pin.SE3.Identity())
+        model.addFrame(pin.Frame(f"tip{k}", joint_id, 0, _placement(rng), pin.FrameType.OP_FRAME))
+    model.gravity.linear = rng.standard_normal(3)
     return RobotModel(model)
 
 
 ROBOTS_UNDER_TEST = {"two_link": _two_link, "panda": _panda, "every_joint_type": _every_joint_type}
 
 
-def _state(robot: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+def _state(robot: RobotModel, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     low = np.maximum(robot.model.lowerPositionLimit, -3.0)
     high = np.minimum(robot.model.upperPositionLimit, 3.0)
-    return RNG.uniform(low, high), RNG.standard_normal(robot.nv)
+    return rng.uniform(low, high), rng.standard_normal(robot.nv)
 
 
 def _close(actual: ca.DM | np.ndarray, expected: np.ndarray) -> None:
@@ -71,12 +84,12 @@ def _close(actual: ca.DM | np.ndarray, expected: np.ndarray) -> None:
 
 
 @pytest.mark.parametrize("name", list(ROBOTS_UNDER_TEST))
-def test_dynamics_match_pinocchio(name: str) -> None:
-    robot = ROBOTS_UNDER_TEST[name]()
+def test_dynamics_match_pinocchio(name: str, rng: np.random.Generator) -> None:
+    robot = ROBOTS_UNDER_TEST[name](rng)
     model, data = robot.model, robot.data
     symbolic = SymbolicModel(robot)
     for _ in range(5):
-        q, v = _state(robot)
+        q, v = _state(robot, rng)
         _close(symbolic.mass_matrix(q), robot.mass_matrix(q))
         _close(symbolic.gravity(q), pin.computeGeneralizedGravity(model, data, q))
         C = np.asarray(symbolic.coriolis_matrix(q, v))
@@ -86,10 +99,12 @@ def test_dynamics_match_pinocchio(name: str) -> None:
 
 
 @pytest.mark.parametrize("name", list(ROBOTS_UNDER_TEST))
-def test_mass_matrix_rate_minus_twice_coriolis_is_skew_symmetric(name: str) -> None:
-    robot = ROBOTS_UNDER_TEST[name]()
+def test_mass_matrix_rate_minus_twice_coriolis_is_skew_symmetric(
+    name: str, rng: np.random.Generator
+) -> None:
+    robot = ROBOTS_UNDER_TEST[name](rng)
     symbolic = SymbolicModel(robot)
-    q, v = _state(robot)
+    q, v = _state(robot, rng)
     h = 1e-6
     M_dot = (
         robot.mass_matrix(pin.integrate(robot.model, q, h * v))
@@ -101,15 +116,15 @@ def test_mass_matrix_rate_minus_twice_coriolis_is_skew_symmetric(name: str) -> N
 
 
 @pytest.mark.parametrize("name", list(ROBOTS_UNDER_TEST))
-def test_frame_positions_and_jacobians_match_pinocchio(name: str) -> None:
-    robot = ROBOTS_UNDER_TEST[name]()
+def test_frame_positions_and_jacobians_match_pinocchio(name: str, rng: np.random.Generator) -> None:
+    robot = ROBOTS_UNDER_TEST[name](rng)
     symbolic = SymbolicModel(robot)
     q_sym = ca.SX.sym("q", robot.nv)
     frames = [frame.name for frame in robot.model.frames][1:]
     for frame in frames:
         position = symbolic.frame_position(frame)
         jacobian = ca.Function("J", [q_sym], [ca.jacobian(position(q_sym), q_sym)])
-        q, _ = _state(robot)
+        q, _ = _state(robot, rng)
         _close(position(q), robot.frame_position(q, frame))
         _close(jacobian(q), robot.frame_jacobian(q, frame)[:3])
 
@@ -122,7 +137,7 @@ def test_unsupported_joint_is_named() -> None:
 
 
 def test_missing_frame_lists_the_frames() -> None:
-    symbolic = SymbolicModel(_two_link())
+    symbolic = SymbolicModel(_two_link(np.random.default_rng(0)))
     with pytest.raises(FrameNotFoundError, match="unknown frame 'tool'") as info:
         symbolic.frame_position("tool")
     assert "end_effector" in info.value.available
