@@ -1,4 +1,4 @@
-r"""Impact oscillators and their Poincaré maps: the figures of docs/impact_oscillators.md.
+r"""Impact oscillators and their Poincaré maps: the figures of docs/stability.md.
 
 - ``table``: the ball on a sinusoidally vibrating table (e = 0.8, ω = 2π rad/s): the period-1
   orbit found by Newton on the impact map against the closed form, its multipliers by saltation

@@ -1,4 +1,4 @@
-r"""Juggling with a 1-DoF paddle: the measured figures of docs/impact_oscillators.md.
+r"""Juggling with a 1-DoF paddle: the measured figures of docs/juggling.md.
 
 ``robots/juggler_paddle.toml`` (1 kg paddle, 0.05 kg ball) with
 :class:`~ucontrol.control.juggling_controller.JugglingController`, event-driven plant at

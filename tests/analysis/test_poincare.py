@@ -2,7 +2,7 @@
 
 References: the ball on a sinusoidally vibrating table (period-1 orbit and its period-doubling
 amplitude in closed form, Holmes 1982, Luck & Mehta 1993, derived in
-docs/impact_oscillators.md), the linear impact oscillator whose flow between impacts is a
+docs/stability.md), the linear impact oscillator whose flow between impacts is a
 matrix exponential (its period-1 orbit solved here with scipy.optimize.fsolve on the exact
 flow, and its monodromy built by hand with the closed-form saltation matrix), the grazing
 amplitude of the oscillator's free response, and finite differences of the maps.
