@@ -205,6 +205,40 @@ class BilateralSet:
                 start += 1
         return J
 
+    def drift(self, data: pin.Data) -> Vector:
+        r""":math:`\dot J_b v`, the rows' accelerations at zero joint acceleration, shape (m,).
+
+        In the units of the rows' rates ([m/s²], [rad/s²]). A point closure gives the difference
+        of the frames' classical accelerations (LOCAL_WORLD_ALIGNED); a weld the derivative of
+        the relative velocity :math:`\nu_r = \mathrm{Ad}_{{}^2M_1} \nu_1 - \nu_2` (LOCAL
+        twists), :math:`\mathrm{Ad}_{{}^2M_1} (\dot\nu_1 + \nu_{1/2} \times \nu_1) -
+        \dot\nu_2` with :math:`\nu_{1/2} = \nu_1 - \mathrm{Ad}_{{}^1M_2} \nu_2` the velocity
+        of frame 1 relative to frame 2 in frame 1; a coupling 0. ``data`` must hold
+        ``pin.forwardKinematics(model, data, q, v, 0)`` and the frame placements.
+        """
+        model = self.robot.model
+        drift = np.zeros(self.size)
+        start = 0
+        for kind, first, second, _, _ in self._terms:
+            if kind == "point":
+                drift[start : start + 3] = (
+                    pin.getFrameClassicalAcceleration(model, data, first, _LWA).linear
+                    - pin.getFrameClassicalAcceleration(model, data, second, _LWA).linear
+                )
+                start += 3
+            elif kind == "weld":
+                relative = data.oMf[second].actInv(data.oMf[first])  # 2M1
+                nu1 = pin.getFrameVelocity(model, data, first, pin.LOCAL)
+                nu2 = pin.getFrameVelocity(model, data, second, pin.LOCAL)
+                nu12 = nu1 - relative.actInv(nu2)  # frame 1 relative to frame 2, in frame 1
+                rate1 = pin.getFrameAcceleration(model, data, first, pin.LOCAL) + nu12.cross(nu1)
+                rate2 = pin.getFrameAcceleration(model, data, second, pin.LOCAL)
+                drift[start : start + 6] = relative.act(rate1).vector - rate2.vector
+                start += 6
+            else:
+                start += 1
+        return drift
+
     def residuals(self, q: Vector) -> Vector:
         """:math:`h(q)`, shape (m,); runs forward kinematics on the robot's data."""
         data = self.robot.data

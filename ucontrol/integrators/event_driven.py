@@ -171,6 +171,7 @@ class EventDriven:
         self.impact_law = impact_law
         self._dynamics = SmoothDynamics(robot, constraints, flexible)
         self._n = constraints.size
+        self._bilateral = constraints.bilateral is not None
         self._carry: tuple[Vector, Vector, Mask] | None = None
 
     def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
@@ -191,6 +192,7 @@ class EventDriven:
             SolverError: An impact or acceleration LCP was not solved.
         """
         q, v, h = state.q, state.v, self.dt
+        start = 0.0 if state.t is None else float(state.t)  # [s], absolute time of the step
         impulse = np.zeros(self._n)
         active = np.zeros(self._n, dtype=bool)
         closed = self._carried_closed_set(q, v)
@@ -198,14 +200,14 @@ class EventDriven:
         solutions: list[ContactSolution] = []
         t, events, stalls = 0.0, 0, 0
         while True:
-            settled = self._settle(q, v, tau, closed, closing, releasing)
+            settled = self._settle(q, v, tau, closed, closing, releasing, start + t)
             q, v, closed = settled.q, settled.v, settled.closed
             impulse += settled.impulse
             active |= closed | (settled.impulse > 0.0)
             solutions += settled.solutions
             if h - t <= _STALL_TIME:
                 break
-            segment = self._integrate(q, v, tau, closed, h - t, settled.max_step, t)
+            segment = self._integrate(q, v, tau, closed, h - t, settled.max_step, start, t)
             q, v = segment.q, segment.v
             impulse[closed] += segment.impulse
             t += segment.duration
@@ -217,7 +219,7 @@ class EventDriven:
             if stalls > _MAX_STALLS:
                 raise IntegrationError(
                     self.name,
-                    t,
+                    start + t,
                     f"{stalls} events without the time advancing (constraints "
                     f"{self._names(closing | releasing)}): impacts accumulate faster than the "
                     f"time resolution (raise zeno_velocity = {self.zeno_velocity:g} m/s) or the "
@@ -226,11 +228,13 @@ class EventDriven:
             if events > self.max_events:
                 raise IntegrationError(
                     self.name,
-                    t,
+                    start + t,
                     f"more than {self.max_events} events in one step of {h:g} s: an "
                     f"accumulation of impacts faster than zeno_velocity = "
                     f"{self.zeno_velocity:g} m/s catches; raise zeno_velocity or max_events",
                 )
+        if closed.any() or self._bilateral:  # the step's end on the constraint manifold
+            q, v = self._project(q, v, closed, start + h)
         self._carry = (q.copy(), v.copy(), closed.copy())
         worst = max(solutions, key=lambda solution: solution.residual, default=None)
         return StepOutcome(q, v, impulse, active, worst, events)
@@ -252,18 +256,24 @@ class EventDriven:
         closed: Mask | None,
         closing: Mask,
         releasing: Mask,
+        time: float,
     ) -> _Settled:
-        """Impact, active set and projection at an event (or at the start of a step)."""
+        """Impact, active set and projection at an event (or at the start of a step).
+
+        ``time`` is the absolute time in [s] (the moving surfaces' positions).
+        """
         dynamics = self._dynamics
-        gap, u = dynamics.kinematics(q, v)
+        gap, u = dynamics.kinematics(q, v, time)
         if closed is None:
             closed = (gap <= self.closure_gap) & (np.abs(u) <= self.closure_velocity)
         impulse = np.zeros(self._n)
         near = closed | closing | (gap <= self.closure_gap)
         if not near.any():
+            if self._bilateral:
+                q, v = self._project(q, v, near, time)
             return _Settled(q, v, near, impulse, math.inf, [])
         indices = np.flatnonzero(near)
-        terms = dynamics.constraint_terms(q, v, tau, indices)
+        terms = dynamics.constraint_terms(q, v, tau, indices, t=time)
         u_near = u[indices]
         solutions = []
         if np.any(u_near < -self.closure_velocity):
@@ -273,8 +283,8 @@ class EventDriven:
             v = v + terms.Minv_Jt @ solution.impulses
             v, capture = self._capture(terms, v)
             impulse[indices] += capture
-            terms = dynamics.constraint_terms(q, v, tau, indices)
-            u_near = terms.J @ v
+            terms = dynamics.constraint_terms(q, v, tau, indices, t=time)
+            u_near = terms.velocity(v)
         candidates = (np.abs(u_near) <= self.closure_velocity) & ~releasing[indices]
         closed = np.zeros(self._n, dtype=bool)
         if candidates.any():
@@ -286,8 +296,8 @@ class EventDriven:
             )
             solutions.append(solution)
             closed[indices[rows[solution.velocity <= self.closure_acceleration]]] = True
-        if closed.any():
-            q, v = self._project(q, v, tau, closed)
+        if closed.any() or self._bilateral:
+            q, v = self._project(q, v, closed, time)
         return _Settled(
             q, v, closed, impulse, self._max_step(terms, u_near, closed[indices]), solutions
         )
@@ -322,7 +332,7 @@ class EventDriven:
         possibly slightly adhesive. This ends accumulations where impacts pass from one
         constraint to another (a rocking table) as the plastic threshold ends a ball's.
         """
-        u = terms.J @ v
+        u = terms.velocity(v)
         slow = (u > self.closure_velocity) & (u < self.zeno_velocity)
         impulse = np.zeros(u.size)
         if not slow.any():
@@ -334,7 +344,7 @@ class EventDriven:
             step = -_solve(D, u[rows])  # [N s]
             impulse[rows] += step
             v = v + terms.Minv_Jt[:, rows] @ step
-            u = terms.J @ v
+            u = terms.velocity(v)
             approaching = ~captured & (u < -self.closure_velocity)
             if not approaching.any():
                 return v, impulse
@@ -347,19 +357,24 @@ class EventDriven:
             raise SolverError(solver.name, solution.status, solution.residual)
         return solution
 
-    def _project(self, q: Vector, v: Vector, tau: Vector, closed: Mask) -> tuple[Vector, Vector]:
-        """Project (q, v) onto g = 0, J v = 0 of the closed constraints in the metric of M."""
+    def _project(self, q: Vector, v: Vector, closed: Mask, time: float) -> tuple[Vector, Vector]:
+        r"""Project (q, v) onto the closed and bilateral constraints in the metric of M.
+
+        Gauss–Newton steps :math:`q \leftarrow q \ominus M^{-1} J^T D^+ r` on the stacked
+        residuals r (closed gaps, then :math:`h(q)`), then :math:`v \leftarrow v - M^{-1} J^T
+        D^+ (J v + \partial g/\partial t)`, at the absolute ``time`` [s].
+        """
         dynamics = self._dynamics
         indices = np.flatnonzero(closed)
         for _ in range(_PROJECTION_ITERATIONS):
-            terms = dynamics.constraint_terms(q, v, tau, indices)
-            gap = terms.gap[indices]
-            if np.max(np.abs(gap)) <= _PROJECTION_GAP:
+            terms = dynamics.manifold_terms(q, v, indices, time)
+            if terms.residual.size == 0 or np.max(np.abs(terms.residual)) <= _PROJECTION_GAP:
                 break
-            q = dynamics.configuration(q, -terms.Minv_Jt @ _solve(terms.delassus(), gap))
+            q = dynamics.configuration(q, -terms.Minv_Jt @ _solve(terms.delassus(), terms.residual))
         else:
-            terms = dynamics.constraint_terms(q, v, tau, indices)
-        v = v - terms.Minv_Jt @ _solve(terms.delassus(), terms.J @ v)
+            terms = dynamics.manifold_terms(q, v, indices, time)
+        if terms.velocity.size:
+            v = v - terms.Minv_Jt @ _solve(terms.delassus(), terms.velocity)
         return q, v
 
     def _max_step(self, terms: ConstraintTerms, u_near: Vector, closed_near: Mask) -> float:
@@ -381,9 +396,13 @@ class EventDriven:
         closed: Mask,
         duration: float,
         max_step: float,
+        start: float,
         t_start: float,
     ) -> _Segment:
         """Integrate with the closed set fixed until ``duration`` [s] or the first event.
+
+        ``start + t_start`` is the absolute time in [s] of the segment's start (``start`` that
+        of the step).
 
         The gap event of an open constraint resting on its surface (g and u within the
         closure tolerances: it just released, or its acceleration barely opened it) fires at
@@ -394,7 +413,8 @@ class EventDriven:
         closed_indices = np.flatnonzero(closed)
         open_indices = np.flatnonzero(~closed)
         m = closed_indices.size
-        gap0, u0 = dynamics.kinematics(q0, v0)
+        origin = start + t_start  # [s]
+        gap0, u0 = dynamics.kinematics(q0, v0, origin)
         resting = (gap0 <= self.closure_gap) & (np.abs(u0) <= self.closure_velocity)
         offsets = np.where(resting, self.closure_gap, 0.0)[open_indices]  # [m] or [rad]
         cache: dict[str, Any] = {"key": None}
@@ -404,14 +424,16 @@ class EventDriven:
             if cache["key"] != key:
                 dq, v = y[:nv], y[nv : 2 * nv]
                 q = dynamics.configuration(q0, dq)
-                if m:
-                    terms = dynamics.constraint_terms(q, v, tau, closed_indices)
-                    multipliers = _solve(terms.delassus(), -terms.acceleration_bias())
+                if m or self._bilateral:
+                    terms = dynamics.constraint_terms(q, v, tau, closed_indices, t=origin + t)
+                    multipliers = (
+                        _solve(terms.delassus(), -terms.acceleration_bias()) if m else np.zeros(0)
+                    )
                     acceleration = terms.a_free + terms.Minv_Jt @ multipliers
                     gap = terms.gap
                 else:
                     multipliers = np.zeros(0)
-                    gap, _ = dynamics.kinematics(q, v)
+                    gap, _ = dynamics.kinematics(q, v, origin + t)
                     acceleration = dynamics.free_acceleration(q, v, tau)
                 rate = np.concatenate((dynamics.chart_rate(q0, dq, v), acceleration, multipliers))
                 cache["key"] = key
@@ -442,7 +464,7 @@ class EventDriven:
             first_step=min(duration, max_step),
         )
         if solution.status < 0:
-            raise IntegrationError(self.name, t_start + float(solution.t[-1]), solution.message)
+            raise IntegrationError(self.name, origin + float(solution.t[-1]), solution.message)
         y = solution.y[:, -1]
         fired = np.zeros(open_indices.size + m, dtype=bool)
         if solution.status == 1:

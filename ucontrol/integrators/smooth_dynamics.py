@@ -10,6 +10,22 @@ configuration is written :math:`q = q_0 \oplus \delta q` (``pin.integrate``) and
 
 the first being :math:`\dot{\delta q} = v` when every joint is a vector space (nq = nv).
 
+**Bilateral constraints.** With :attr:`~ucontrol.contact.ConstraintSet.bilateral` (rows
+:math:`J_b`, drift :math:`\dot J_b v`) every term is that of the robot *held by them* at
+acceleration level (index reduction): with :math:`D_b = J_b M^{-1} J_b^T` and its
+pseudo-inverse (dependent rows: a planar point closure, a closure declared twice),
+
+.. math:: a_\text{free} = a_0 - M^{-1} J_b^T D_b^+ (J_b a_0 + \dot J_b v), \qquad
+          P = M^{-1} - M^{-1} J_b^T D_b^+ J_b M^{-1},
+
+:math:`a_0 = M^{-1}(\tau - h)`, and the unilateral rows see :math:`P J^T` in place of
+:math:`M^{-1} J^T` (``Minv_Jt``), so their Delassus matrix is :math:`J P J^T`. Since
+:math:`J_b P = 0`, unilateral impulses and forces never move the bilateral rows.
+
+**Moving surfaces.** Gaps and normal velocities are relative to the surfaces at time t,
+:math:`u = J v + \partial g / \partial t` (``rate``), and a point contact's constraint
+acceleration gains the surface's, :math:`-n \cdot \ddot x(t)`, in ``drift``.
+
 **Flexible joints.** With :class:`~ucontrol.model.FlexibleJoints` the plant's state is the
 extended one, :math:`q = (q_1, q_2)` and :math:`v = (\dot q_1, \dot q_2)` (motors last), and so
 are :math:`\delta q` and τ (the motor torques last). The transmission torque
@@ -56,8 +72,14 @@ class ConstraintTerms:
         a_free: Unconstrained acceleration :math:`M^{-1}(\tau - h)`, shape (nv,).
         J: Normal Jacobian rows of I, shape (m, nv).
         Minv_Jt: :math:`M^{-1} J_I^T`, shape (nv, m).
-        drift: :math:`\dot J_I v`, the constraint accelerations at zero joint acceleration, in
-            [m/s²] or [rad/s²], shape (m,).
+        drift: :math:`\dot J_I v` (minus :math:`n \cdot \ddot x(t)` against a moving surface),
+            the constraint accelerations at zero joint acceleration, in [m/s²] or [rad/s²],
+            shape (m,).
+        rate: :math:`\partial g_I / \partial t` in [m/s] (zero against fixed surfaces), shape
+            (m,).
+
+    With bilateral constraints ``a_free`` and ``Minv_Jt`` are those of the robot held by
+    them (module docstring).
     """
 
     gap: Vector
@@ -66,6 +88,11 @@ class ConstraintTerms:
     J: Vector
     Minv_Jt: Vector
     drift: Vector
+    rate: Vector
+
+    def velocity(self, v: Vector) -> Vector:
+        r"""Normal velocities :math:`J_I v + \partial g_I/\partial t` of I at ``v`` (nv,)."""
+        return self.J @ v + self.rate
 
     def delassus(self) -> Vector:
         r"""Delassus matrix :math:`D = J_I M^{-1} J_I^T`, shape (m, m)."""
@@ -77,6 +104,27 @@ class ConstraintTerms:
         :math:`J_I a_\text{free} + \dot J_I v`, in [m/s²] or [rad/s²].
         """
         return self.J @ self.a_free + self.drift
+
+
+@dataclass(frozen=True)
+class ManifoldTerms:
+    r"""The closed unilateral rows I and the bilateral rows stacked (I first), at (q, v, t).
+
+    Attributes:
+        residual: Gaps of I then :math:`h(q)`, shape (m + m_b,), in [m] or [rad].
+        velocity: Their rates (:math:`u_I`, then :math:`J_b v`), shape (m + m_b,).
+        J: Their Jacobian rows, shape (m + m_b, nv).
+        Minv_Jt: :math:`M^{-1} J^T`, shape (nv, m + m_b).
+    """
+
+    residual: Vector
+    velocity: Vector
+    J: Vector
+    Minv_Jt: Vector
+
+    def delassus(self) -> Vector:
+        r"""Delassus matrix :math:`J M^{-1} J^T`, shape (m + m_b, m + m_b)."""
+        return self.J @ self.Minv_Jt
 
 
 class SmoothDynamics:
@@ -110,6 +158,13 @@ class SmoothDynamics:
         self._link_nv = robot.nv
         self._euclidean = robot.nq == robot.nv
         self._zero_acceleration = np.zeros(robot.nv)
+        self.bilateral = constraints.bilateral
+        #: Point contacts against moving surfaces: (index, motion, normal).
+        self._moving = [
+            (i, contact.surface.motion, np.asarray(contact.surface.normal, dtype=float))
+            for i, contact in enumerate(constraints.contacts)
+            if contact.surface.motion is not None
+        ]
 
     def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
         """Gaps, normal velocities and energies at (q, v): the protocol's evaluate.
@@ -140,16 +195,22 @@ class SmoothDynamics:
             return links
         return np.concatenate((links, v[nv:]))
 
-    def kinematics(self, q: Vector, v: Vector) -> tuple[Vector, Vector]:
-        """Gaps and normal velocities of every constraint at (q, v), each of shape (n,)."""
+    def kinematics(self, q: Vector, v: Vector, t: float | None = None) -> tuple[Vector, Vector]:
+        """Gaps and normal velocities of every constraint at (q, v), each of shape (n,).
+
+        Relative to the moving surfaces at t [s] (required when some surface moves).
+        """
         model, data = self.model, self.data
         q1, v1 = q[: self._link_nq], v[: self._link_nv]
         pin.forwardKinematics(model, data, q1, v1)
         pin.updateFramePlacements(model, data)
-        return self.constraints.evaluate(data, q1, v1)
+        return self.constraints.evaluate(data, q1, v1, t)
 
     def free_acceleration(self, q: Vector, v: Vector, tau: Vector) -> Vector:
-        """Acceleration without constraint forces, ``M⁻¹ (τ - h)``, shape (nv,)."""
+        """Acceleration without constraint forces, ``M⁻¹ (τ - h)``, shape (nv,).
+
+        Without bilateral constraints only (with them use :meth:`constraint_terms`).
+        """
         q1, v1, link_force, motor_acceleration = self._split_forces(q, v, tau)
         acceleration = pin.aba(self.model, self.data, q1, v1, link_force).copy()
         if motor_acceleration is None:
@@ -164,6 +225,7 @@ class SmoothDynamics:
         indices: NDArray[np.intp],
         *,
         with_drift: bool = True,
+        t: float | None = None,
     ) -> ConstraintTerms:
         """Everything the constraints ``indices`` (m,) need at (q, v) under forces ``tau``.
 
@@ -172,27 +234,78 @@ class SmoothDynamics:
             v: Velocity, shape (nv,).
             tau: Generalized forces, shape (nv,).
             indices: Constraint indices, shape (m,).
-            with_drift: Compute ``J̇ v``; without it ``drift`` is zero.
+            with_drift: Compute ``J̇ v``; without it ``drift`` is zero (and, with bilateral
+                constraints, their own drift is left out of ``a_free``).
+            t: Time in [s]; required when some surface moves.
         """
         model, data = self.model, self.data
         q1, v1, link_force, motor_acceleration = self._split_forces(q, v, tau)
         pin.computeAllTerms(model, data, q1, v1)
         pin.updateFramePlacements(model, data)
-        gap, normal_velocity = self.constraints.evaluate(data, q1, v1)
+        gap, normal_velocity = self.constraints.evaluate(data, q1, v1, t)
         pin.cholesky.decompose(model, data)
         a_free = pin.cholesky.solve(model, data, link_force - data.nle)
         J = self.constraints.jacobian(data, indices)
-        if len(indices) == 1:  # M⁻¹ Jᵀ by one triangular solve instead of M⁻¹
+        bilateral = self.bilateral
+        J_b = bilateral.jacobian(data) if bilateral is not None else None
+        if J_b is None and len(indices) == 1:  # M⁻¹ Jᵀ by one triangular solve, not M⁻¹
             Minv_Jt = pin.cholesky.solve(model, data, J[0])[:, None]
+            Minv = None
         else:
-            Minv_Jt = pin.cholesky.computeMinv(model, data) @ J.T
-        drift = self._drift(q1, v1, indices) if with_drift else np.zeros(len(indices))
+            Minv = pin.cholesky.computeMinv(model, data)
+            Minv_Jt = Minv @ J.T
+        drift, drift_b = (
+            self._drift(q1, v1, indices, t)
+            if with_drift
+            else (np.zeros(len(indices)), np.zeros(0 if J_b is None else J_b.shape[0]))
+        )
+        if J_b is not None and Minv is not None:  # held by the bilateral rows
+            Minv_Jbt = Minv @ J_b.T
+            gain = Minv_Jbt @ _pseudo_inverse(J_b @ Minv_Jbt)  # M⁻¹ J_bᵀ D_b⁺, (nv, m_b)
+            a_free = a_free - gain @ (J_b @ a_free + drift_b)
+            Minv_Jt = Minv_Jt - gain @ (Minv_Jbt.T @ J.T)  # P Jᵀ
+        rate = (
+            self.constraints.normal_rate(indices, t)
+            if self._moving and t is not None  # (evaluate raised when t is missing)
+            else np.zeros(len(indices))
+        )
         if motor_acceleration is not None:  # the constraints act on the links only
             motors = motor_acceleration.size
             a_free = np.concatenate((a_free, motor_acceleration))
             J = np.hstack((J, np.zeros((J.shape[0], motors))))
             Minv_Jt = np.vstack((Minv_Jt, np.zeros((motors, Minv_Jt.shape[1]))))
-        return ConstraintTerms(gap, normal_velocity, a_free, J, Minv_Jt, drift)
+        return ConstraintTerms(gap, normal_velocity, a_free, J, Minv_Jt, drift, rate)
+
+    def manifold_terms(
+        self, q: Vector, v: Vector, indices: NDArray[np.intp], t: float | None = None
+    ) -> ManifoldTerms:
+        """Residuals, rates and rows of the closed constraints ``indices`` and the bilateral ones.
+
+        Args:
+            q: Configuration, shape (nq,).
+            v: Velocity, shape (nv,).
+            indices: Closed unilateral constraints, shape (m,).
+            t: Time in [s]; required when some surface moves.
+        """
+        model, data = self.model, self.data
+        q1, v1 = q[: self._link_nq], v[: self._link_nv]
+        pin.computeAllTerms(model, data, q1, v1)
+        pin.updateFramePlacements(model, data)
+        gap, normal_velocity = self.constraints.evaluate(data, q1, v1, t)
+        J = self.constraints.jacobian(data, indices)
+        residual, velocity = gap[indices], normal_velocity[indices]
+        if self.bilateral is not None:
+            J_b = self.bilateral.jacobian(data)
+            residual = np.concatenate((residual, self.bilateral.residual(data, q1)))
+            velocity = np.concatenate((velocity, J_b @ v1))
+            J = np.vstack((J, J_b))
+        pin.cholesky.decompose(model, data)
+        Minv_Jt = pin.cholesky.computeMinv(model, data) @ J.T
+        if self.flexible is not None:  # the constraints act on the links only
+            motors = self.nv - self._link_nv
+            J = np.hstack((J, np.zeros((J.shape[0], motors))))
+            Minv_Jt = np.vstack((Minv_Jt, np.zeros((motors, Minv_Jt.shape[1]))))
+        return ManifoldTerms(residual, velocity, J, Minv_Jt)
 
     def _split_forces(
         self, q: Vector, v: Vector, tau: Vector
@@ -210,11 +323,32 @@ class SmoothDynamics:
         force = tau + flexible.transmission_forces(q, v)
         return q[:nq], v[:nv], force[:nv], force[nv:] / flexible.motor_inertia
 
-    def _drift(self, q: Vector, v: Vector, indices: NDArray[np.intp]) -> Vector:
-        """``J̇ v`` at the link state (q, v) of the constraints ``indices``: zero for stops."""
-        if not np.any(np.asarray(indices) < self.constraints.n_contacts):
-            return np.zeros(len(indices))
-        model, data = self.model, self.data
-        pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
-        pin.updateFramePlacements(model, data)
-        return self.constraints.normal_drift(data, indices)
+    def _drift(
+        self, q: Vector, v: Vector, indices: NDArray[np.intp], t: float | None
+    ) -> tuple[Vector, Vector]:
+        r"""``J̇ v`` at the link state (q, v) of the constraints ``indices`` and bilateral rows.
+
+        Zero for stops and couplings; a contact against a moving surface adds
+        :math:`-n \cdot \ddot x(t)`. Returns shapes (m,) and (m_b,).
+        """
+        bilateral = self.bilateral
+        drift = np.zeros(len(indices))
+        drift_b = np.zeros(0 if bilateral is None else bilateral.size)
+        if bilateral is not None or np.any(np.asarray(indices) < self.constraints.n_contacts):
+            model, data = self.model, self.data
+            pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
+            pin.updateFramePlacements(model, data)
+            drift = self.constraints.normal_drift(data, indices)
+            if bilateral is not None:
+                drift_b = bilateral.drift(data)
+        if t is not None:  # (moving surfaces need t: constraints.evaluate raised without it)
+            for i, motion, normal in self._moving:
+                rows = np.flatnonzero(np.asarray(indices) == i)
+                if rows.size:
+                    drift[rows] -= normal.dot(motion(t)[2])
+        return drift, drift_b
+
+
+def _pseudo_inverse(D: Vector) -> Vector:
+    """Pseudo-inverse of a symmetric positive semi-definite D (m, m): dependent rows allowed."""
+    return np.asarray(np.linalg.pinv(D, rcond=1e-12, hermitian=True), dtype=np.float64)

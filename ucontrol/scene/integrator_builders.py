@@ -28,8 +28,8 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
         InvalidParameterError: The scene has friction and the integrator is not
             ``moreau_jean`` (the others are frictionless), a ``qpsolvers:`` contact
             solver was asked for a scene with friction, an event-driven integrator for a
-            scene with collision pairs, or another integrator than ``moreau_jean`` for a scene
-            with moving surfaces.
+            scene with collision pairs, or the compliant integrator for a scene with moving
+            surfaces or bilateral constraints.
     """
     name = scene.integrator.name
     if scene.integrator.impact_law != "newton" and name != "event_driven":
@@ -52,19 +52,25 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
             "'moreau_jean' or 'compliant' for scenes with [[collision_pairs]] (event_driven "
             "needs the constraint accelerations of collision rows, not implemented)",
         )
-    if scene.constraints.bilateral is not None and name != "moreau_jean":
+    if scene.constraints.bilateral is not None and name == "compliant":
         raise InvalidParameterError(
             "[integrator] name",
             name,
-            f"'moreau_jean' for scenes with [[bilateral]] constraints ({name} does not hold "
-            "bilateral constraints)",
+            f"'moreau_jean' or 'event_driven' for scenes with [[bilateral]] constraints ({name} "
+            "does not hold bilateral constraints)",
         )
-    if scene.constraints.time_dependent and name != "moreau_jean":
+    if scene.constraints.time_dependent and name == "compliant":
         raise InvalidParameterError(
             "[integrator] name",
             name,
-            "'moreau_jean' for contacts against moving surfaces (a surface `motion`; "
-            f"{name} does not handle time-dependent constraints)",
+            "'moreau_jean' or 'event_driven' for contacts against moving surfaces (a surface "
+            f"`motion`; {name} does not handle time-dependent constraints)",
+        )
+    if scene.joint_friction is not None and name != "moreau_jean":
+        raise InvalidParameterError(
+            "[integrator] name",
+            name,
+            f"'moreau_jean' for scenes with [joint_friction] ({name} has no joint friction)",
         )
     return _BUILDERS[name](scene, scene.integrator.dt if dt is None else dt)
 
@@ -73,7 +79,7 @@ def _moreau_jean(scene: Scene, dt: float) -> Integrator:
     settings = scene.integrator
     contact_solver, friction_solver = build_contact_solvers(
         settings.contact_solver,
-        friction=scene.constraints.has_friction,
+        friction=scene.constraints.has_friction or _joint_coulomb(scene),
         eps_abs=settings.contact_tolerance,
         max_iter=settings.max_iter,
         residual_tolerance=settings.friction_tolerance,
@@ -92,7 +98,13 @@ def _moreau_jean(scene: Scene, dt: float) -> Integrator:
         midpoint=settings.midpoint,
         persistence_tolerance=settings.persistence_tolerance,
         newton_law=settings.newton_law,
+        joint_friction=scene.joint_friction,
     )
+
+
+def _joint_coulomb(scene: Scene) -> bool:
+    """Whether some joint of the scene has Coulomb friction (it needs the friction solver)."""
+    return scene.joint_friction is not None and scene.joint_friction.coulomb_index.size > 0
 
 
 def _event_driven(scene: Scene, dt: float) -> Integrator:
