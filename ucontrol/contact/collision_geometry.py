@@ -33,6 +33,19 @@ corners as it rocks. A cylinder is approximated by its rim polygons: penetration
 they are more than :data:`BROAD_PHASE_MARGIN` apart, coal is not called and the row's gap is
 that distance between bounding spheres, a lower bound of the true one (its velocity, the rate
 of that distance). Rows of shapes that close get the exact distance.
+
+**Environment meshes** (``type = "mesh"``) stand for the convex hull of the file's vertices,
+as the URDF's meshes do; coal's loader reads them (STL, OBJ, DAE, ...).
+
+**Moving environment shapes.** A shape with a motion :math:`x(t)` (a translation,
+:mod:`ucontrol.contact.surface_motion`) is placed at its declared pose moved by :math:`x(t)` at
+each :meth:`CollisionGeometry.evaluate` or :meth:`CollisionGeometry.gaps` at time t; the gap is
+then :math:`g(q, t)`, and the normal velocity the relative one,
+:math:`u = J_n v + \partial g / \partial t` with :math:`\partial g / \partial t = -n \cdot
+\dot x(t)` (:meth:`CollisionGeometry.normal_rate`; friction rows :math:`-t \cdot \dot x(t)`,
+:meth:`CollisionGeometry.tangent_rate`). Rows and contact points are those of the shapes where
+the last evaluation at a time placed them, and the rates use the normals of the last rows
+computed (:meth:`CollisionGeometry.jacobian`), as a time step asks for them.
 """
 
 from __future__ import annotations
@@ -46,7 +59,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
-from ucontrol.contact.tangent_basis import cross
+from ucontrol.contact.tangent_basis import cross, tangent_basis
 from ucontrol.exceptions import InvalidParameterError, URDFError
 from ucontrol.model.robot_model import RobotModel
 
@@ -69,6 +82,7 @@ class _Vertex(NamedTuple):
     radius: float
     normal: Vector  # halfspace normal, (3,)
     offset: float  # normal · p0 [m]
+    shape: EnvironmentShape  # the halfspace
 
 
 class _Witness(NamedTuple):
@@ -81,7 +95,8 @@ class _Witness(NamedTuple):
     shape: Any  # coal geometry of the environment shape, or None
     transform: Any  # its coal.Transform3s, or None
     bound: float  # radius of the environment shape's bounding sphere [m] (inf: halfspace)
-    centre: Vector  # centre of that bounding sphere in the world [m], (3,)
+    centre: Vector  # centre of that bounding sphere in the world [m], (3,) (at x = 0)
+    environment: EnvironmentShape | None  # the environment shape, None for a link
 
 
 class ContactPoints(NamedTuple):
@@ -154,6 +169,7 @@ class CollisionGeometry:
         self._request.epa_max_iterations = 1000
         self._result = coal.DistanceResult()
         self._rows: list[_Vertex | _Witness] = []
+        self._environment: dict[str, tuple[Any, float, Vector]] = {}
         names: list[str] = []
         restitution: list[float] = []
         friction: list[float] = []
@@ -170,6 +186,7 @@ class CollisionGeometry:
         self.friction = np.array(friction, dtype=float)
         self.size = len(names)
         self._vectorize()
+        self._moving_rows()
 
     # -- building ---------------------------------------------------------------------------
 
@@ -203,6 +220,7 @@ class CollisionGeometry:
                             None,
                             np.inf,
                             np.zeros(3),
+                            None,
                         )
                     )
             elif other.type == "halfspace" and pair.points == "auto":
@@ -210,10 +228,13 @@ class CollisionGeometry:
                 placement = objects[first].placement
                 for point, radius in _support_points(self._shapes[first]):
                     local = placement.act(point)
-                    rows.append(_Vertex(joint, local, radius, other.normal, offset))
+                    rows.append(_Vertex(joint, local, radius, other.normal, offset, other))
             else:
-                shape, bound = _environment_shape(other)
-                placement = other.placement
+                if other.name not in self._environment:
+                    self._environment[other.name] = _environment_shape(other)
+                shape, bound, centre = self._environment[other.name]
+                # A halfspace is built in world coordinates (its offset holds its point).
+                placement = pin.SE3.Identity() if other.type == "halfspace" else other.placement
                 rows.append(
                     _Witness(
                         first,
@@ -223,10 +244,104 @@ class CollisionGeometry:
                         shape,
                         coal.Transform3s(placement.rotation, placement.translation),
                         bound,
-                        other.position.copy(),
+                        placement.act(centre),
+                        other,
                     )
                 )
         return rows
+
+    def _moving_rows(self) -> None:
+        """Rows against moving environment shapes, and the buffers of their motion."""
+        motions: dict[str, Any] = {}
+        #: Per row: the name of its moving shape, or "" (fixed).
+        self._row_motion: list[str] = []
+        for row in self._rows:
+            shape = row.shape if isinstance(row, _Vertex) else row.environment
+            moving = shape is not None and shape.motion is not None
+            if moving:
+                assert shape is not None
+                motions[shape.name] = shape.motion
+            self._row_motion.append(shape.name if moving and shape is not None else "")
+        self._motions = motions
+        #: Whether some row is against a moving shape (its gap depends on t).
+        self.time_dependent = bool(motions)
+        self._moving_vertex = np.array(
+            [k for k, i in enumerate(self._vertex_rows) if self._row_motion[i]], dtype=np.intp
+        )
+        self._moving_witness = np.array(
+            [k for k, i in enumerate(self._witness_rows) if self._row_motion[i]], dtype=np.intp
+        )
+        self._base_centre = self._witness_other_centre.copy()
+        self._base_translation = [
+            np.array(row.transform.getTranslation())
+            if isinstance(row, _Witness) and row.transform is not None
+            else np.zeros(3)
+            for row in self._rows
+        ]
+        self._shift = {name: np.zeros(3) for name in motions}  # x(t) [m]
+        self._speed = {name: np.zeros(3) for name in motions}  # dx/dt [m/s]
+        self._vertex_shift = np.zeros(self._vertex_rows.size)  # n · x(t) [m]
+        self._vertex_speed = np.zeros(self._vertex_rows.size)  # n · dx/dt [m/s]
+        self._witness_speed = np.zeros((self._witness_rows.size, 3))  # dx/dt [m/s]
+        self._normal = np.full((self.size, 3), np.nan)  # normals of the last rows computed
+        self._time: float | None = None
+
+    def _at(self, t: float | None) -> None:
+        """Place the moving environment shapes at time ``t`` [s] (nothing when none moves)."""
+        if not self.time_dependent or (t is not None and t == self._time):
+            return
+        if t is None:
+            raise InvalidParameterError(
+                "t",
+                t,
+                f"the time in [s]: environment shapes {sorted(self._motions)} move",
+            )
+        for name, motion in self._motions.items():
+            displacement, speed, _ = motion(t)
+            self._shift[name], self._speed[name] = displacement, speed
+        for k in self._moving_vertex.tolist():
+            i = self._vertex_rows[k]
+            name = self._row_motion[i]
+            normal = self._vertex_normal[k]
+            self._vertex_shift[k] = normal @ self._shift[name]
+            self._vertex_speed[k] = normal @ self._speed[name]
+        for k in self._moving_witness.tolist():
+            i = self._witness_rows[k]
+            row = self._rows[i]
+            assert isinstance(row, _Witness)
+            shift = self._shift[self._row_motion[i]]
+            self._witness_other_centre[k] = self._base_centre[k] + shift
+            self._witness_speed[k] = self._speed[self._row_motion[i]]
+            row.transform.setTranslation(self._base_translation[i] + shift)
+        self._time = t
+
+    def normal_rate(self, rows: Sequence[int], t: float) -> Vector:
+        r""":math:`\partial g / \partial t = -n \cdot \dot x(t)` of ``rows`` at t [s], in [m/s].
+
+        Zero for rows against fixed shapes; ``n`` is each row's normal in the last
+        :meth:`jacobian` (or :meth:`contact_points`). Shape (len(rows),).
+        """
+        rate = np.zeros(len(rows))
+        for j, i in enumerate(rows):
+            name = self._row_motion[i]
+            if name:
+                rate[j] = -self._normal[i] @ self._motions[name](t)[1]
+        return rate
+
+    def tangent_rate(self, rows: Sequence[int], t: float, planar_axis: Vector | None) -> Vector:
+        r""":math:`-t \cdot \dot x(t)` of each row's tangents at t [s], stacked, in [m/s].
+
+        The tangents are ``tangent_basis(n, planar_axis)`` of each row's last normal, as
+        :meth:`tangent_rows` is given them by :class:`~ucontrol.contact.ConstraintSet`.
+        """
+        blocks = []
+        for i in rows:
+            tangents = tangent_basis(self._normal[i], planar_axis)
+            name = self._row_motion[i]
+            blocks.append(
+                -tangents @ self._motions[name](t)[1] if name else np.zeros(len(tangents))
+            )
+        return np.concatenate(blocks) if blocks else np.zeros(0)
 
     def _vectorize(self) -> None:
         """Arrays of the rows' data, so that vertex rows and the broad phase run vectorized."""
@@ -289,11 +404,14 @@ class CollisionGeometry:
 
     # -- evaluation -------------------------------------------------------------------------
 
-    def evaluate(self, data: pin.Data) -> tuple[Vector, Vector]:
+    def evaluate(self, data: pin.Data, t: float | None = None) -> tuple[Vector, Vector]:
         """Gaps [m] and normal velocities [m/s] of the rows, each of shape (n,).
 
         ``data`` must hold forward kinematics with velocities (``data.oMi``, ``data.v``).
+        Velocities are relative to moving shapes, placed at ``t`` [s] (required when
+        :attr:`time_dependent`).
         """
+        self._at(t)
         gap = np.empty(self.size)
         velocity = np.empty(self.size)
         rotation, origin, linear, angular = self._kinematics(data, True)
@@ -306,6 +424,9 @@ class CollisionGeometry:
             )
             point_velocity = linear[j] + np.cross(angular[j], lever)
             velocity[self._vertex_rows] = np.einsum("ki,ki->k", normal, point_velocity)
+            if self._moving_vertex.size:
+                gap[self._vertex_rows] -= self._vertex_shift
+                velocity[self._vertex_rows] -= self._vertex_speed
         if self._witness_rows.size:
             lower, normal, first, second = self._bounding_spheres(rotation, origin)
             near = lower <= BROAD_PHASE_MARGIN
@@ -319,12 +440,18 @@ class CollisionGeometry:
             relative = (linear[j] + np.cross(angular[j], first - origin[j])) - (
                 linear[o] + np.cross(angular[o], second - origin[o])
             )
+            if self._moving_witness.size:
+                relative -= self._witness_speed
             gap[self._witness_rows] = lower
             velocity[self._witness_rows] = np.einsum("ki,ki->k", normal, relative)
         return gap, velocity
 
-    def gaps(self, data: pin.Data) -> Vector:
-        """Gaps [m] from the joint placements in ``data``, shape (n,)."""
+    def gaps(self, data: pin.Data, t: float | None = None) -> Vector:
+        """Gaps [m] from the joint placements in ``data``, shape (n,).
+
+        Moving shapes are placed at ``t`` [s] (required when :attr:`time_dependent`).
+        """
+        self._at(t)
         gap = np.empty(self.size)
         rotation, origin = self._kinematics(data, False)
         if self._vertex_rows.size:
@@ -333,6 +460,8 @@ class CollisionGeometry:
             gap[self._vertex_rows] = (
                 np.einsum("ki,ki->k", self._vertex_normal, world) - self._vertex_offset
             )
+            if self._moving_vertex.size:
+                gap[self._vertex_rows] -= self._vertex_shift
         if self._witness_rows.size:
             lower = self._bounding_spheres(rotation, origin)[0]
             near = np.flatnonzero(lower <= BROAD_PHASE_MARGIN)
@@ -380,9 +509,12 @@ class CollisionGeometry:
                 other_point[j] = point[j]
                 joint[j] = row.joint
                 gap[j] = row.normal.dot(centre) - row.offset - row.radius
+                if self._row_motion[i]:
+                    gap[j] -= row.normal @ self._shift[self._row_motion[i]]
             else:
                 gap[j], normal[j], point[j], other_point[j] = self._distance(row)
                 joint[j], other_joint[j] = row.joint, row.other_joint
+        self._normal[list(rows)] = normal
         return ContactPoints(normal, point, joint, other_point, other_joint, gap)
 
     def jacobian(self, data: pin.Data, rows: Sequence[int]) -> Vector:
@@ -482,10 +614,47 @@ def _support_points(shape: Any) -> list[tuple[Vector, float]]:
     )
 
 
-def _environment_shape(shape: EnvironmentShape) -> tuple[Any, float]:
-    """The coal geometry of an environment shape and the radius of its bounding sphere [m]."""
+def _environment_shape(shape: EnvironmentShape) -> tuple[Any, float, Vector]:
+    """The coal geometry of an environment shape and its bounding sphere.
+
+    Returns:
+        The geometry (in the shape's frame, but for a halfspace, in the world), the radius
+        of its bounding sphere in [m] (inf for a halfspace) and that sphere's centre in the
+        shape's frame in [m], shape (3,).
+
+    Raises:
+        InvalidParameterError: A mesh file does not load.
+    """
     if shape.type == "sphere":
-        return coal.Sphere(shape.radius), shape.radius
+        return coal.Sphere(shape.radius), shape.radius, np.zeros(3)
     if shape.type == "box":
-        return coal.Box(*shape.size), 0.5 * float(np.linalg.norm(shape.size))
-    return coal.Halfspace(shape.normal, float(shape.normal @ shape.position)), np.inf
+        return coal.Box(*shape.size), 0.5 * float(np.linalg.norm(shape.size)), np.zeros(3)
+    if shape.type == "mesh":
+        hull = load_mesh_hull(str(shape.mesh), shape.scale)
+        return hull, float(hull.aabb_radius), np.asarray(hull.aabb_center, dtype=float)
+    return coal.Halfspace(shape.normal, float(shape.normal @ shape.position)), np.inf, np.zeros(3)
+
+
+def load_mesh_hull(path: str, scale: Vector) -> Any:
+    """The convex hull (``coal.ConvexBase``) of the mesh file ``path``, scaled by ``scale``.
+
+    Args:
+        path: A mesh file coal's loader reads (STL, OBJ, DAE, ...).
+        scale: Scale factors along the mesh's axes, shape (3,).
+
+    Raises:
+        InvalidParameterError: The file does not load or has fewer than four vertices not
+            in one plane (no hull), naming the path and coal's reason.
+    """
+    try:
+        mesh = coal.MeshLoader().load(path, np.asarray(scale, dtype=float))
+        mesh.buildConvexHull(True, "Qt")
+    except (ValueError, RuntimeError) as error:
+        lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+        reason = next((line for line in lines if line.startswith("message:")), str(error))
+        raise InvalidParameterError(
+            "mesh", path, f"a mesh file coal can load (STL, OBJ, DAE); {reason}"
+        ) from error
+    hull = mesh.convex
+    hull.computeLocalAABB()
+    return hull

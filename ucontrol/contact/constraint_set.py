@@ -73,7 +73,7 @@ class ConstraintSet:
         friction: Coulomb coefficients, shape (n,) (0 for stops).
         tangent_count: Tangential rows of each constraint (0, 1 or 2), shape (n,).
         has_friction: Whether any constraint has tangential rows.
-        time_dependent: Whether some contact is against a moving surface.
+        time_dependent: Whether some contact is against a moving surface or shape.
         n_contacts: Number of point, sphere–sphere and collision contacts (the first
             constraints).
         size: Number of constraints n.
@@ -172,7 +172,8 @@ class ConstraintSet:
             for i, contact in enumerate(self.contacts)
             if contact.surface.motion is not None
         ]
-        self.time_dependent = bool(self._moving)
+        self._moving_shapes = self.collision is not None and self.collision.time_dependent
+        self.time_dependent = bool(self._moving) or self._moving_shapes
         # Contact point p_F - r n: velocity v_F + ω × (-r n), i.e. t·v_F + r (t × n)·ω.
         self._plane_levers = [
             contact.radius * cross(tangents, contact.surface.normal)
@@ -222,7 +223,7 @@ class ConstraintSet:
             velocity[i] = delta.dot(relative) / distance
         if self.collision is not None:
             rows = slice(self._pairs_end, self.n_contacts)
-            gap[rows], velocity[rows] = self.collision.evaluate(data)
+            gap[rows], velocity[rows] = self.collision.evaluate(data, t)
         if self.time_dependent:
             self._move(gap, velocity, t)
         if self._has_stops:
@@ -358,7 +359,7 @@ class ConstraintSet:
         """
         data = self.robot.data
         pin.framesForwardKinematics(self.robot.model, data, q)
-        gap = self._gap(data, q)
+        gap = self._gap(data, q, t)
         if self.time_dependent:
             self._move(gap, None, t)
         return gap
@@ -373,6 +374,11 @@ class ConstraintSet:
             rows = np.flatnonzero(np.asarray(indices) == i)
             if rows.size:
                 rate[rows] = -normal.dot(motion(t)[1])
+        if self._moving_shapes and self.collision is not None:  # moving collision shapes
+            shapes = [j for j, i in enumerate(indices) if self._pairs_end <= i < self.n_contacts]
+            if shapes:
+                local = [int(indices[j]) - self._pairs_end for j in shapes]
+                rate[shapes] = self.collision.normal_rate(local, t)
         return rate
 
     def tangent_rate(self, indices: Sequence[int] | NDArray[np.intp], t: float) -> Vector:
@@ -388,6 +394,10 @@ class ConstraintSet:
             if count and int(i) in moving:
                 tangents = self._plane_tangents[int(i)]
                 rate[start : start + count] = -tangents @ moving[int(i)](t)[1]
+            elif count and self._moving_shapes and self._pairs_end <= i < self.n_contacts:
+                assert self.collision is not None
+                row = [int(i) - self._pairs_end]
+                rate[start : start + count] = self.collision.tangent_rate(row, t, self.planar_axis)
             start += count
         return rate
 
@@ -406,7 +416,7 @@ class ConstraintSet:
             if velocity is not None:
                 velocity[i] -= normal.dot(speed)
 
-    def _gap(self, data: pin.Data, q: Vector) -> Vector:
+    def _gap(self, data: pin.Data, q: Vector, t: float = 0.0) -> Vector:
         """Gaps from frame placements already in ``data``, shape (n,)."""
         gap = np.empty(self.size)
         for i, (frame_id, normal, offset) in enumerate(self._contact_terms):
@@ -415,7 +425,7 @@ class ConstraintSet:
             delta = data.oMf[first].translation - data.oMf[second].translation
             gap[i] = np.sqrt(delta.dot(delta)) - radii
         if self.collision is not None:
-            gap[self._pairs_end : self.n_contacts] = self.collision.gaps(data)
+            gap[self._pairs_end : self.n_contacts] = self.collision.gaps(data, t)
         gap[self.n_contacts :] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
         return gap
 

@@ -66,9 +66,10 @@ _SPHERE_CONTACT_KEYS = {
 }
 _STOP_KEYS = {"joint", "lower", "upper", "restitution"}
 _SHAPE_KEYS = {
-    "halfspace": {"type", "point", "normal"},
-    "box": {"type", "position", "rpy", "size"},
-    "sphere": {"type", "position", "radius"},
+    "halfspace": {"type", "point", "normal", "motion"},
+    "box": {"type", "position", "rpy", "size", "motion"},
+    "sphere": {"type", "position", "radius", "motion"},
+    "mesh": {"type", "file", "position", "rpy", "scale", "motion"},
 }
 _PAIR_KEYS = {"link", "other", "restitution", "friction", "points", "name"}
 _BILATERAL_KEYS = {
@@ -135,7 +136,7 @@ def scene_fields(
     contacts = [_contact(spec, surfaces) for spec in table.get("contacts", [])]
     sphere_contacts = [_sphere_contact(spec) for spec in table.get("sphere_contacts", [])]
     shapes = {
-        name: _shape(f"[shapes.{name}]", name, spec)
+        name: _shape(f"[shapes.{name}]", name, spec, base_dir)
         for name, spec in table.get("shapes", {}).items()
     }
     collision_pairs = [
@@ -260,30 +261,37 @@ def _sphere_contact(spec: Mapping[str, Any]) -> SphereSphereContact:
     )
 
 
-def _shape(section: str, name: str, spec: Any) -> EnvironmentShape:
-    """An ``[shapes.NAME]`` table: a halfspace, box or sphere fixed in the world."""
+def _shape(section: str, name: str, spec: Any, base_dir: Path) -> EnvironmentShape:
+    """An ``[shapes.NAME]`` table: a halfspace, box, sphere or mesh, fixed or moving.
+
+    A mesh's ``file`` is relative to the scene file (``base_dir``); ``motion`` is read as a
+    surface's (:func:`_motion`).
+    """
     kind = table_type(section, spec, _SHAPE_KEYS, "shape type")
+    motion = spec.get("motion")
+    fields: dict[str, Any] = {
+        "name": name,
+        "type": kind,
+        "motion": None if motion is None else _motion(f"{section} motion", motion),
+    }
     if kind == "halfspace":
-        return EnvironmentShape(
-            name=name,
-            type=kind,
-            position=spec.get("point", [0.0, 0.0, 0.0]),
-            normal=require_key(spec, section, "normal"),
-        )
+        fields["position"] = spec.get("point", [0.0, 0.0, 0.0])
+        fields["normal"] = require_key(spec, section, "normal")
+    else:
+        fields["position"] = spec.get("position", [0.0, 0.0, 0.0])
+    if kind in ("box", "mesh"):
+        fields["rpy"] = spec.get("rpy", [0.0, 0.0, 0.0])
     if kind == "box":
-        return EnvironmentShape(
-            name=name,
-            type=kind,
-            position=spec.get("position", [0.0, 0.0, 0.0]),
-            rpy=spec.get("rpy", [0.0, 0.0, 0.0]),
-            size=require_key(spec, section, "size"),
-        )
-    return EnvironmentShape(
-        name=name,
-        type=kind,
-        position=spec.get("position", [0.0, 0.0, 0.0]),
-        radius=require_key(spec, section, "radius"),
-    )
+        fields["size"] = require_key(spec, section, "size")
+    elif kind == "sphere":
+        fields["radius"] = require_key(spec, section, "radius")
+    elif kind == "mesh":
+        mesh = require_key(spec, section, "file")
+        if not isinstance(mesh, str):
+            raise InvalidParameterError(f"{section} file", mesh, "a path (a string)")
+        fields["mesh"] = (base_dir / mesh).resolve()
+        fields["scale"] = spec.get("scale", [1.0, 1.0, 1.0])
+    return EnvironmentShape(**fields)
 
 
 def _collision_pair(
@@ -300,7 +308,11 @@ def _collision_pair(
     elif other_name in surfaces:  # a [surfaces] plane is a halfspace
         plane = surfaces[other_name]
         other = EnvironmentShape(
-            name=other_name, type="halfspace", position=plane.point, normal=plane.normal
+            name=other_name,
+            type="halfspace",
+            position=plane.point,
+            normal=plane.normal,
+            motion=plane.motion,
         )
     return CollisionPair(
         link=str(require_key(spec, "[[collision_pairs]]", "link")),
