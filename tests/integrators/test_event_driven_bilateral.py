@@ -62,7 +62,7 @@ def test_four_bar_follows_its_one_coordinate_model() -> None:
     t, q = np.asarray(log.t), np.asarray(log.q)
     reference = _reduced_motion(1.0, t[::10])
     # Measured 3.1e-8 rad over 1 s: the reference's finite-difference forces (step 1e-5 rad)
-    # and both integrators' tolerances; Moreau-Jean at h = 1e-4 is at 5e-3 rad.
+    # and both integrators' tolerances.
     assert np.max(np.abs(q[::10, 0] - reference)) <= 3e-7
 
 
@@ -77,10 +77,9 @@ def test_redundant_closure_gives_the_same_motion() -> None:
 
 def test_closed_chain_hitting_a_stop_keeps_newton_and_the_closure() -> None:
     e, stop = 0.6, 0.2  # restitution, crank angle of the stop [rad]
-    scene = _four_bar(
-        stops=[{"joint": "crank_joint", "lower": stop, "restitution": e}],
-        integrator={"name": "event_driven", "dt": 1e-3},
-    )
+    scene = Scene.from_toml(ROBOTS / "four_bar_stop.toml")
+    assert scene.stops[0].lower == stop and scene.stops[0].restitution == e
+    assert scene.integrator.name == "event_driven" and scene.duration == 0.45
     log = _run(scene, 0.45)
     q, v, energy = np.asarray(log.q), np.asarray(log.v), np.asarray(log.energy)
     impulse, gap = np.asarray(log.impulse)[:, 0], np.asarray(log.gap)[:, 0]

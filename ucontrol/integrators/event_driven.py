@@ -32,6 +32,26 @@ Each :meth:`EventDriven.step` integrates exactly over :math:`[t_k, t_k + h]` wit
 held, so :func:`ucontrol.simulate` runs it like Moreau–Jean; the step ``h`` is only the sampling
 and control period. Its impulse is that of the step: impacts plus :math:`\int \lambda\,dt`.
 
+**Bilateral constraints.** With :attr:`~ucontrol.contact.ConstraintSet.bilateral` (loop
+closures, joint couplings: rows :math:`J_b`, residual :math:`h(q)`) the bilateral rows are
+held at acceleration level (index reduction), :math:`J_b \dot v + \dot J_b v = 0` with free
+multipliers and no Baumgarte term, by eliminating them: every term of
+:mod:`~ucontrol.integrators.smooth_dynamics` is that of the robot held by them (the
+pseudo-inverse of :math:`D_b = J_b M^{-1} J_b^T`, so that dependent rows, a planar closure or
+a closure declared twice, are handled). The impact, acceleration and capture problems of the
+unilateral rows then use :math:`P J^T` with :math:`J_b P = 0`: an impact obeys Newton's law at
+the unilateral rows and keeps :math:`J_b v^+ = 0`. The drift of the integration is removed by
+the projection of stage 3, onto :math:`h(q) = 0`, :math:`J_b v = 0` together with the closed
+unilateral constraints, at every event and at the end of every step (so the logged states lie
+on the constraints to round-off).
+
+**Moving surfaces.** Against surfaces with a prescribed motion
+(:attr:`~ucontrol.contact.ConstraintSet.time_dependent`) gaps and normal velocities are
+relative, :math:`g(q, t)` and :math:`u = J v + \partial g/\partial t`, evaluated at the
+absolute time (the step starts at the evaluation's ``t``): the events are on the moving gap,
+Newton's law acts on the relative velocity, and a closed contact's acceleration includes the
+surface's, :math:`\dot u = J \dot v + \dot J v - n \cdot \ddot x(t)`.
+
 **Flexible joints.** With :class:`~ucontrol.model.FlexibleJoints` the state holds the motor
 coordinates after the link ones (:mod:`~ucontrol.integrators.smooth_dynamics`): the spring
 torque enters the links' generalized force, and the impact LCP, the acceleration LCP and the
@@ -105,14 +125,15 @@ class _Segment:
 
 
 class EventDriven:
-    """Event-driven integrator of a robot under unilateral constraints.
+    """Event-driven integrator of a robot under unilateral (and bilateral) constraints.
 
     Same protocol as :class:`ucontrol.integrators.MoreauJean`: :meth:`evaluate` at (q_k, v_k),
     then :meth:`step` with the generalized forces held over the step.
 
     Args:
         robot: The robot.
-        constraints: Its unilateral constraints.
+        constraints: Its unilateral constraints, and its bilateral ones in
+            :attr:`~ucontrol.contact.ConstraintSet.bilateral`.
         dt: Step h in [s]: the sampling and zero-order-hold period, not an accuracy parameter.
         rtol: Relative tolerance of solve_ivp.
         atol: Absolute tolerance of solve_ivp, in the units of the state ([m], [rad], [m/s]...).
