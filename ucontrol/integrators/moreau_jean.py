@@ -75,6 +75,18 @@ Coulomb's law at velocity level with Newton's restitution on the normal componen
 have friction). The energy guard applies unchanged, over normal and tangential rows (with e = 0
 Coulomb's impulses dissipate: :math:`P^T u^+ = -\mu P_n \|u_t^+\| + P_t \cdot u_t^+ \le 0`).
 
+**Friction in joints** (:class:`~ucontrol.model.joint_friction.JointFriction`, on the link
+coordinates). Viscous friction :math:`-D v` acts on the θ-averaged velocity the positions
+advance with, :math:`M(v^+ - v_k) = h(F_k - D((1-\theta) v_k + \theta v^+)) + \dots`, hence
+:math:`W = M + h\theta D` and :math:`F_k - D v_k` in step 1 (with θ = 1/2 the step dissipates
+exactly :math:`h D \bar v^2`, :math:`\bar v = (v_k + v^+)/2`). Coulomb friction
+:math:`P_{f,j} \in -h F_{c,j} \operatorname{Sgn}(v_j^+)` adds one row :math:`e_j^T` per joint
+after the contacts' rows; each is solved as a planar contact of the Coulomb problem with
+:math:`\mu = 1` whose normal impulse is pinned at :math:`h F_{c,j}` by an auxiliary row
+decoupled from the others (:meth:`MoreauJean._solve_with_joints`), so that contacts and joints
+are one problem for the friction solver, built whenever a joint has Coulomb friction. The
+step's :attr:`StepOutcome.solution` then has the joint rows last (impulses in [N m s]).
+
 **Moving surfaces.** Constraints against surfaces with a prescribed motion
 (:attr:`~ucontrol.contact.ConstraintSet.time_dependent`) have relative velocities
 :math:`u = J v + \partial g/\partial t`: Signorini and Newton's law hold on them,
@@ -128,6 +140,7 @@ from ucontrol._validation import as_float, as_in_interval, as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidParameterError
 from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.plant import PlantEvaluation, StepOutcome, evaluate_plant
 from ucontrol.solvers.contact_solution import ContactSolution
@@ -183,6 +196,8 @@ class MoreauJean:
         newton_law: ``"closing"`` (default: restitution on closing constraints, energy guard)
             or ``"siconos"`` (restitution on every active constraint, no guard: Siconos'
             convention; with ``persistence_tolerance = 0`` it reproduces Siconos' runs).
+        joint_friction: Viscous (θ-implicit) and Coulomb (set-valued, solved with the
+            contacts) friction in the joints, on the link coordinates (module docstring).
 
     Attributes:
         friction_solver: The friction solver, or None for constraints without friction.
@@ -206,6 +221,7 @@ class MoreauJean:
         midpoint: bool = False,
         persistence_tolerance: float = PERSISTENCE_TOLERANCE,
         newton_law: str = "closing",
+        joint_friction: JointFriction | None = None,
     ) -> None:
         if newton_law not in NEWTON_LAWS:
             raise InvalidParameterError("newton_law", newton_law, f"one of {NEWTON_LAWS}")
@@ -221,7 +237,8 @@ class MoreauJean:
         self.theta = as_in_interval("theta", theta, 0.5, 1.0)
         self.solver: LCPSolver = solver if solver is not None else ProxsuiteLCPSolver()
         self.friction_solver: CoulombSolver | None = None
-        if constraints.has_friction:
+        self._set_joint_friction(joint_friction, robot, flexible, constraints)
+        if constraints.has_friction or self._coulomb_rows is not None:
             self.friction_solver = (
                 friction_solver if friction_solver is not None else _default_friction_solver()
             )
@@ -260,6 +277,36 @@ class MoreauJean:
             )  # hθ C_v + h²θ² K_q
             self._motor_inertia = np.diag(flexible.motor_inertia)
 
+    def _set_joint_friction(
+        self,
+        friction: JointFriction | None,
+        robot: RobotModel,
+        flexible: FlexibleJoints | None,
+        constraints: ConstraintSet,
+    ) -> None:
+        """Keep hθD (viscous) and the Coulomb joints' rows and bounds hF_c, if any."""
+        self.joint_friction = friction
+        self._viscous: Vector | None = None  # D on the link coordinates [N m s/rad]
+        self._coulomb_rows: Vector | None = None  # selection rows S of the Coulomb joints
+        self._coulomb_bounds = np.zeros(0)  # h F_c [N m s]
+        if friction is None:
+            return
+        if friction.nv != robot.nv:
+            raise InvalidParameterError(
+                "joint_friction", f"{friction.nv} coordinates", f"{robot.nv} (the robot's nv)"
+            )
+        if friction.has_viscous:
+            self._viscous = friction.viscous
+        index = friction.coulomb_index
+        if index.size:
+            if constraints.bilateral is not None:
+                raise InvalidParameterError(
+                    "joint_friction", "Coulomb friction", "viscous only with bilateral constraints"
+                )
+            size = robot.nv if flexible is None else robot.nv + flexible.nf
+            self._coulomb_rows = np.eye(size)[index]
+            self._coulomb_bounds = self.dt * friction.coulomb[index]
+
     def reset(self) -> None:
         """Forget which constraints carried an impulse in the last step (a new run)."""
         self._activation[:] = 0.0
@@ -289,7 +336,7 @@ class MoreauJean:
         """
         model, data, h = self._model, self._data, self.dt
         inverse_inertia: Callable[[Vector], Vector]
-        if self.flexible is None and not self.midpoint:
+        if self.flexible is None and not self.midpoint and self._viscous is None:
             pin.cholesky.decompose(model, data)
             v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)
             inverse_inertia = self._rigid_inverse_inertia
@@ -304,7 +351,7 @@ class MoreauJean:
         friction_impulse = np.zeros((self.constraints.size, 3)) if self._friction else None
         solution = None
         plastic = False
-        if indices.size:
+        if indices.size or self._coulomb_rows is not None:
             J = self.constraints.jacobian(data, indices)
             tangents = self.constraints.tangent_count[indices] if self._friction else None
             if tangents is not None and tangents.any():
@@ -314,17 +361,19 @@ class MoreauJean:
                 tangents = None
             if self.flexible is not None:  # contacts act on the links only
                 J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
+            if self._coulomb_rows is not None:  # Coulomb joints' rows last
+                J = np.vstack((J, self._coulomb_rows))
             Minv_Jt = inverse_inertia(J)
             D = J.dot(Minv_Jt)
             u_free = J.dot(v_free)
             rate_now = None
             if self.constraints.time_dependent:  # velocities relative to moving surfaces
                 rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
-                u_free = u_free + rate_next
+                rate_now = _pad(rate_now, u_free.size)
+                u_free = u_free + _pad(rate_next, u_free.size)
             rebound, closure = self._offsets(indices, state)
             b = u_free if closure is None else u_free + _pad(closure, u_free.size)
-            if tangents is not None:  # no restitution on the tangential rows
-                rebound = np.concatenate((rebound, np.zeros(T.shape[0])))
+            rebound = _pad(rebound, u_free.size)  # none on tangential and joint rows
             solution = self._solve(D, b + rebound, indices, tangents)
             if np.count_nonzero(rebound) and self.newton_law == "closing":
                 # Energy the impulses add to T + V over the step [J] (module docstring).
@@ -337,7 +386,8 @@ class MoreauJean:
             impulse[indices] = solution.impulses[: indices.size]
             if tangents is not None and friction_impulse is not None:
                 owners = np.repeat(indices, tangents)
-                tangential = solution.impulses[indices.size :, None] * directions  # [N s]
+                tangential = solution.impulses[indices.size : indices.size + owners.size, None]
+                tangential = tangential * directions  # [N s]
                 np.add.at(friction_impulse, owners, tangential)
             v_next = v_free + Minv_Jt.dot(solution.impulses)
         else:
@@ -508,8 +558,9 @@ class MoreauJean:
         r"""Free velocity of a flexible or midpoint step, and the map J ↦ W⁻¹ Jᵀ.
 
         W is the inertia (of the links at q_k or at the midpoint, and of the motors) plus the
-        θ-implicit spring and damper terms; with ``midpoint`` the Coriolis forces are the
-        symmetric :math:`\Gamma(v_k, v^*)` of a first solve's velocity :math:`v^*`.
+        θ-implicit spring, damper and joint viscous friction terms; with ``midpoint`` the
+        Coriolis forces are the symmetric :math:`\Gamma(v_k, v^*)` of a first solve's velocity
+        :math:`v^*`.
         """
         model, h, flexible = self._model, self.dt, self.flexible
         nv = self.robot.nv
@@ -533,6 +584,10 @@ class MoreauJean:
             W = self._implicit_forces.copy()
             W[:nv, :nv] += M
             W[nv:, nv:] += self._motor_inertia
+        if self._viscous is not None:  # θ-implicit joint viscous friction (module docstring)
+            force[:nv] -= self._viscous * v1  # -D v_k [N m]
+            links = np.arange(nv)
+            W[links, links] += (h * self.theta) * self._viscous  # + hθD
         factor = scipy.linalg.cho_factor(W)
         if self.midpoint:
             first = force.copy()  # Coriolis at v_k: a predictor
@@ -573,6 +628,10 @@ class MoreauJean:
         :class:`ContactSolveError` or warns, as ``on_unsolved`` says.
         """
         solver: LCPSolver | CoulombSolver
+        if self._coulomb_rows is not None:
+            assert self.friction_solver is not None
+            solution = self._solve_with_joints(D, b, indices, tangents)
+            return self._checked(self.friction_solver, solution)
         if tangents is None or self.friction_solver is None:  # the latter: not with tangents
             solver = self.solver
             solution = self.solver.solve(D, b)
@@ -581,6 +640,45 @@ class MoreauJean:
             problem = CoulombProblem(D, b, self.constraints.friction[indices], tangents)
             solution = self.friction_solver.solve_coulomb(problem)
         return self._checked(solver, solution)
+
+    def _solve_with_joints(
+        self,
+        D: Vector,
+        b: Vector,
+        indices: NDArray[np.intp],
+        tangents: NDArray[np.intp] | None,
+    ) -> ContactSolution:
+        r"""The contact problem with the Coulomb joints' rows last (module docstring).
+
+        Each Coulomb joint j becomes a planar contact of the Coulomb problem with
+        :math:`\mu = 1`: its tangential row is the joint's (:math:`u = v_j^+`) and its normal
+        row an auxiliary one, decoupled from every other, :math:`u_n = \sigma_j (P_n - h F_{c,j})`
+        (:math:`\sigma_j = D_{jj}`), so that :math:`P_n = h F_{c,j}` at every solution. The
+        returned solution has the rows of (D, b): the auxiliary ones are dropped.
+        """
+        assert self.friction_solver is not None
+        m, m_j = indices.size, self._coulomb_bounds.size
+        r = D.shape[0]  # m normal, then the contacts' tangential, then m_j joint rows
+        real = np.concatenate((np.arange(m), np.arange(m + m_j, r + m_j)))
+        auxiliary = np.arange(m, m + m_j)
+        joint_rows = np.arange(r - m_j, r)
+        D_all = np.zeros((r + m_j, r + m_j))
+        D_all[np.ix_(real, real)] = D
+        sigma = D.diagonal()[joint_rows].copy()
+        D_all[auxiliary, auxiliary] = sigma
+        b_all = np.zeros(r + m_j)
+        b_all[real] = b
+        b_all[auxiliary] = -sigma * self._coulomb_bounds  # [rad/s]
+        contact_tangents = np.zeros(m, dtype=np.intp) if tangents is None else tangents
+        mu = self.constraints.friction[indices] if tangents is not None else np.zeros(m)
+        problem = CoulombProblem(
+            D_all,
+            b_all,
+            np.concatenate((mu, np.ones(m_j))),
+            np.concatenate((contact_tangents, np.ones(m_j, dtype=np.intp))),
+        )
+        solution = self.friction_solver.solve_coulomb(problem)
+        return solution._replace(impulses=solution.impulses[real], velocity=solution.velocity[real])
 
 
 def _pad(rows: Vector, size: int) -> Vector:

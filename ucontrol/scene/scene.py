@@ -21,6 +21,7 @@ from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
 from ucontrol.exceptions import InvalidParameterError, SceneError
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.inertia_check import check_inertias, check_mass_matrix
+from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.scene.controller_builders import build_controller
 from ucontrol.scene.integrator_builders import build_integrator
@@ -55,6 +56,8 @@ class Scene:
         motor_q0: Initial motor positions of the flexible joints, shape (nf,); default their
             link positions (unstretched springs).
         motor_v0: Initial motor velocities, shape (nf,); default their link velocities.
+        joint_friction: Viscous and Coulomb friction in the joints (on the link coordinates,
+            ``nv`` of them), or None: frictionless joints.
         duration: Default simulated time in [s].
         integrator: Default integrator settings.
         controller: Controller table (``type`` plus parameters); ``{"type": "zero"}`` if none.
@@ -81,6 +84,7 @@ class Scene:
     flexible: FlexibleJoints | None = None
     motor_q0: NDArray[np.float64] | None = None
     motor_v0: NDArray[np.float64] | None = None
+    joint_friction: JointFriction | None = None
     duration: float = 1.0
     integrator: IntegratorSettings = field(default_factory=IntegratorSettings)
     controller: Mapping[str, Any] = field(default_factory=lambda: {"type": "zero"})
@@ -102,6 +106,12 @@ class Scene:
             motor_v0 = self.v0[flexible.v_index] if self.motor_v0 is None else self.motor_v0
             object.__setattr__(self, "motor_q0", as_vector("motor_q0", motor_q0, flexible.nf))
             object.__setattr__(self, "motor_v0", as_vector("motor_v0", motor_v0, flexible.nf))
+        if self.joint_friction is not None and self.joint_friction.nv != self.robot.nv:
+            raise InvalidParameterError(
+                "joint_friction",
+                f"{self.joint_friction.nv} coordinates",
+                f"{self.robot.nv} (the robot's nv)",
+            )
         object.__setattr__(self, "contacts", tuple(self.contacts))
         object.__setattr__(self, "stops", tuple(self.stops))
         object.__setattr__(self, "sphere_contacts", tuple(self.sphere_contacts))

@@ -46,6 +46,7 @@ _TOP_KEYS = {
     "reference",
     "sensors",
     "actuators",
+    "joint_friction",
 }
 _ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity", "planar_axis", "flexible"}
 _FLEXIBLE_KEYS = {"joints", "stiffness", "motor_inertia", "damping", "q0", "v0"}
@@ -167,6 +168,7 @@ def scene_fields(
         controller=controller,
         reference=table.get("reference"),
         **_sensors_and_actuators(table),
+        joint_friction=_joint_friction(table, robot),
     )
 
 
@@ -182,6 +184,15 @@ def _sensors_and_actuators(table: Mapping[str, Any]) -> dict[str, Any]:
 
         fields["actuators"] = ActuatorSettings.from_table(table["actuators"])
     return fields
+
+
+def _joint_friction(table: Mapping[str, Any], robot: RobotModel) -> Any:
+    """The ``[joint_friction]`` settings, or None when the scene declares none."""
+    if "joint_friction" not in table:
+        return None
+    from ucontrol.model.joint_friction import JointFriction
+
+    return JointFriction.from_table(robot, table["joint_friction"])
 
 
 def check_reference(table: Any, contacts: Sequence[PointContact]) -> dict[str, Any]:
