@@ -69,10 +69,13 @@ def run_design(args: argparse.Namespace) -> int:
     table = report.to_dict()
     if args.replay and cycle.friction == 0.0:
         replay = replay_open_loop(task, cycle, restart=True)
+        run = replay_open_loop(task, cycle)  # one open-loop run over the whole cycle
         table["replay"] = {
             "q_error_rad": replay.q_error,
             "v_error_rad_s": replay.v_error,
             "impact_time_errors_s": replay.impact_time_errors.tolist(),
+            "cycle_q_error_rad": run.q_error,
+            "cycle_impact_time_errors_s": run.impact_time_errors.tolist(),
         }
     import json
 

@@ -142,9 +142,19 @@ class CycleTranscription:
             f["sliding_velocity"] = ca.Function(
                 "u_t", [q, v], [ca.jacobian(ca.dot(ca.DM(tangent), p_contact), q) @ v]
             )
-        S = task.grid.substeps
-        f["free"] = _rk4_interval("free", rate_free, f["gap"], S, nv)
-        f["contact"] = _rk4_interval("contact", rate_contact, None, S, nv, f["contact_force"])
+        S, scheme = task.grid.substeps, task.grid.scheme
+        f["free"] = _rk_interval(
+            "free",
+            rate_free,
+            f["gap"],
+            S,
+            nv,
+            scheme=scheme,
+            normal=(f["normal_velocity"], f["normal_acceleration"]),
+        )
+        f["contact"] = _rk_interval(
+            "contact", rate_contact, None, S, nv, f["contact_force"], scheme=scheme
+        )
         self.functions = f
 
     def _sliding_tangent(self, normal: Vector) -> Vector:
@@ -227,11 +237,12 @@ class CycleTranscription:
         for i, ph in enumerate(phases):
             dt = ph.T / ph.N
             interval = f["contact" if ph.kind == "contact" else "free"]
-            path_values = []
+            path_values, path_interior = [], []
             for k in range(ph.N):
-                x_next, values = interval(ph.X[:, k], ph.U[:, k], dt)
+                x_next, values, interior = interval(ph.X[:, k], ph.U[:, k], dt)
                 opti.subject_to(ph.X[:, k + 1] == x_next)
                 path_values.append(values)
+                path_interior.append(interior)
                 effort += dt * ca.sumsqr(ph.U[:, k])
                 dynamic += dt * ca.sumsqr(ph.U[:, k] - f["gravity"](ph.X[:nv, k]))
                 if k > 0:
@@ -266,6 +277,14 @@ class CycleTranscription:
                 S = task.grid.substeps
                 gaps = ca.vec(values[:S, :])[1:]  # the phase's first point is on the surface
                 constrain(f"gap >= 0 in {ph.name}", "gap", gaps, 0.0, np.inf)
+                if task.grid.landing_interior:
+                    constrain(
+                        f"gap >= 0 between the points of the landing of {ph.name}",
+                        "gap",
+                        path_interior[-1],  # the dip of a soft landing, between its last points
+                        0.0,
+                        np.inf,
+                    )
             # the phase's end on the surface (the landings), phase durations
             if ph.kind != "contact":
                 constrain(
@@ -556,6 +575,7 @@ class CycleTranscription:
             restitution=self.restitution,
             friction=self.friction,
             substeps=S,
+            scheme=task.grid.scheme,
             scene=str(task.scene.source) if task.scene.source is not None else "",
         )
 
@@ -642,27 +662,68 @@ def design_cycle(
     return CycleTranscription(task).solve(warm, progress=progress)
 
 
-def _rk4_interval(
+def _tableau(scheme: str) -> tuple[Vector, Vector]:
+    """Butcher matrix A (s, s) and weights b (s,) of an explicit Runge–Kutta scheme."""
+    if scheme == "rk4":
+        A = np.zeros((4, 4))
+        A[1, 0], A[2, 1], A[3, 2] = 0.5, 0.5, 1.0
+        return A, np.array([1.0, 2.0, 2.0, 1.0]) / 6.0
+    # DOP853's order-8 propagation stages (Hairer, Nørsett and Wanner), as scipy ships them
+    from scipy.integrate._ivp import dop853_coefficients as dop853
+
+    stages = dop853.N_STAGES
+    return np.array(dop853.A[:stages, :stages]), np.array(dop853.B)
+
+
+#: Fractions of a substep where the gap's interpolant is checked, and the quintic Hermite
+#: basis there: weights of (g0, δ u0, δ² a0, δ² a1, δ u1, g1).
+_INTERIOR = np.array([0.25, 0.5, 0.75])
+_HERMITE5 = np.array(
+    [
+        [
+            1 - 10 * s**3 + 15 * s**4 - 6 * s**5,
+            s - 6 * s**3 + 8 * s**4 - 3 * s**5,
+            0.5 * s**2 - 1.5 * s**3 + 1.5 * s**4 - 0.5 * s**5,
+            0.5 * s**3 - s**4 + 0.5 * s**5,
+            -4 * s**3 + 7 * s**4 - 3 * s**5,
+            10 * s**3 - 15 * s**4 + 6 * s**5,
+        ]
+        for s in _INTERIOR
+    ]
+)
+
+
+def _rk_interval(
     name: str,
     rate: ca.Function,
     gap: ca.Function | None,
     substeps: int,
     nv: int,
     force: ca.Function | None = None,
+    scheme: str = "rk4",
+    normal: tuple[ca.Function, ca.Function] | None = None,
 ) -> ca.Function:
-    """``(x0, tau, h) -> (x_end, values)``: ``substeps`` RK4 steps of h / substeps.
+    r"""``(x0, tau, h) -> (x_end, values, interior)``: ``substeps`` Runge–Kutta steps.
 
     ``values`` (substeps + 1,): the gap (or contact force) at each substep start, then at the
-    end with the same torque.
+    end with the same torque. ``interior`` (3 substeps,): with ``normal`` (the normal velocity
+    :math:`u = J_n v` and acceleration :math:`a = J_n \dot v + \dot J_n v` Functions), the
+    gap's quintic Hermite interpolant from :math:`(g, u, a)` at both ends of each substep, at
+    a quarter, half and three quarters of it (error :math:`O(\delta^6)`), so that a flight
+    cannot dip through the surface between two points unnoticed; else zeros.
     """
+    A, b = _tableau(scheme)
     x0 = ca.SX.sym("x0", 2 * nv)
     tau = ca.SX.sym("tau", nv)
     h = ca.SX.sym("h")
     step = h / substeps
     x = x0
-    values = []
+    values, speeds, accelerations = [], [], []
 
     def probe(state: ca.SX) -> ca.SX:
+        if normal is not None:
+            speeds.append(normal[0](state[:nv], state[nv:]))
+            accelerations.append(normal[1](state, tau))
         if force is not None:
             return force(state, tau)
         assert gap is not None
@@ -670,13 +731,30 @@ def _rk4_interval(
 
     for _ in range(substeps):
         values.append(probe(x))
-        k1 = rate(x, tau)
-        k2 = rate(x + step / 2 * k1, tau)
-        k3 = rate(x + step / 2 * k2, tau)
-        k4 = rate(x + step * k3, tau)
-        x = x + step / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        k: list[ca.SX] = []
+        for i in range(A.shape[0]):
+            increment = sum(
+                (A[i, j] * k[j] for j in range(i) if A[i, j] != 0.0), ca.SX.zeros(2 * nv)
+            )
+            k.append(rate(x + step * increment, tau))
+        x = x + step * sum((b[i] * k[i] for i in range(len(k)) if b[i] != 0.0), ca.SX.zeros(2 * nv))
     values.append(probe(x))
-    return ca.Function(name, [x0, tau, h], [x, ca.vertcat(*values)])
+    interior = []
+    for i in range(substeps):
+        ends = (
+            ca.vertcat(
+                values[i],
+                step * speeds[i],
+                step**2 * accelerations[i],
+                step**2 * accelerations[i + 1],
+                step * speeds[i + 1],
+                values[i + 1],
+            )
+            if normal is not None
+            else ca.SX.zeros(6)
+        )
+        interior.append(ca.mtimes(ca.DM(_HERMITE5), ends))
+    return ca.Function(name, [x0, tau, h], [x, ca.vertcat(*values), ca.vertcat(*interior)])
 
 
 def _resample(samples: Vector, n: int) -> Vector:

@@ -67,7 +67,8 @@ class DesignedCycle:
         force: Desired force plateau of the task in [N] (for the tracking controller).
         restitution: Restitution of the contact.
         friction: Coulomb coefficient of the contact.
-        substeps: RK4 steps per control interval in the design.
+        substeps: Runge–Kutta steps per control interval in the design.
+        scheme: Runge–Kutta scheme of the design (``"rk4"`` or ``"rk8"``).
         scene: Path of the base scene file ("" when built in code).
     """
 
@@ -79,6 +80,7 @@ class DesignedCycle:
     restitution: float
     friction: float
     substeps: int
+    scheme: str = "rk4"
     scene: str = ""
 
     @property
