@@ -17,6 +17,7 @@ from ucontrol.control.brogliato_controller import BrogliatoController, Brogliato
 from ucontrol.control.controller import Controller
 from ucontrol.control.controller_table import CYCLE_KEYS, contact_phases, tracked_contacts
 from ucontrol.control.desired_cycle import DesiredCycle
+from ucontrol.control.friction_compensation import FrictionCompensation
 from ucontrol.control.impedance_table import IMPEDANCE_KEYS, impedance_from_table
 from ucontrol.control.joint_pd import JointPD
 from ucontrol.control.juggling_controller import JUGGLING_KEYS, juggling_from_table
@@ -24,6 +25,7 @@ from ucontrol.control.path_table import path_from_table
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import NotFoundError, SceneError
+from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.model_uncertainty import perturbed_robot
 
 if TYPE_CHECKING:
@@ -54,7 +56,7 @@ _CONTROLLER_KEYS = {
 _CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
 #: Controller types a scene may declare.
 CONTROLLERS = tuple(_CONTROLLER_KEYS)
-_MODEL_KEYS = {"mass_scale", "com_offset", "surfaces"}
+_MODEL_KEYS = {"mass_scale", "com_offset", "surfaces", "joint_friction"}
 _PLANE_KEYS = {"point", "normal"}
 
 
@@ -79,12 +81,18 @@ def build_controller(scene: Scene) -> Controller:
     """The controller declared by ``scene.controller``, on its own model of the scene.
 
     A ``[controller.model]`` table gives the controller a model that differs from the plant
-    (:func:`controller_view`); the controller is then built on that view of the scene.
+    (:func:`controller_view`); the controller is then built on that view of the scene. Every
+    controller but ``zero`` then compensates the joint friction of its model, if any
+    (:class:`~ucontrol.control.friction_compensation.FrictionCompensation`).
     """
     table = dict(scene.controller)
     kind = check_controller_table(table)
     view = controller_view(scene, table.pop("model", None))
-    return _BUILDERS[kind](view, table)
+    controller = _BUILDERS[kind](view, table)
+    friction = view.joint_friction
+    if kind == "zero" or friction is None or not (friction.coulomb.any() or friction.has_viscous):
+        return controller
+    return FrictionCompensation(controller, view.robot, friction)
 
 
 def controller_view(scene: Scene, model: Mapping[str, Any] | None) -> Scene:
@@ -92,7 +100,9 @@ def controller_view(scene: Scene, model: Mapping[str, Any] | None) -> Scene:
 
     Keys: ``mass_scale`` (a factor, or one per link), ``com_offset`` (per link, [m], in the
     frame of the link's joint), ``surfaces`` (per surface name, its ``point`` and ``normal``
-    as the controller believes them: the plant keeps the scene's).
+    as the controller believes them: the plant keeps the scene's), ``joint_friction`` (the
+    friction in the joints the controller believes in, the ``[joint_friction]`` table's forms;
+    without it the controller believes the scene's).
 
     Raises:
         UnknownKeyError: A key of the table that is not one of these.
@@ -120,7 +130,14 @@ def controller_view(scene: Scene, model: Mapping[str, Any] | None) -> Scene:
             )
             contact = dataclasses.replace(contact, surface=plane, name=contact.name)
         contacts.append(contact)
-    return dataclasses.replace(scene, robot=robot, contacts=tuple(contacts))
+    friction = scene.joint_friction
+    if "joint_friction" in model:
+        friction = JointFriction.from_table(
+            scene.robot, model["joint_friction"], "[controller.model] joint_friction"
+        )
+    return dataclasses.replace(
+        scene, robot=robot, contacts=tuple(contacts), joint_friction=friction
+    )
 
 
 def _zero(scene: Scene, table: Mapping[str, Any]) -> Controller:
