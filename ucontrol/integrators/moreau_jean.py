@@ -25,6 +25,17 @@ default), and with a positive gap :math:`g_a` its condition is
 the gap in one step, not faster, and never adheres. The integrator keeps that memory between
 steps (:meth:`MoreauJean.reset` forgets it).
 
+**Contacts closed at the start.** A run starts with no memory, so a contact placed on its
+surface with a gap that rounds to a tiny positive value (:math:`+10^{-18}` m from the trigonometry
+of an incline) would be left out of the first step: the body falls freely for one step, lands,
+and a block put flat on an incline tilts by :math:`6.2\cdot10^{-5}` rad. The first step of a run
+(after construction or :meth:`MoreauJean.reset`) therefore treats every constraint whose gap is
+at most :math:`\varepsilon_0` (``START_GAP_TOLERANCE``, 1 nm, the initial penetration
+:func:`~ucontrol.simulate.simulate` admits) and whose predicted gap would leave it out as held
+in the previous step: it is active with the condition :math:`0 \le u_a^+ + g_a/h \perp P_a`
+above (no restitution; an approach slower than :math:`\varepsilon_0/(\gamma h)` is the only
+one it changes, which is 2 µm/s at h = 1 ms).
+
 **Flexible joints.** With :class:`~ucontrol.model.FlexibleJoints` the state holds the motor
 coordinates after the link ones and the joint springs (stiffness matrix :math:`K_q`) and
 dampers (:math:`C_v`) are treated θ-implicitly (DESIGN §4.1): with
@@ -159,6 +170,8 @@ PERSISTENCE_TOLERANCE = 1e-6
 BILATERAL_PROJECTION_TOLERANCE = 1e-12
 #: Gauss–Newton iterations of the projection at most.
 BILATERAL_PROJECTION_ITERATIONS = 5
+#: Gap in [m] (or [rad]) up to which a constraint counts as closed at the first step of a run.
+START_GAP_TOLERANCE = 1e-9
 #: Whom Newton's law applies to: the closing constraints of the active set (the project's
 #: rule, with the energy guard), or every active constraint, separating ones included, with no
 #: guard (Siconos' MoreauJeanOSI, to reproduce its runs).
@@ -269,6 +282,7 @@ class MoreauJean:
         # Largest predicted gap of each constraint in the active set: the persistence
         # tolerance for those held in the last step (positive only for them), else 0.
         self._activation = np.zeros(constraints.size)
+        self._first_step = True  # contacts closed at the start are held (module docstring)
         if flexible is not None:
             ht = self.dt * self.theta
             self._stiffness = flexible.coupling_matrix(flexible.stiffness)  # K_q
@@ -310,6 +324,7 @@ class MoreauJean:
     def reset(self) -> None:
         """Forget which constraints carried an impulse in the last step (a new run)."""
         self._activation[:] = 0.0
+        self._first_step = True
 
     def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
         """Dynamics, kinematics and constraint gaps at (q, v) and time t; prepares :meth:`step`.
@@ -343,7 +358,12 @@ class MoreauJean:
         else:
             v_free, inverse_inertia = self._free_velocity(state, tau)
         # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
-        active = state.gap + (self.gamma * h) * state.normal_velocity <= self._activation
+        predicted = state.gap + (self.gamma * h) * state.normal_velocity
+        if self._first_step:
+            self._first_step = False
+            closed = (state.gap <= START_GAP_TOLERANCE) & (predicted > self._activation)
+            self._activation[closed] = max(self.persistence_tolerance, START_GAP_TOLERANCE)
+        active = predicted <= self._activation
         indices = active.nonzero()[0]
         if self._bilateral is not None:
             return self._mixed_step(state, v_free, inverse_inertia, active, indices)
