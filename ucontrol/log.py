@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -162,6 +163,15 @@ class Log:
         """Add a per-sample array, e.g. a controller's phase, of shape ``(capacity, *shape)``."""
         capacity = self._arrays["t"].shape[0]
         self._extras[name] = np.zeros((capacity, *shape), dtype=dtype)
+
+    def extra_fields(self, names: Sequence[str]) -> tuple[NDArray[Any], ...]:
+        """The whole arrays (every row, shape ``(capacity, *shape)``) of fields ``names``.
+
+        For a recorder that writes many fields at every sample: ``array[len(log)] = value``
+        is :meth:`record_extra` without its look-up. The arrays stay those of the log until
+        :meth:`add_field` replaces one.
+        """
+        return tuple(self._extras[name] for name in names)
 
     def record_extra(self, name: str, value: Any) -> None:
         """Write ``value`` into the current row of a field added by :meth:`add_field`."""

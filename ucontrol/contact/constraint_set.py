@@ -206,14 +206,14 @@ class ConstraintSet:
         Raises:
             InvalidParameterError: ``t`` is None and some surface moves.
         """
-        model = self.robot.model
+        model, placements = self.robot.model, data.oMf
         gap = np.empty(self.size)
         velocity = np.empty(self.size)
         for i, (frame_id, normal, offset) in enumerate(self._contact_terms):
-            gap[i] = normal.dot(data.oMf[frame_id].translation) - offset
+            gap[i] = normal.dot(placements[frame_id].translation) - offset
             velocity[i] = normal.dot(pin.getFrameVelocity(model, data, frame_id, _LWA).linear)
         for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
-            delta = data.oMf[first].translation - data.oMf[second].translation
+            delta = placements[first].translation - placements[second].translation
             distance = np.sqrt(delta.dot(delta))
             gap[i] = distance - radii
             relative = (

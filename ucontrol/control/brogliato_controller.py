@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
@@ -163,7 +163,10 @@ class BrogliatoController:
                     law.bind_input(i, getattr(self._data, name))
                 law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
                 self._compiled_law = law
+                self._target_input = law.input_buffer(8)
+                self._reference_input = law.input_buffer(9)
         self._force_input = np.zeros(task.m)
+        self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
         self.reset()
 
     def reset(self) -> None:
@@ -218,17 +221,25 @@ class BrogliatoController:
     def record(self, log: Log) -> None:
         """Write the values of the last call into the current row (events only once)."""
         machine, desired = self.machine, self.desired
-        log.record_extra("phase", int(machine.phase))
-        log.record_extra("contact_phase", [int(phase) for phase in machine.phases])
-        log.record_extra("events", machine.take_events())
-        log.record_extra("V", self.V)
-        log.record_extra("V1", self.V1)
-        log.record_extra("virtual_depth", machine.depth)
-        log.record_extra("task_position", self.X)
-        log.record_extra("task_desired", desired.reference[0])
-        log.record_extra("task_target", desired.target[0])
-        log.record_extra("lambda_d", desired.force)
-        log.record_extra("contact_force", self.contact_force)
+        if self._log_fields is None or self._log_fields[0] is not log:
+            self._log_fields = (log, log.extra_fields(list(LOG_FIELDS)))
+        k, fields = len(log), self._log_fields[1]
+        values = (
+            machine.phase,
+            machine.phases,
+            machine.events,
+            self.V,
+            self.V1,
+            machine.depth,
+            self.X,
+            desired.reference[0],
+            desired.target[0],
+            desired.force,
+            self.contact_force,
+        )  # in the order of LOG_FIELDS
+        for field, value in zip(fields, values, strict=True):
+            field[k] = value
+        machine.events[:] = 0  # events are logged once
 
     def _measure(self, t: float, contacts: ContactState) -> NDArray[np.bool_]:
         """Check the time, read the contact forces; return which declared contacts closed."""
@@ -240,7 +251,7 @@ class BrogliatoController:
         if self._plant_index is None:
             self._plant_index = self._find_contacts(contacts.names)
         index = self._plant_index
-        self.contact_force = contacts.force[index]
+        self.contact_force = contacts.impulse[index] / contacts.dt  # their ContactState.force
         # The impulse / dt of a step is a contact force only if the contact stayed closed over
         # it without impact: feeding an impact back would push the robot off the surface.
         closed = self.contact_force > 0.0
@@ -341,16 +352,16 @@ class BrogliatoController:
         law = self._compiled_law
         assert law is not None
         force = self._force_input
-        force[:] = 0.0
-        if desired.constrained.any():
+        force.fill(0.0)
+        if np.count_nonzero(desired.constrained):
             held = desired.constrained
             lambda_d = desired.force[held]
             measured = np.where(self._persistent[held], self.contact_force[held], lambda_d)
             force[self.machine.coordinates[held]] = -lambda_d + self.gains.force_gain * (
                 measured - lambda_d
             )
-        np.concatenate(desired.target, out=law.input_buffer(8))
-        np.concatenate(desired.reference, out=law.input_buffer(9))
+        np.concatenate(desired.target, out=self._target_input)
+        np.concatenate(desired.reference, out=self._reference_input)
         if kinematics is None:
             (out,) = law(None, None, None, None, None, None, None, None, None, None, force, None)
         else:

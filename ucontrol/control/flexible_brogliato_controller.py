@@ -266,7 +266,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         reference_input[nv:] = derivatives  # q1d derivatives 1 to 4
         link_desired = reference_input.reshape(5, nv).copy()
         start = size + 5 * nv
-        if desired.constrained.any():
+        if np.count_nonzero(desired.constrained):
             # λ_d and its derivatives, (3, n): 0 unless held; the force λ used and its
             # derivatives: the measured value with the derivatives of λ_d, or λ_d where there
             # is no valid measurement.

@@ -70,7 +70,8 @@ class DesiredState:
         reference: Position and velocity on which V is built: the target with the gaps of
             transiting contacts clipped at the surface (0, at rest), each shape (m,).
         force: Desired contact force :math:`\lambda_d` of each declared contact in [N],
-            shape (n,) (0 outside the constrained phase).
+            shape (n,) (0 outside the constrained phase). When every contact is free, this,
+            ``constrained`` and ``force_derivatives`` are read-only zeros shared between calls.
         constrained: Whether each declared contact is in its constrained phase, shape (n,).
         force_derivatives: The first k - 2 time derivatives of ``force`` [N/s^i], each
             shape (n,): the law's force term has as many derivatives as its ``target[2]`` term.
@@ -132,6 +133,10 @@ class PhaseMachine:
     def reset(self) -> None:
         """Back to the state at t = 0: every contact free, first approach in cycle 0."""
         n = len(self.contacts)
+        # DesiredState's force, constrained and force derivatives when every contact is free.
+        self._no_force = _read_only(np.zeros(n))
+        self._none_constrained = _read_only(np.zeros(n, dtype=bool))
+        self._no_force_derivatives = tuple(_read_only(np.zeros(n)) for _ in range(self.order - 2))
         self.phases = [Phase.FREE] * n
         self.depth = np.zeros(n)
         self.events = np.zeros(n, dtype=np.int64)
@@ -168,22 +173,29 @@ class PhaseMachine:
         if self._plane is not None:  # a planar path: p - c and its derivatives along (u, w)
             basis, offset = self._plane
             path: Any = self.cycle.path
-            nominal = path.plane_coefficients(t, order) @ basis  # (order + 1, m)
+            nominal = np.dot(path.plane_coefficients(t, order), basis)  # (order + 1, m)
             nominal[0] += offset
         else:
             nominal = np.array(self.cycle.path.derivatives(t, order)) @ self._A_t
             nominal[0] -= task.b
-        if self._all_nominal:
-            target_rows = nominal
-        else:
+        target_rows = nominal
+        if not self._all_nominal:  # the other coordinates keep their nominal column
             columns = nominal.T.tolist()
-            target_rows = np.array(
-                [segment(t, tuple(columns[j])) for j, segment in enumerate(self._segments)]
-            ).T.copy()
+            for j, segment in enumerate(self._segments):
+                if type(segment) is not Nominal:
+                    target_rows[:, j] = segment(t, tuple(columns[j]))
         target = tuple(target_rows)
         reference_rows = target_rows[:2].copy()
         reference = (reference_rows[0], reference_rows[1])
         n = len(self.contacts)
+        if self.phases.count(Phase.FREE) == n:  # no force: shared read-only zeros
+            return DesiredState(
+                target,
+                reference,
+                self._no_force,
+                self._none_constrained,
+                self._no_force_derivatives,
+            )
         force = np.zeros(n)
         force_derivatives = tuple(np.zeros(n) for _ in range(order - 2))
         constrained = np.zeros(n, dtype=bool)
@@ -319,6 +331,12 @@ class PhaseMachine:
     def _blend(self, base: TrajectorySegment, t: float, duration: float) -> BlendToNominal:
         """``base`` into the nominal path from ``t`` over ``duration`` [s], :math:`C^{order}`."""
         return BlendToNominal(base, t, duration, continuity=self.order)
+
+
+def _read_only(array: NDArray[Any]) -> NDArray[Any]:
+    """``array``, made read-only (a value shared between calls)."""
+    array.flags.writeable = False
+    return array
 
 
 def _reached(t: float, time: float) -> bool:
