@@ -144,13 +144,18 @@ def test_free_flyer_ball_follows_the_analytic_heights() -> None:
     scene = load_scene(ROBOTS / "free_ball.toml")
     assert (scene.robot.nq, scene.robot.nv, scene.robot.nu) == (7, 6, 0)
     reference = BouncingBall(height=1.0, restitution=0.9)
-    errors = []
+    flight, whole = [], []
     for dt in (1e-3, 1e-4):
         log = simulate(scene, duration=2.5, dt=dt).log
-        errors.append(np.max(np.abs(log.q[:, 2] - 0.1 - reference.state(log.t)[0])))
+        error = np.abs(log.q[:, 2] - 0.1 - reference.state(log.t)[0])
+        flight.append(np.max(error[log.t < 0.44]))  # before the first impact (t = 0.4515 s)
+        whole.append(np.max(error))
         np.testing.assert_allclose(np.linalg.norm(log.q[:, 3:], axis=1), 1.0, atol=1e-12)
-    assert errors[0] / errors[1] >= 8.0
-    assert errors[1] < 2e-3
+    # The spin (2 and 5 rad/s) leaks into the height at O(h): first order in flight (measured
+    # ratio 9.9, 1.4e-4 then 1.5e-5 m); through five impacts the largest error, at an impact,
+    # depends on where the impact falls between samples (9.6e-3 and 1.7e-3 m).
+    assert flight[0] / flight[1] >= 9.0
+    assert whole[1] < 2e-3
 
 
 def test_more_contacts_than_degrees_of_freedom() -> None:

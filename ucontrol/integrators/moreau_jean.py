@@ -263,6 +263,18 @@ class MoreauJean:
         if self.restitution_threshold < 0.0:
             raise InvalidParameterError("restitution_threshold", restitution_threshold, ">= 0")
         self._model = robot.model
+        # (idx_q, idx_v) of the joints integrated on R^3 x SO(3) or R^2 x SO(2) (_advance).
+        kinds = [joint.shortname() for joint in robot.model.joints]
+        self._free_flyers = [
+            (joint.idx_q, joint.idx_v)
+            for joint, kind in zip(robot.model.joints, kinds, strict=True)
+            if kind == "JointModelFreeFlyer"
+        ]
+        self._planar_joints = [
+            (joint.idx_q, joint.idx_v)
+            for joint, kind in zip(robot.model.joints, kinds, strict=True)
+            if kind == "JointModelPlanar"
+        ]
         self._data = robot.model.createData()
         self._bilateral = constraints.bilateral
         self._projection_data = robot.model.createData() if self._bilateral is not None else None
@@ -629,11 +641,26 @@ class MoreauJean:
         return 0.25 * (plus - pin.rnea(model, data, q, a - b, zero))
 
     def _advance(self, q: Vector, dq: Vector) -> Vector:
-        """``q ⊕ dq``: Pinocchio's integration on the links, a sum on the motors."""
+        r"""``q ⊕ dq``: Pinocchio's integration on the links, a sum on the motors.
+
+        Free-flyer and planar joints move their origin along a straight line, by their linear
+        velocity rotated to the world at step k, and rotate by the exponential of their angular
+        velocity (:math:`\mathbb{R}^3 \times SO(3)`, module docstring).
+        """
         if self.flexible is None:
-            return pin.integrate(self._model, q, dq)
-        nq, nv = self.flexible.nq, self.flexible.nv
-        return np.concatenate((pin.integrate(self._model, q[:nq], dq[:nv]), q[nq:] + dq[nv:]))
+            q_next = pin.integrate(self._model, q, dq)
+        else:
+            nq, nv = self.flexible.nq, self.flexible.nv
+            q_next = np.concatenate((pin.integrate(self._model, q[:nq], dq[:nv]), q[nq:] + dq[nv:]))
+        for iq, iv in self._free_flyers:
+            rotation = pin.XYZQUATToSE3(q[iq : iq + 7]).rotation
+            q_next[iq : iq + 3] = q[iq : iq + 3] + rotation @ dq[iv : iv + 3]
+        for iq, iv in self._planar_joints:
+            c, s = q[iq + 2], q[iq + 3]
+            q_next[iq : iq + 2] = q[iq : iq + 2] + np.array(
+                (c * dq[iv] - s * dq[iv + 1], s * dq[iv] + c * dq[iv + 1])
+            )
+        return q_next
 
     def _solve(
         self,
