@@ -12,6 +12,7 @@ from ucontrol.control.brogliato_controller import BrogliatoController, Brogliato
 from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.controller import ContactState, Controller, LoggingController
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle, NominalPath
+from ucontrol.control.friction_compensation import FrictionCompensation
 from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
 from ucontrol.control.impedance_table import impedance_from_table
 from ucontrol.control.joint_pd import JointPD
@@ -47,6 +48,7 @@ __all__ = [
     "DesiredState",
     "Event",
     "FlexibleBrogliatoController",
+    "FrictionCompensation",
     "ImpedanceController",
     "ImpedanceGains",
     "JointPD",

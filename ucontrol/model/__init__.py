@@ -9,6 +9,7 @@ from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.model.urdf_path import example_robot_data_dir, resolve_urdf
 
@@ -17,6 +18,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "FlexibleJoints",
+    "JointFriction",
     "RobotModel",
     "SymbolicModel",
     "example_robot_data_dir",
