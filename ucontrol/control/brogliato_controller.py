@@ -163,9 +163,8 @@ class BrogliatoController:
                     law.bind_input(i, getattr(self._data, name))
                 law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
                 self._compiled_law = law
-                self._target_input = law.input_buffer(8)
-                self._reference_input = law.input_buffer(9)
-        self._force_input = np.zeros(task.m)
+                # The other inputs are written in place at each call (see _rigid_law_function).
+                self._law_inputs = [law.input_view(i) for i in range(11)]
         self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
         self.reset()
 
@@ -317,20 +316,21 @@ class BrogliatoController:
 
     def _compiled_call(self, t: float, q: Vector, v: Vector, closed: NDArray[np.bool_]) -> Vector:
         """The law through its compiled form (same terms as :meth:`_torque`)."""
-        model, data, law = self._model, self._data, self._compiled_law
-        assert law is not None
+        model, data, inputs = self._model, self._data, self._law_inputs
         self._pinocchio_pass(q, v)
         frame_id = self.task.frame_id
-        J6 = pin.getFrameJacobian(model, data, frame_id, _LWA)
-        dJ6 = pin.getFrameJacobianTimeVariation(model, data, frame_id, _LWA)
-        posture = pin.difference(model, self.posture, q) if self._redundant else None
-        kinematics = (None, None, None, J6, dJ6, data.oMf[frame_id].translation, v)
+        inputs[3][...] = pin.getFrameJacobian(model, data, frame_id, _LWA)
+        inputs[4][...] = pin.getFrameJacobianTimeVariation(model, data, frame_id, _LWA)
+        inputs[5][...] = data.oMf[frame_id].translation
+        inputs[6][...] = v
+        if self._redundant:
+            inputs[7][...] = pin.difference(model, self.posture, q)
         machine = self.machine
         desired = machine.desired(t)
-        out = self._compiled_values(kinematics, posture, desired)
+        out = self._compiled_values(desired)
         if machine.update(t, closed, float(out[self._V1_at]), desired):
             desired = machine.desired(t)
-            out = self._compiled_values(None, None, desired)
+            out = self._compiled_values(desired)
         self.desired = desired
         m, nv = self.task.m, self.robot.nv
         self.V1, self.V = float(out[nv]), float(out[nv + 1])
@@ -342,16 +342,14 @@ class BrogliatoController:
     def _V1_at(self) -> int:
         return self.robot.nv
 
-    def _compiled_values(
-        self,
-        kinematics: tuple[Vector | None, ...] | None,
-        posture: Vector | None,
-        desired: DesiredState,
-    ) -> Vector:
-        """Outputs (tau, V1, V, X) of the compiled law; ``kinematics`` None: as last call."""
-        law = self._compiled_law
+    def _compiled_values(self, desired: DesiredState) -> Vector:
+        """Outputs (tau, V1, V, X) of the compiled law for ``desired``.
+
+        The kinematic inputs are those :meth:`_compiled_call` wrote in place.
+        """
+        law, inputs = self._compiled_law, self._law_inputs
         assert law is not None
-        force = self._force_input
+        force = inputs[10]
         force.fill(0.0)
         if np.count_nonzero(desired.constrained):
             held = desired.constrained
@@ -360,12 +358,9 @@ class BrogliatoController:
             force[self.machine.coordinates[held]] = -lambda_d + self.gains.force_gain * (
                 measured - lambda_d
             )
-        np.concatenate(desired.target, out=self._target_input)
-        np.concatenate(desired.reference, out=self._reference_input)
-        if kinematics is None:
-            (out,) = law(None, None, None, None, None, None, None, None, None, None, force, None)
-        else:
-            (out,) = law(*kinematics, posture, None, None, force, None)
+        np.concatenate(desired.target, out=law.input_buffer(8))
+        np.concatenate(desired.reference, out=law.input_buffer(9))
+        (out,) = law()
         return out
 
     def _sliding(self, state: TaskState, X_d: Vector, dX_d: Vector, dyn: _Dynamics) -> Vector:

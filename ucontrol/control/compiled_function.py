@@ -161,6 +161,10 @@ class CompiledFunction:
         """The buffer of input ``i`` (shape (nnz,), column-major), to be written in place."""
         return self._in_buffers[i]
 
+    def input_view(self, i: int) -> NDArray[np.float64]:
+        """:meth:`input_buffer` ``i`` in the input's shape (a column-major view of it)."""
+        return self._in_views[i]
+
     def _bind(self, path: Path) -> None:
         library = ctypes.CDLL(str(path))
         call = getattr(library, self.name)

@@ -209,15 +209,17 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._law.input_buffer(1)[:] = np.concatenate(  # parameters: constant per controller
             [[gains.gamma1, gains.gamma2], flexible.stiffness, flexible.motor_inertia]
         )
-        self._law_input = np.zeros(self._law.function.nnz_in(0))
-        self._newton_input = np.zeros(2 * robot.nv)
+        # The inputs of the law and of Newton's step, written in place before each call.
+        self._law_input = self._law.input_buffer(0)
+        self._newton_input = self._newton_step.input_buffer(0)
 
     def reset(self) -> None:
         """Forget the run, including the last link reference (Newton's starting point)."""
         super().reset()
         nv, nf = self.robot.nv, self.flexible.nf
         self._reference_time: float | None = None
-        self.link_desired = tuple(np.zeros(nv) for _ in range(5))
+        self._link_rows = np.zeros((5, nv))  # q1d and its 4 derivatives, one per row
+        self.link_desired = tuple(self._link_rows)
         self.motor_desired = tuple(np.zeros(nf) for _ in range(3))
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
@@ -235,6 +237,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         values = law[-1]
         self.V, self.V1, self.X = values.V, values.V1, values.X
         self.link_desired, self.motor_desired = values.link_desired, values.motor_desired
+        self._link_rows = values.link_rows
         self._reference_time = t
         return values.u
 
@@ -264,7 +267,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         np.concatenate(desired.target[1:], out=reference_input[nv:])
         (derivatives,) = self._reference_derivatives(reference_input)
         reference_input[nv:] = derivatives  # q1d derivatives 1 to 4
-        link_desired = reference_input.reshape(5, nv).copy()
+        link_rows = reference_input.reshape(5, nv).copy()
         start = size + 5 * nv
         if np.count_nonzero(desired.constrained):
             # λ_d and its derivatives, (3, n): 0 unless held; the force λ used and its
@@ -279,14 +282,15 @@ class FlexibleBrogliatoController(BrogliatoController):
             x[start + force_term.size :] = lambda_m[:2].ravel()
         else:
             x[start:] = 0.0  # no contact held: no force in the model
-        (out,) = self._law(x, None)
+        (out,) = self._law()
         out = out.copy()
         return _LawValues(
             u=out[:nv],
             X=out[nv : 2 * nv],
             V=float(out[2 * nv]),
             V1=float(out[2 * nv + 1]),
-            link_desired=tuple(link_desired),
+            link_desired=tuple(link_rows),
+            link_rows=link_rows,
             motor_desired=tuple(out[2 * nv + 2 :].reshape(3, nf)),
         )
 
@@ -305,13 +309,13 @@ class FlexibleBrogliatoController(BrogliatoController):
         else:
             dt = t - self._reference_time  # [s]
             taylor = (1.0, dt, dt * dt / 2, dt**3 / 6, dt**4 / 24)  # [s^k / k!]
-            q = np.array(taylor) @ np.array(self.link_desired)
+            q = np.dot(taylor, self._link_rows)
         nv = q.size
         x = self._newton_input
         x[nv:] = X_d
         for _ in range(NEWTON_ITERATIONS):
             x[:nv] = q
-            (out,) = self._newton_step(x)
+            (out,) = self._newton_step()
             step = out[:nv]
             values = step.tolist()
             if not all(math.isfinite(value) for value in values):  # singular task Jacobian
@@ -335,6 +339,7 @@ class _LawValues:
     V: float
     V1: float
     link_desired: tuple[Vector, ...]
+    link_rows: NDArray[np.float64]
     motor_desired: tuple[Vector, ...]
 
 
