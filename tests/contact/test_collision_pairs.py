@@ -345,22 +345,7 @@ def test_bad_pairs_raise_typed_errors(tmp_path: Path) -> None:
     with pytest.raises(NotFoundError, match="torus"):
         Scene.from_dict(table, base_dir=ROBOTS)
     scene = Scene.from_toml(ROBOTS / "box_drop_collision.toml")
-    event_driven = Scene.from_dict(
-        {
-            "robot": {
-                "urdf": "box_collision.urdf",
-                "floating_base": True,
-                "q0": [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0],
-            },
-            "shapes": {"ground": {"type": "halfspace", "normal": [0.0, 0.0, 1.0]}},
-            "collision_pairs": [{"link": "box", "other": "ground"}],
-            "integrator": {"name": "event_driven"},
-        },
-        base_dir=ROBOTS,
-    )
     assert scene.constraints.size == 8
-    with pytest.raises(InvalidParameterError, match="collision_pairs"):
-        event_driven.build_integrator()
 
 
 def test_mesh_hull_vertices_are_rows(tmp_path: Path) -> None:

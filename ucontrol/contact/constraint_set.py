@@ -311,24 +311,39 @@ class ConstraintSet:
             start = end
         return rows, directions
 
-    def normal_drift(self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]) -> Vector:
+    def normal_drift(
+        self,
+        data: pin.Data,
+        indices: Sequence[int] | NDArray[np.intp],
+        *,
+        q: Vector | None = None,
+        v: Vector | None = None,
+        t: float | None = None,
+    ) -> Vector:
         r"""``J̇ v`` of the constraints ``indices`` in [m/s²] or [rad/s²], shape (len(indices),).
 
         The constraint accelerations at zero joint acceleration: :math:`n \cdot a_F` for a plane
         contact, :math:`n \cdot (a_1 - a_2) + \|(I - n n^T)(v_1 - v_2)\|^2 / \|p_1 - p_2\|` for a
         sphere–sphere contact (the normal turns), 0 for stops; :math:`a_F` are classical frame
         accelerations. ``data`` must hold ``pin.forwardKinematics(model, data, q, v, 0)`` and the
-        frame placements.
+        frame placements. Collision rows delegate to
+        :meth:`~ucontrol.contact.collision_geometry.CollisionGeometry.drift` (which includes
+        the acceleration of a moving shape, and needs ``q`` (nq,), ``v`` (nv,) and, against
+        moving shapes, ``t`` [s]).
         """
         model = self.robot.model
         drift = np.zeros(len(indices))
-        if any(self._pairs_end <= i < self.n_contacts for i in indices):
-            raise InvalidParameterError(
-                "collision_pairs",
-                [pair.name for pair in self.collision_pairs],
-                "no collision pairs where constraint accelerations are needed (event-driven)",
-            )
+        shapes = [row for row, i in enumerate(indices) if self._pairs_end <= i < self.n_contacts]
+        if shapes and self.collision is not None:
+            if q is None or v is None:
+                raise InvalidParameterError(
+                    "q, v", None, "the state (q, v) for the drift of collision rows"
+                )
+            local = [int(indices[row]) - self._pairs_end for row in shapes]
+            drift[shapes] = self.collision.drift(data, local, q, v, t)
         for row, i in enumerate(indices):
+            if self._pairs_end <= i < self.n_contacts:
+                continue
             if i < self._n_point:
                 frame_id, normal, _ = self._contact_terms[i]
                 acceleration = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA)

@@ -266,7 +266,7 @@ class SmoothDynamics:
             Minv_Jt = Minv_Jt - gain @ (Minv_Jbt.T @ J.T)  # P Jᵀ
         rate = (
             self.constraints.normal_rate(indices, t)
-            if self._moving and t is not None  # (evaluate raised when t is missing)
+            if self.constraints.time_dependent and t is not None  # (evaluate raised without t)
             else np.zeros(len(indices))
         )
         if motor_acceleration is not None:  # the constraints act on the links only
@@ -338,11 +338,11 @@ class SmoothDynamics:
             model, data = self.model, self.data
             pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
             pin.updateFramePlacements(model, data)
-            drift = self.constraints.normal_drift(data, indices)
+            drift = self.constraints.normal_drift(data, indices, q=q, v=v, t=t)
             if bilateral is not None:
                 drift_b = bilateral.drift(data)
         if t is not None:  # (moving surfaces need t: constraints.evaluate raised without it)
-            for i, motion, normal in self._moving:
+            for i, motion, normal in self._moving:  # (collision rows: in normal_drift)
                 rows = np.flatnonzero(np.asarray(indices) == i)
                 if rows.size:
                     drift[rows] -= normal.dot(motion(t)[2])

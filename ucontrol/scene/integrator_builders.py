@@ -27,9 +27,9 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
     Raises:
         InvalidParameterError: The scene has friction and the integrator is not
             ``moreau_jean`` (the others are frictionless), a ``qpsolvers:`` contact
-            solver was asked for a scene with friction, an event-driven integrator for a
-            scene with collision pairs, or the compliant integrator for a scene with moving
-            surfaces or bilateral constraints.
+            solver was asked for a scene with friction, the compliant integrator for a
+            scene with moving surfaces or bilateral constraints, or Coulomb joint friction
+            with an integrator other than ``moreau_jean``.
     """
     name = scene.integrator.name
     if scene.integrator.impact_law != "newton" and name != "event_driven":
@@ -44,13 +44,6 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
             name,
             "'moreau_jean' for contacts with friction (event_driven and compliant are "
             "frictionless)",
-        )
-    if scene.collision_pairs and name == "event_driven":
-        raise InvalidParameterError(
-            "[integrator] name",
-            name,
-            "'moreau_jean' or 'compliant' for scenes with [[collision_pairs]] (event_driven "
-            "needs the constraint accelerations of collision rows, not implemented)",
         )
     if scene.constraints.bilateral is not None and name == "compliant":
         raise InvalidParameterError(
