@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 from conftest import ROBOTS
 
+from ucontrol.control.compiled_function import CompiledFunction
 from ucontrol.exceptions import SimulationError
 from ucontrol.integrators.moreau_jean import _cholesky_solve, _upper_cholesky
 from ucontrol.log import Log
@@ -61,3 +63,23 @@ def test_a_non_finite_controller_output_is_named(two_link_scene: Scene) -> None:
     with pytest.raises(SimulationError, match="controller output u") as raised:
         simulate(two_link_scene, nan_after, duration=0.01, dt=1e-3)
     assert raised.value.step == 3
+
+
+@pytest.mark.parametrize("compile", [False, True])
+def test_inputs_written_in_place_equal_inputs_passed(
+    rng: np.random.Generator, compile: bool
+) -> None:
+    A, b = ca.SX.sym("A", 2, 3), ca.SX.sym("b", 3)
+    f = CompiledFunction(
+        ca.Function("in_place", [A, b], [ca.vertcat(A @ b, ca.sum1(b))]), compile=compile
+    )
+    A_value, b_value = rng.normal(size=(2, 3)), rng.normal(size=3)
+    expected = np.append(A_value @ b_value, b_value.sum())  # what the function computes
+    (passed,) = f(A_value, b_value)
+    np.testing.assert_allclose(passed, expected, rtol=1e-14)  # measured: equal
+    passed = passed.copy()
+    f.input_view(0)[...] = 2.0 * A_value  # the view is the (2, 3) input, column-major
+    f.input_view(1)[...] = b_value
+    (in_place,) = f()
+    np.testing.assert_allclose(in_place[:2], 2.0 * passed[:2], rtol=1e-14)
+    assert f.input_view(0).shape == (2, 3)
