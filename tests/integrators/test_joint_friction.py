@@ -237,8 +237,8 @@ def test_bad_joint_friction_tables_are_typed_errors(friction, error, text) -> No
 
 
 @pytest.mark.parametrize("name", ["event_driven", "compliant"])
-def test_other_integrators_refuse_joint_friction(name: str) -> None:
-    scene = _rod_scene({"viscous": 0.1}, 0.0)
+def test_other_integrators_refuse_coulomb_joint_friction(name: str) -> None:
+    scene = _rod_scene({"coulomb": 0.1}, 0.0)
     import dataclasses
 
     from ucontrol.scene.integrator_settings import IntegratorSettings

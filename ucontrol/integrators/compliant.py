@@ -40,6 +40,7 @@ from ucontrol.exceptions import IntegrationError, InvalidParameterError
 from ucontrol.integrators.methods import CONTACT_MODELS, IVP_METHODS
 from ucontrol.integrators.smooth_dynamics import SmoothDynamics
 from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.plant import PlantEvaluation, StepOutcome
 
@@ -123,6 +124,11 @@ class Compliant:
         method: ``"Radau"``, ``"BDF"`` or ``"LSODA"``.
         max_events: Events allowed in one step before :class:`IntegrationError`.
         flexible: Flexible joints of the robot: the state then holds their motor coordinates.
+        joint_friction: Viscous friction of the link coordinates, a smooth force
+            (:mod:`~ucontrol.integrators.smooth_dynamics`); Coulomb friction is refused.
+
+    Raises:
+        InvalidParameterError: A bad setting, or ``joint_friction`` with a Coulomb part.
     """
 
     name = "compliant"
@@ -147,6 +153,7 @@ class Compliant:
         method: str = "Radau",
         max_events: int = 10_000,
         flexible: FlexibleJoints | None = None,
+        joint_friction: JointFriction | None = None,
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
@@ -164,7 +171,10 @@ class Compliant:
         self.atol = as_positive("atol", atol)
         self.method = method
         self.max_events = int(as_positive("max_events", max_events))
-        self._dynamics = SmoothDynamics(robot, constraints, flexible)
+        self.joint_friction = joint_friction
+        self._dynamics = SmoothDynamics(
+            robot, constraints, flexible, joint_friction, integrator=self.name
+        )
         self._n = constraints.size
         self._zeta = np.array([damping_ratio(e) for e in constraints.restitution])
         self._carry: tuple[Vector, Vector, Mask, Vector] | None = None

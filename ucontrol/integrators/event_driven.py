@@ -80,6 +80,7 @@ from ucontrol.integrators.lzb_impact import LZBImpactLaw
 from ucontrol.integrators.methods import IVP_METHODS
 from ucontrol.integrators.smooth_dynamics import ConstraintTerms, SmoothDynamics
 from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.plant import PlantEvaluation, StepOutcome
 from ucontrol.solvers.contact_solution import ContactSolution
@@ -143,6 +144,12 @@ class EventDriven:
         acceleration_solver: Acceleration-level LCP solver; default a second one.
         max_events: Events allowed in one step before :class:`IntegrationError`.
         flexible: Flexible joints of the robot: the state then holds their motor coordinates.
+        impact_law: The LZB impact law in place of Newton's, or None.
+        joint_friction: Viscous friction of the link coordinates, a smooth force
+            (:mod:`~ucontrol.integrators.smooth_dynamics`); Coulomb friction is refused.
+
+    Raises:
+        InvalidParameterError: A bad setting, or ``joint_friction`` with a Coulomb part.
     """
 
     name = "event_driven"
@@ -173,6 +180,7 @@ class EventDriven:
         max_events: int = 10_000,
         flexible: FlexibleJoints | None = None,
         impact_law: LZBImpactLaw | None = None,
+        joint_friction: JointFriction | None = None,
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
@@ -190,7 +198,10 @@ class EventDriven:
             acceleration_solver if acceleration_solver is not None else ProxsuiteLCPSolver()
         )
         self.impact_law = impact_law
-        self._dynamics = SmoothDynamics(robot, constraints, flexible)
+        self.joint_friction = joint_friction
+        self._dynamics = SmoothDynamics(
+            robot, constraints, flexible, joint_friction, integrator=self.name
+        )
         self._n = constraints.size
         self._bilateral = constraints.bilateral is not None
         self._carry: tuple[Vector, Vector, Mask] | None = None

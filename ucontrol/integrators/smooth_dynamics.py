@@ -40,6 +40,12 @@ neither impulses nor projections in the metric of M change the motors. The energ
 motors' kinetic energy and the springs' elastic energy. The springs are integrated like any
 other force: stiff ones need a stiff solver (compliant's Radau), not an explicit Runge–Kutta.
 
+**Viscous joint friction.** With a :class:`~ucontrol.model.joint_friction.JointFriction`
+whose Coulomb part is zero, :math:`-D \dot q_1` joins the links' generalized force
+(:math:`\tau_1 - D \dot q_1`, link coordinates only, as Moreau–Jean's), integrated like any
+other smooth force. Coulomb joint friction is set-valued and is not a smooth force: it is
+refused (Moreau–Jean treats it).
+
 :class:`SmoothDynamics` evaluates these terms on a private Pinocchio data buffer.
 """
 
@@ -52,7 +58,9 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.exceptions import InvalidParameterError
 from ucontrol.model.flexible_joints import FlexibleJoints
+from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.plant import PlantEvaluation, evaluate_plant
 
@@ -137,9 +145,14 @@ class SmoothDynamics:
         robot: The robot.
         constraints: Its unilateral constraints.
         flexible: Flexible joints of the robot: the state then holds their motor coordinates.
+        joint_friction: Viscous friction of the link coordinates (no Coulomb part), or None.
+        integrator: Name of the integrator, for the errors.
 
     Attributes:
         nv: Size of the plant's velocity: the robot's nv, plus nf with flexible joints.
+
+    Raises:
+        InvalidParameterError: ``joint_friction`` has a Coulomb part or not the robot's nv.
     """
 
     def __init__(
@@ -147,10 +160,30 @@ class SmoothDynamics:
         robot: RobotModel,
         constraints: ConstraintSet,
         flexible: FlexibleJoints | None = None,
+        joint_friction: JointFriction | None = None,
+        integrator: str = "smooth dynamics",
     ) -> None:
         self.robot = robot
         self.constraints = constraints
         self.flexible = flexible
+        #: D of the link coordinates [N m s/rad] or [N s/m], shape (nv,), or None.
+        self.viscous: Vector | None = None
+        if joint_friction is not None:
+            if joint_friction.nv != robot.nv:
+                raise InvalidParameterError(
+                    "joint_friction",
+                    f"{joint_friction.nv} coordinates",
+                    f"{robot.nv} (the robot's nv)",
+                )
+            if joint_friction.coulomb_index.size:
+                raise InvalidParameterError(
+                    "joint_friction",
+                    f"Coulomb friction on coordinates {joint_friction.coulomb_index.tolist()}",
+                    f"viscous friction only with {integrator} (Coulomb joint friction is "
+                    "set-valued: use moreau_jean)",
+                )
+            if joint_friction.has_viscous:
+                self.viscous = joint_friction.viscous
         self.model = robot.model
         self.data = robot.model.createData()
         self.nv = robot.nv + (0 if flexible is None else flexible.nf)
@@ -313,15 +346,20 @@ class SmoothDynamics:
         """Link state, the links' generalized force and the motors' acceleration.
 
         Returns:
-            q1 (nq,), dq1 (nv,) and τ1 - Sᵀ f (nv,) of the links, and (τ2 + f) / B (nf,) in
-            [rad/s²] (or [m/s²]), None without flexible joints (then τ1 = τ).
+            q1 (nq,), dq1 (nv,) and τ1 - Sᵀ f - D dq1 (nv,) of the links, and (τ2 + f) / B
+            (nf,) in [rad/s²] (or [m/s²]), None without flexible joints (then τ1 = τ - D v).
         """
         flexible = self.flexible
         if flexible is None:
+            if self.viscous is not None:
+                tau = tau - self.viscous * v  # [N m]
             return q, v, tau, None
         nq, nv = self._link_nq, self._link_nv
         force = tau + flexible.transmission_forces(q, v)
-        return q[:nq], v[:nv], force[:nv], force[nv:] / flexible.motor_inertia
+        link_force = force[:nv]
+        if self.viscous is not None:
+            link_force = link_force - self.viscous * v[:nv]  # [N m]
+        return q[:nq], v[:nv], link_force, force[nv:] / flexible.motor_inertia
 
     def _drift(
         self, q: Vector, v: Vector, indices: NDArray[np.intp], t: float | None

@@ -59,11 +59,12 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
             "'moreau_jean' or 'event_driven' for contacts against moving surfaces (a surface "
             f"`motion`; {name} does not handle time-dependent constraints)",
         )
-    if scene.joint_friction is not None and name != "moreau_jean":
+    if _joint_coulomb(scene) and name != "moreau_jean":
         raise InvalidParameterError(
             "[integrator] name",
             name,
-            f"'moreau_jean' for scenes with [joint_friction] ({name} has no joint friction)",
+            f"'moreau_jean' for scenes with Coulomb [joint_friction] ({name} has viscous joint "
+            "friction only)",
         )
     return _BUILDERS[name](scene, scene.integrator.dt if dt is None else dt)
 
@@ -117,6 +118,7 @@ def _event_driven(scene: Scene, dt: float) -> Integrator:
         ),
         flexible=scene.flexible,
         impact_law=_lzb_law(scene) if settings.impact_law == "lzb" else None,
+        joint_friction=scene.joint_friction,
         **settings.solver_options(),
     )
 
@@ -145,6 +147,7 @@ def _compliant(scene: Scene, dt: float) -> Integrator:
         stiffness=settings.stiffness,
         contact_model=settings.contact_model,
         flexible=scene.flexible,
+        joint_friction=scene.joint_friction,
         **settings.solver_options(),
     )
 
