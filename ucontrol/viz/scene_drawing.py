@@ -13,6 +13,7 @@ the surface normal whose length is proportional to the normal contact force, imp
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import coal
@@ -123,6 +124,8 @@ class SceneDrawing:
         root.delete()
         root.set_transform(_pose(self.up_rotation, -self.up_rotation @ self.centre))
         self._moving: dict[str, tuple[Vector, Matrix, Any]] = {}
+        #: Moving environment shapes: pose at x = 0 (4, 4), scale (3,) or None, motion.
+        self._moving_shapes: dict[str, tuple[Matrix, Vector | None, Any]] = {}
         self._draw_surfaces(root, scene)
         self._draw_shapes(root, scene)
         self._draw_contacts(root)
@@ -146,7 +149,8 @@ class SceneDrawing:
     ) -> None:
         """Draw the robot at ``q`` with the contact forces ``force`` and the phase ``phase``.
 
-        Moving surfaces are drawn where they are at time ``t`` [s] (not moved when None).
+        Moving surfaces and environment shapes are drawn where they are at time ``t`` [s]
+        (not moved when None).
 
         Args:
             target: The viewer (live drawing) or one frame of a meshcat animation of it
@@ -185,6 +189,10 @@ class SceneDrawing:
             for name, (foot, rotation, motion) in self._moving.items():
                 displacement = motion(t)[0]  # [m]
                 _place(target[f"{ROOT}/surfaces/{name}"], _pose(rotation, foot + displacement))
+            for name, (pose, scale, motion) in self._moving_shapes.items():
+                moved = pose.copy()
+                moved[:3, 3] += motion(t)[0]  # [m]
+                _place(target[f"{ROOT}/shapes/{name}"], moved, scale)
         for label, pose in self._labels.items():
             size = 1.0 if phase is not None and int(phase) == label else _HIDDEN
             _place(target[f"{ROOT}/phase/{label.name.lower()}"], pose, (size, size, size))
@@ -223,7 +231,12 @@ class SceneDrawing:
                 )
 
     def _draw_shapes(self, root: meshcat.Visualizer, scene: Scene) -> None:
-        """The environment shapes of the scene's collision pairs (halfspaces as planes)."""
+        """The environment shapes of the scene's collision pairs (halfspaces as planes).
+
+        A mesh is drawn from its file (OBJ, STL or DAE through meshcat; any other format coal
+        reads as its convex hull) with the shape's placement and scale. A shape with a
+        motion is recorded so that :meth:`place` translates it by x(t).
+        """
         material = mg.MeshPhongMaterial(color=SURFACE_COLOUR, opacity=0.6)
         side, thickness = 2.4 * self.radius, 0.02 * self.radius  # [m]
         shapes = {
@@ -233,17 +246,26 @@ class SceneDrawing:
         }
         for name, shape in shapes.items():
             node = root[f"shapes/{name}"]
+            scale: Vector | None = None
             if shape.type == "halfspace":
                 normal = shape.normal
                 foot = self.centre - normal * (normal @ (self.centre - shape.position))
                 node.set_object(mg.Box([side, side, thickness]), material)
-                node.set_transform(_pose(_rotation_z_to(normal), foot - 0.5 * thickness * normal))
+                pose = _pose(_rotation_z_to(normal), foot - 0.5 * thickness * normal)
             elif shape.type == "box":
                 node.set_object(mg.Box(list(shape.size)), material)
-                node.set_transform(shape.placement.homogeneous)
+                pose = shape.placement.homogeneous
+            elif shape.type == "mesh":
+                geometry, scaled = _mesh_geometry(shape)
+                node.set_object(geometry, material)
+                pose = shape.placement.homogeneous
+                scale = None if scaled else np.asarray(shape.scale, dtype=float)
             else:
                 node.set_object(mg.Sphere(shape.radius), material)
-                node.set_transform(_pose(np.eye(3), shape.position))
+                pose = _pose(np.eye(3), shape.position)
+            _place(node, pose, scale)
+            if shape.motion is not None:
+                self._moving_shapes[name] = (pose, scale, shape.motion)
 
     def _draw_contacts(self, root: meshcat.Visualizer) -> None:
         """A marker, an arrow shaft of unit length and an arrow head per contact."""
@@ -342,6 +364,30 @@ def _place(
         pose = pose.copy()
         pose[:3, :3] = pose[:3, :3] * np.asarray(scale, dtype=float)  # scales the columns
     node.set_transform(pose)
+
+
+def _mesh_geometry(shape: Any) -> tuple[Any, bool]:
+    """The meshcat geometry of a mesh environment shape, and whether it is already scaled.
+
+    OBJ, STL and DAE files are sent as they are (meshcat scales them through the node);
+    another format coal reads is drawn as its convex hull, scaled, as the contact sees it.
+    """
+    path = Path(shape.mesh)
+    loaders = {
+        ".obj": mg.ObjMeshGeometry,
+        ".stl": mg.StlMeshGeometry,
+        ".dae": mg.DaeMeshGeometry,
+    }
+    loader = loaders.get(path.suffix.lower())
+    if loader is not None:
+        return loader.from_file(str(path)), False
+    from scipy.spatial import ConvexHull
+
+    from ucontrol.contact.collision_geometry import load_mesh_hull  # loads coal
+
+    points = np.asarray(load_mesh_hull(str(path), shape.scale).points(), dtype=float)
+    faces = ConvexHull(points).simplices
+    return mg.TriangularMeshGeometry(points, faces), True
 
 
 def _pose(rotation: Matrix, translation: Vector) -> Matrix:
