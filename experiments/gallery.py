@@ -1,6 +1,6 @@
 """Figures of the environment scenes in robots/ for docs/gallery.md.
 
-Each scene is run as declared (Moreau–Jean, its own step) and drawn in one figure
+Each scene is run as declared (its integrator and step) and drawn in one figure
 ``docs/figures/gallery_<scene>.png``: the generalized coordinates against time above, the gap
 of every constraint (the smallest of a pair's rows) and the normal impulse per step below.
 
@@ -27,6 +27,7 @@ SCENES = (
     "ball_vibrating_box",
     "ball_vibrating_table",
     "four_bar",
+    "four_bar_stop",
     "block_incline",
 )
 
@@ -60,7 +61,7 @@ def draw(name: str, out: Path, duration: float | None) -> Path:
         top.plot(t, q[:, k], label=f"q[{k}]")
     top.set_ylabel("q [m] or [rad]")
     top.legend(loc="best", fontsize=7, ncol=4)
-    top.set_title(f"{name} (moreau_jean, h = {scene.integrator.dt:g} s)")
+    top.set_title(f"{name} ({scene.integrator.name}, h = {scene.integrator.dt:g} s)")
     bilateral = scene.constraints.bilateral
     if not names and bilateral is not None:  # a closed chain: its closure residual
         residual = [np.max(np.abs(bilateral.residuals(row))) for row in q[:, : scene.robot.nq]]
