@@ -38,6 +38,7 @@ FLEXIBLE = "ucontrol/control/flexible_brogliato_controller.py"
 
 ED_TESTS = ("tests/integrators/test_zeno_rule.py", "tests/integrators/test_event_driven.py")
 MJ_TESTS = (
+    "tests/integrators/test_active_set_prediction.py",
     "tests/test_bouncing_ball.py",
     "tests/extreme/test_restitution_limits.py",
     "tests/extreme/test_redundant_contacts.py",
