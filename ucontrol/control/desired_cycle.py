@@ -12,17 +12,25 @@ the fall of :math:`\lambda_d` to 0 at the takeoff time :math:`t_d` and the takeo
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_float, as_in_interval, as_positive
+from ucontrol.control.spline_path import SplinePath
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.trajectory_segment import smooth_step
-from ucontrol.exceptions import InvalidParameterError, NotFoundError, PathThroughSurfaceError
+from ucontrol.exceptions import (
+    InvalidParameterError,
+    NotFoundError,
+    PathThroughSurfaceError,
+    SceneError,
+)
 
 Vector = NDArray[np.float64]
 
@@ -232,3 +240,46 @@ class DesiredCycle:
             if inside.any():
                 worst = int(np.argmin(np.where(inside, X[:, i], math.inf)))
                 raise PathThroughSurfaceError(name, float(t[worst]), float(X[worst, i]))
+
+
+def read_designed_cycle(path: str | Path) -> tuple[SplinePath, ContactPhase]:
+    """The nominal path and contact phase of a designed cycle file.
+
+    The file is the one :meth:`ucontrol.design.DesignedCycle.save` writes (``NAME.npz`` with
+    the arrays beside ``NAME.json``); read here, below the design layer, so that a scene's
+    controller takes it without casadi. The nominal path is the periodic quintic spline
+    (:class:`SplinePath`, :math:`C^4`) through the tracked frame's positions at the design's
+    nodes, the contact phase runs from the first landing to the end of the period (the takeoff)
+    with the task's force plateau: what :meth:`ucontrol.design.DesignedCycle.desired_cycle`
+    gives.
+
+    Args:
+        path: The ``.npz`` file, the ``.json`` file or their common stem.
+
+    Returns:
+        The nominal path and the contact phase.
+
+    Raises:
+        SceneError: A file is missing or does not hold a designed cycle.
+    """
+    npz = Path(path).with_suffix(".npz")
+    meta_path = npz.with_suffix(".json")
+    if not npz.is_file() or not meta_path.is_file():
+        raise SceneError(f"designed cycle {str(npz)!r} (and its .json) does not exist")
+    try:
+        meta = json.loads(meta_path.read_text())
+        with np.load(npz) as data:
+            phases = range(len(meta["phases"]))
+            times = [np.asarray(data[f"phase{i}_t"], dtype=float) for i in phases]
+            positions = [np.asarray(data[f"phase{i}_position"], dtype=float) for i in phases]
+        contact, force = str(meta["contact"]), float(meta["force"])
+    except (KeyError, ValueError, TypeError, OSError) as error:
+        raise SceneError(f"{str(npz)!r} is not a designed cycle: {error!r}") from error
+    period = float(times[-1][-1] - times[0][0])
+    path_ = SplinePath(
+        waypoints=np.vstack([p[:-1] for p in positions]),
+        times=np.concatenate([t[:-1] for t in times]) - times[0][0],
+        period=period,
+    )
+    landing = float(times[0][-1] - times[0][0])
+    return path_, ContactPhase(contact=contact, start=landing, end=period, force=force)

@@ -6,10 +6,10 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import check_keys, require_key
-from ucontrol.control.controller_table import contact_phases, tracked_contacts
+from ucontrol.control.controller_table import tracked_contacts
 from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
 from ucontrol.control.path_reach import check_reach
-from ucontrol.control.path_table import path_from_table
+from ucontrol.control.path_table import cycle_from_table
 from ucontrol.exceptions import InvalidParameterError
 
 if TYPE_CHECKING:
@@ -28,6 +28,7 @@ IMPEDANCE_KEYS = {
     "check_reach",
     "path",
     "contact_phases",
+    "designed_cycle",
     *_GAIN_KEYS,
 }
 
@@ -41,7 +42,9 @@ def impedance_from_table(scene: Scene, table: Mapping[str, Any]) -> ImpedanceCon
     ``force_rise_time``, ``force_fall_time``, ``check_reach`` (default true: inverse kinematics
     along the path from q0, :func:`ucontrol.control.path_reach.check_reach`), the
     ``[controller.path]`` table (:func:`ucontrol.control.path_table.path_from_table`) and
-    optional ``[[controller.contact_phases]]`` (contact, start, end, force).
+    optional ``[[controller.contact_phases]]`` (contact, start, end, force), or instead of
+    both ``designed_cycle`` (a file of ``ucontrol design``, relative to the scene file:
+    :func:`ucontrol.control.path_table.cycle_from_table`).
 
     Raises:
         InvalidParameterError: The scene has flexible joints (this law drives rigid joints),
@@ -63,8 +66,8 @@ def impedance_from_table(scene: Scene, table: Mapping[str, Any]) -> ImpedanceCon
         )
     frame = str(require_key(table, section, "frame"))
     tracked = tracked_contacts(table, frame, scene.contacts)
-    phases = contact_phases(table)
-    path = path_from_table(require_key(table, section, "path"))
+    base_dir = scene.source.parent if scene.source is not None else None
+    path, phases = cycle_from_table(table, base_dir, section)  # or a designed cycle file
     gains = ImpedanceGains(
         stiffness=require_key(table, section, "stiffness"),
         damping=require_key(table, section, "damping"),

@@ -41,6 +41,8 @@ from numpy.typing import NDArray
 from ucontrol.design.design_report import DesignReport
 from ucontrol.design.design_task import DesignTask
 from ucontrol.design.designed_cycle import CyclePhase, DesignedCycle
+from ucontrol.design.dop853_tableau import dop853_tableau
+from ucontrol.design.recursive_dynamics import RecursiveDynamics
 from ucontrol.design.warm_start import WarmStart, hand_made_warm_start
 from ucontrol.exceptions import DesignError, InfeasibleDesignError
 from ucontrol.model.symbolic_model import SymbolicModel
@@ -51,6 +53,8 @@ Progress = Callable[[int, float, float, float], None]
 
 #: Kinds of limits the elastic (feasibility) problem may relax; the others stay hard.
 _SOFT_KINDS = ("torque", "joint", "impact", "takeoff", "clearance")
+#: Models with at most this many joints have their Runge–Kutta stages inlined (casadi SX).
+INLINE_JOINTS = 4
 #: Slack above this, in the constraint's units, names a limit as binding.
 _BINDING_SLACK = 1e-6
 
@@ -101,29 +105,51 @@ class CycleTranscription:
         self.restitution = float(contact.restitution)
         self.friction = float(contact.friction)
         model = SymbolicModel(robot)
-        q, v, tau = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("tau", nv)
-        p_contact = model.frame_position(contact.frame)(q)
-        normal = ca.DM(contact.surface.normal)
-        gap = ca.dot(normal, p_contact - ca.DM(contact.surface.point)) - contact.radius
-        J_n = ca.jacobian(gap, q)  # (1, nv)
-        u_n = J_n @ v
-        drift = ca.jacobian(u_n, q) @ v  # J̇_n v [m/s²]
-        M = model.mass_matrix(q)
-        h = model.coriolis_matrix(q, v) @ v + model.gravity(q)
-        a_free = ca.solve(M, tau - h)
-        W = J_n
         phase = task.contact_phase
         tangent = None
         if self.friction > 0.0 or (phase.landing is not None and phase.takeoff is not None):
             tangent = self._sliding_tangent(contact.surface.normal)
+        # kinematics and M, h as SX; the solves inlined (SX) for a small model, called as
+        # linear solves (MX) for a larger one, whose symbolic solves outgrow memory
+        qs, vs = ca.SX.sym("q", nv), ca.SX.sym("v", nv)
+        p_s = model.frame_position(contact.frame)(qs)
+        normal = ca.DM(contact.surface.normal)
+        gap_s = ca.dot(normal, p_s - ca.DM(contact.surface.point)) - contact.radius
+        J_n_s = ca.jacobian(gap_s, qs)  # (1, nv)
+        J_t_s = (
+            ca.jacobian(ca.dot(ca.DM(tangent), p_s), qs) if tangent is not None else ca.SX(1, nv)
+        )
+        drift_s = ca.jacobian(J_n_s @ vs, qs) @ vs  # J̇_n v [m/s²]
+        self.inline = nv <= INLINE_JOINTS
+        sym: Any = ca.SX if self.inline else ca.MX
+        q: Any
+        v: Any
+        tau: Any
+        # M and h by the recursive Newton–Euler algorithm (~1e3 nodes for the Panda, where
+        # SymbolicModel's C v has ~1e5)
+        recursive = RecursiveDynamics(robot)
+        if self.inline:
+            q, v, tau = qs, vs, ca.SX.sym("tau", nv)
+            M, h = recursive.mass_matrix(qs), recursive.nonlinear_effects(qs, vs)
+            gap, J_n, J_t, drift = gap_s, J_n_s, J_t_s, drift_s
+        else:
+            q, v, tau = ca.MX.sym("q", nv), ca.MX.sym("v", nv), ca.MX.sym("tau", nv)
+            kinematics = ca.Function("kinematics", [qs], [gap_s, J_n_s, J_t_s])
+            dynamics = ca.Function(
+                "dynamics", [qs, vs], [drift_s, recursive.nonlinear_effects(qs, vs)]
+            )
+            gap, J_n, J_t = kinematics(q)
+            drift, h = dynamics(q, v)
+            M = recursive.mass_matrix(q)
+        u_n = J_n @ v
+        a_free = ca.solve(M, tau - h)
+        W = J_n
         if self.friction > 0.0:
-            assert tangent is not None  # set above whenever there is friction
-            J_t = ca.jacobian(ca.dot(ca.DM(tangent), p_contact), q)
             W = J_n - self.friction * J_t
         Minv_Wt = ca.solve(M, W.T)
         force = -(J_n @ a_free + drift) / (J_n @ Minv_Wt)  # λ [N]
         a_contact = a_free + Minv_Wt @ force
-        P = ca.SX.sym("P")
+        P = sym.sym("P")
         v_plus = v + ca.solve(M, J_n.T) * P
         position = model.frame_position(task.frame)(q)
         x = ca.vertcat(q, v)
@@ -139,9 +165,7 @@ class CycleTranscription:
         rate_contact = ca.Function("rate_contact", [x, tau], [ca.vertcat(v, a_contact)])
         f["gravity"] = ca.Function("g", [q], [model.gravity(q)])
         if tangent is not None:
-            f["sliding_velocity"] = ca.Function(
-                "u_t", [q, v], [ca.jacobian(ca.dot(ca.DM(tangent), p_contact), q) @ v]
-            )
+            f["sliding_velocity"] = ca.Function("u_t", [q, v], [J_t @ v])
         S, scheme = task.grid.substeps, task.grid.scheme
         f["free"] = _rk_interval(
             "free",
@@ -515,6 +539,7 @@ class CycleTranscription:
                 "print_level": task.solver.print_level,
                 "sb": "yes",
                 "mu_strategy": "adaptive",
+                "hessian_approximation": task.solver.hessian,
             },
         )
         try:
@@ -668,11 +693,9 @@ def _tableau(scheme: str) -> tuple[Vector, Vector]:
         A = np.zeros((4, 4))
         A[1, 0], A[2, 1], A[3, 2] = 0.5, 0.5, 1.0
         return A, np.array([1.0, 2.0, 2.0, 1.0]) / 6.0
-    # DOP853's order-8 propagation stages (Hairer, Nørsett and Wanner), as scipy ships them
-    from scipy.integrate._ivp import dop853_coefficients as dop853
-
-    stages = dop853.N_STAGES
-    return np.array(dop853.A[:stages, :stages]), np.array(dop853.B)
+    # DOP853's order-8 propagation stages (Hairer, Nørsett and Wanner), written in our module
+    A, b, _ = dop853_tableau()
+    return A, b
 
 
 #: Fractions of a substep where the gap's interpolant is checked, and the quintic Hermite
@@ -713,14 +736,17 @@ def _rk_interval(
     cannot dip through the surface between two points unnoticed; else zeros.
     """
     A, b = _tableau(scheme)
-    x0 = ca.SX.sym("x0", 2 * nv)
-    tau = ca.SX.sym("tau", nv)
-    h = ca.SX.sym("h")
+    # small models: the stages inlined (SX, fastest); larger ones: the rate Function called
+    # (MX), whose inlined stages and their Hessian outgrow memory (the 9-joint Panda: > 9 GB)
+    sym: Any = ca.SX if nv <= INLINE_JOINTS else ca.MX
+    x0 = sym.sym("x0", 2 * nv)
+    tau = sym.sym("tau", nv)
+    h = sym.sym("h")
     step = h / substeps
     x = x0
     values, speeds, accelerations = [], [], []
 
-    def probe(state: ca.SX) -> ca.SX:
+    def probe(state: Any) -> Any:
         if normal is not None:
             speeds.append(normal[0](state[:nv], state[nv:]))
             accelerations.append(normal[1](state, tau))
@@ -731,13 +757,11 @@ def _rk_interval(
 
     for _ in range(substeps):
         values.append(probe(x))
-        k: list[ca.SX] = []
+        k: list[Any] = []
         for i in range(A.shape[0]):
-            increment = sum(
-                (A[i, j] * k[j] for j in range(i) if A[i, j] != 0.0), ca.SX.zeros(2 * nv)
-            )
+            increment = sum((A[i, j] * k[j] for j in range(i) if A[i, j] != 0.0), sym.zeros(2 * nv))
             k.append(rate(x + step * increment, tau))
-        x = x + step * sum((b[i] * k[i] for i in range(len(k)) if b[i] != 0.0), ca.SX.zeros(2 * nv))
+        x = x + step * sum((b[i] * k[i] for i in range(len(k)) if b[i] != 0.0), sym.zeros(2 * nv))
     values.append(probe(x))
     interior = []
     for i in range(substeps):
@@ -751,7 +775,7 @@ def _rk_interval(
                 values[i + 1],
             )
             if normal is not None
-            else ca.SX.zeros(6)
+            else sym.zeros(6)
         )
         interior.append(ca.mtimes(ca.DM(_HERMITE5), ends))
     return ca.Function(name, [x0, tau, h], [x, ca.vertcat(*values), ca.vertcat(*interior)])

@@ -59,6 +59,7 @@ Format (every key but ``scene`` and one ``[[contact_phases]]`` entry is optional
     tol = 1e-8
     print_level = 0
     progress_every = 10                      # iterations between two progress lines
+    hessian = "exact"                        # or "limited-memory" (L-BFGS: large models)
 """
 
 from __future__ import annotations
@@ -125,7 +126,9 @@ _GRID_KEYS = {
 }
 #: Explicit Runge–Kutta schemes of the shooting intervals and their orders.
 SCHEMES = {"rk4": 4, "rk8": 8}
-_SOLVER_KEYS = {"max_iter", "tol", "print_level", "progress_every"}
+_SOLVER_KEYS = {"max_iter", "tol", "print_level", "progress_every", "hessian"}
+#: IPOPT's Hessian of the Lagrangian: exact (casadi's second derivatives) or L-BFGS.
+HESSIANS = ("exact", "limited-memory")
 
 
 def _non_negative(name: str, value: Any) -> float:
@@ -273,18 +276,30 @@ class GridSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class SolverSpec:
-    """IPOPT settings and how often a progress line is written."""
+    """IPOPT settings and how often a progress line is written.
+
+    Attributes:
+        max_iter: Largest number of IPOPT iterations.
+        tol: IPOPT's convergence tolerance.
+        print_level: IPOPT's output level (0: none).
+        progress_every: Iterations between two progress lines.
+        hessian: ``"exact"`` (casadi's second derivatives) or ``"limited-memory"`` (IPOPT's
+            L-BFGS: more iterations, each much cheaper for a many-joint robot).
+    """
 
     max_iter: int = 1000
     tol: float = 1e-8
     print_level: int = 0
     progress_every: int = 10
+    hessian: str = "exact"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "max_iter", _count("max_iter", self.max_iter, 1))
         object.__setattr__(self, "tol", as_positive("tol", self.tol))
         object.__setattr__(self, "print_level", _count("print_level", self.print_level, 0))
         object.__setattr__(self, "progress_every", _count("progress_every", self.progress_every, 1))
+        if self.hessian not in HESSIANS:
+            raise InvalidParameterError("hessian", self.hessian, f"one of {list(HESSIANS)}")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
-from ucontrol.design.periodic_spline_path import PeriodicSplinePath
+from ucontrol.control.spline_path import SplinePath
 from ucontrol.exceptions import SceneError
 
 Vector = NDArray[np.float64]
@@ -111,10 +111,15 @@ class DesignedCycle:
         positions = np.vstack([phase.position[:-1] for phase in self.phases])
         return times, positions
 
-    def nominal_path(self) -> PeriodicSplinePath:
-        """The periodic C⁴ path of the tracked frame through the node positions."""
+    def nominal_path(self) -> SplinePath:
+        """The periodic C⁴ path of the tracked frame through the node positions.
+
+        The periodic quintic spline through the node positions at the node times, the path a
+        scene's ``designed_cycle`` key gives the controllers
+        (:func:`ucontrol.control.desired_cycle.read_designed_cycle`).
+        """
         times, positions = self.nodes()
-        return PeriodicSplinePath(times=times, positions=positions, period=self.period)
+        return SplinePath(waypoints=positions, times=times - times[0], period=self.period)
 
     def desired_cycle(self, **settings: Any) -> DesiredCycle:
         """The desired cycle of the Brogliato controllers: nominal path and contact phase.

@@ -15,13 +15,13 @@ from ucontrol._validation import as_bool, check_keys, require_key
 from ucontrol.contact.plane import Plane
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
 from ucontrol.control.controller import Controller
-from ucontrol.control.controller_table import CYCLE_KEYS, contact_phases, tracked_contacts
+from ucontrol.control.controller_table import CYCLE_KEYS, tracked_contacts
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.friction_compensation import FrictionCompensation
 from ucontrol.control.impedance_table import IMPEDANCE_KEYS, impedance_from_table
 from ucontrol.control.joint_pd import JointPD
 from ucontrol.control.juggling_controller import JUGGLING_KEYS, juggling_from_table
-from ucontrol.control.path_table import path_from_table
+from ucontrol.control.path_table import cycle_from_table
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import NotFoundError, SceneError
@@ -46,6 +46,7 @@ _CONTROLLER_KEYS = {
         "mass_scale",
         "path",
         "contact_phases",
+        "designed_cycle",
         *_BROGLIATO_GAIN_KEYS,
         *CYCLE_KEYS,
     },
@@ -163,9 +164,11 @@ def _brogliato(scene: Scene, table: Mapping[str, Any]) -> Controller:
     frame = str(require_key(table, section, "frame"))
     tracked = tracked_contacts(table, frame, scene.contacts)
     task = TaskCoordinates(scene.robot, frame, tracked, table.get("tangents", ()))
-    path = path_from_table(require_key(table, section, "path"))
-    require_key(table, section, "contact_phases")
-    phases = contact_phases(table)
+    if "designed_cycle" not in table:
+        require_key(table, section, "path")
+        require_key(table, section, "contact_phases")
+    base_dir = scene.source.parent if scene.source is not None else None
+    path, phases = cycle_from_table(table, base_dir, section)  # or a designed cycle file
     cycle = DesiredCycle(
         path=path,
         contact_phases=tuple(phases),
