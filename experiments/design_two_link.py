@@ -6,7 +6,8 @@ open-loop replay in the event-driven plant: the largest joint error one control 
 after each design node, the impact-time error, the error of one open-loop run from
 takeoff after ``--horizon`` seconds and over the whole cycle.
 
-    python experiments/design_two_link.py [--scheme rk8] [--substeps 4 6 8] [--out DIR]
+    python experiments/design_two_link.py [--scheme rk8] [--substeps 4 6 8] [--intervals N]
+        [--out DIR]
 """
 
 from __future__ import annotations
@@ -32,6 +33,9 @@ def main(argv: list[str] | None = None) -> dict[int, dict[str, float]]:
     )
     parser.add_argument("--substeps", type=int, nargs="+", default=[4, 6, 8])
     parser.add_argument("--scheme", choices=["rk4", "rk8"], default=None, help="default: task's")
+    parser.add_argument(
+        "--intervals", type=int, default=None, help="flight and contact intervals (task's)"
+    )
     parser.add_argument("--horizon", type=float, default=1.0, help="open-loop horizon in [s]")
     parser.add_argument("--out", type=Path, default=ROOT / "docs/figures/design")
     args = parser.parse_args(argv)
@@ -44,6 +48,10 @@ def main(argv: list[str] | None = None) -> dict[int, dict[str, float]]:
     print("|---|---|---|---|---|---|---|---|---|")
     for substeps in args.substeps:
         grid = dataclasses.replace(base.grid, substeps=substeps)
+        if args.intervals is not None:
+            grid = dataclasses.replace(
+                grid, flight_intervals=args.intervals, contact_intervals=args.intervals
+            )
         if args.scheme is not None:
             grid = dataclasses.replace(grid, scheme=args.scheme)
         task = dataclasses.replace(base, grid=grid)

@@ -9,7 +9,9 @@ from conftest import load_experiment
 
 
 def test_design_two_link_runs(tmp_path: Path) -> None:
-    rows = load_experiment("design_two_link").main(["--substeps", "2", "--out", str(tmp_path)])
+    rows = load_experiment("design_two_link").main(
+        ["--substeps", "2", "--intervals", "6", "--out", str(tmp_path)]
+    )
     assert rows[2]["success"] == 1.0
     assert np.isfinite(rows[2]["q_defect"])
     # figures are drawn for the task's own substeps (8) only
