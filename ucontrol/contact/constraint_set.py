@@ -242,7 +242,7 @@ class ConstraintSet:
         rows = np.zeros((len(indices), self.robot.nv))
         k = self.n_contacts
         shapes: list[int] = []  # positions in indices of the collision rows
-        for row, i in enumerate(indices):
+        for row, i in enumerate(_index_list(indices)):  # Python ints: cheaper comparisons
             if self._pairs_end <= i < k:
                 shapes.append(row)
             elif i < self._n_point:
@@ -449,3 +449,10 @@ class ConstraintSet:
         """Unit normal from the centre of frame ``second`` to that of ``first``, shape (3,)."""
         delta = data.oMf[first].translation - data.oMf[second].translation
         return delta / np.sqrt(delta.dot(delta))
+
+
+def _index_list(indices: Sequence[int] | NDArray[np.intp]) -> list[int]:
+    """``indices`` as a list of Python integers."""
+    if isinstance(indices, np.ndarray):
+        return indices.tolist()
+    return [int(i) for i in indices]
