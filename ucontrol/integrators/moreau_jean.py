@@ -127,8 +127,18 @@ four-bar of ``tests/integrators/test_bilateral.py``) kept the residual at 6e-5 m
 the energy error and the phase error twentyfold at h = 1e-3.
 Dependent rows (a planar mechanism's out-of-plane closure row, a closure declared twice) make
 :math:`D` singular; the proximal QP and a least-squares polish keep the minimum-norm impulses.
-Bilateral constraints need the proxsuite solver and no friction; the energy guard measures the
-unilateral rows' impulses only.
+Bilateral constraints need the proxsuite solver; the energy guard measures the unilateral
+rows' impulses only. With friction (active contacts with a friction coefficient, or Coulomb
+joints) the bilateral rows are stacked *last*, after the contacts' normal and tangential rows
+and the joints' rows, and the step solves the mixed Coulomb problem
+
+.. math:: J_b v_{k+1} = 0 \;(P_b \text{ free}), \qquad
+          K_a \ni P_a \perp \hat u_a \in K_a^* \; (a \in I),
+
+(:class:`~ucontrol.solvers.coulomb_problem.CoulombProblem` with ``equalities``) by the Tresca
+fixed point, each Tresca QP leaving the bilateral impulses unbounded
+(:class:`~ucontrol.solvers.ProxsuiteCoulombSolver`, the only friction solver accepted with
+bilateral constraints); the drift is projected away as above.
 
 **Unsolved problems.** A solve whose residual stays above its solver's tolerance raises
 :class:`~ucontrol.exceptions.ContactSolveError` (``on_unsolved = "raise"``), or issues a
@@ -280,9 +290,13 @@ class MoreauJean:
         self._projection_data = robot.model.createData() if self._bilateral is not None else None
         self._has_contacts = constraints.n_contacts > 0 or self._bilateral is not None
         if self._bilateral is not None:
-            if constraints.has_friction:
+            if self.friction_solver is not None and not getattr(
+                self.friction_solver, "bilateral_rows", False
+            ):
                 raise InvalidParameterError(
-                    "friction", constraints.friction.tolist(), "0 with bilateral constraints"
+                    "friction_solver",
+                    self.friction_solver.name,
+                    "'proxsuite-tresca' with friction and bilateral constraints",
                 )
             if not hasattr(self.solver, "solve_mixed"):
                 raise InvalidParameterError(
@@ -326,10 +340,6 @@ class MoreauJean:
             self._viscous = friction.viscous
         index = friction.coulomb_index
         if index.size:
-            if constraints.bilateral is not None:
-                raise InvalidParameterError(
-                    "joint_friction", "Coulomb friction", "viscous only with bilateral constraints"
-                )
             size = robot.nv if flexible is None else robot.nv + flexible.nf
             self._coulomb_rows = np.eye(size)[index]
             self._coulomb_bounds = self.dt * friction.coulomb[index]
@@ -476,8 +486,16 @@ class MoreauJean:
         active: NDArray[np.bool_],
         indices: NDArray[np.intp],
     ) -> StepOutcome:
-        """Steps 3 and 4 with bilateral rows first (module docstring), frictionless."""
+        """Steps 3 and 4 with bilateral rows first (module docstring), frictionless.
+
+        With friction rows (active contacts with friction, or Coulomb joints) the step is
+        :meth:`_mixed_coulomb_step`'s.
+        """
         assert self._bilateral is not None
+        if self._coulomb_rows is not None or (
+            self._friction and self.constraints.tangent_count[indices].any()
+        ):
+            return self._mixed_coulomb_step(state, v_free, inverse_inertia, active, indices)
         data, h = self._data, self.dt
         J_b = self._bilateral.jacobian(data)
         m_b = J_b.shape[0]
@@ -519,8 +537,95 @@ class MoreauJean:
         np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
         return StepOutcome(q_next, v_next, impulse, active, solution, plastic=plastic)
 
-    def _project(self, q: Vector) -> Vector:
-        """``q`` moved onto h(q) = 0 by Gauss–Newton steps of least norm (links only)."""
+    def _mixed_coulomb_step(
+        self,
+        state: PlantEvaluation,
+        v_free: Vector,
+        inverse_inertia: Callable[[Vector], Vector],
+        active: NDArray[np.bool_],
+        indices: NDArray[np.intp],
+    ) -> StepOutcome:
+        r"""Steps 3 and 4 with friction and bilateral rows (module docstring).
+
+        The rows are the contacts' normal and tangential ones, the Coulomb joints', then the
+        bilateral ones, :math:`J_b v_{k+1} = 0` with free impulses: one Coulomb problem with
+        ``equalities`` rows (:class:`CoulombProblem`). The drift is projected away after the
+        step as in :meth:`_mixed_step`; the energy guard measures the other rows only.
+        """
+        assert self._bilateral is not None
+        data, h, constraints = self._data, self.dt, self.constraints
+        J_b = self._bilateral.jacobian(data)
+        m_b = J_b.shape[0]
+        J = constraints.jacobian(data, indices)
+        tangents = constraints.tangent_count[indices] if self._friction else None
+        if tangents is not None and tangents.any():
+            T, directions = constraints.tangent_rows(data, indices)
+            J = np.vstack((J, T))
+        else:
+            tangents = None
+        J = np.vstack((J, J_b))
+        if self.flexible is not None:  # constraints act on the links only
+            J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
+        if self._coulomb_rows is not None:  # Coulomb joints' rows before the bilateral ones
+            J = np.vstack((J[:-m_b], self._coulomb_rows, J[-m_b:]))
+        Minv_Jt = inverse_inertia(J)
+        D = J.dot(Minv_Jt)
+        u_free = J.dot(v_free)
+        r = u_free.size - m_b  # contact (normal, tangential) and joint rows
+        rate_now = None
+        if constraints.time_dependent and indices.size:  # velocities relative to surfaces
+            rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
+            rate_now = _pad(rate_now, r)
+            u_free[:r] += _pad(rate_next, r)
+        rebound, closure = self._offsets(indices, state)
+        b = u_free.copy()
+        if closure is not None:
+            b[: closure.size] += closure
+        rebound = _pad(rebound, u_free.size)  # none on tangential, joint and bilateral rows
+        solution = self._solve(D, b + rebound, indices, tangents, m_b)
+        plastic = False
+        if np.count_nonzero(rebound) and self.newton_law == "closing":
+            # Energy the contact and joint impulses add to T + V over the step [J].
+            u_plus = solution.velocity[:r] - rebound[:r] - (b[:r] - u_free[:r])
+            u_k = J[:r].dot(state.v) + (0.0 if rate_now is None else rate_now)
+            gain = solution.impulses[:r].dot(
+                0.5 * (u_free[:r] + u_plus) - self.theta * (u_free[:r] - u_k)
+            )
+            if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
+                solution = self._solve(D, b, indices, tangents, m_b)
+                plastic = True
+        impulse = np.zeros(constraints.size)
+        impulse[indices] = solution.impulses[: indices.size]
+        friction_impulse = np.zeros((constraints.size, 3)) if self._friction else None
+        if tangents is not None and friction_impulse is not None:
+            owners = np.repeat(indices, tangents)
+            tangential = solution.impulses[indices.size : indices.size + owners.size, None]
+            np.add.at(friction_impulse, owners, tangential * directions)  # [N s]
+        v_next = v_free + Minv_Jt.dot(solution.impulses)
+        q_next = self._advance(state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next))
+        held = J[: indices.size][impulse[indices] > 0.0, : self.robot.nv]
+        q_next = self._project(q_next, held if held.size else None)
+        np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
+        return StepOutcome(
+            q_next,
+            v_next,
+            impulse,
+            active,
+            solution,
+            plastic=plastic,
+            friction_impulse=friction_impulse,
+        )
+
+    def _project(self, q: Vector, held: Vector | None = None) -> Vector:
+        r"""``q`` moved onto h(q) = 0 by Gauss–Newton steps of least norm (links only).
+
+        Args:
+            q: Configuration after the step, shape (nq,) (nq + nf with flexible joints).
+            held: Normal rows :math:`J_n(q_k)` of the contacts that carried an impulse in the
+                step, shape (k, nv), or None: the steps then also satisfy
+                :math:`J_n \delta q = 0`, so that the projection does not push a held contact
+                into its surface (its gap is kept to first order).
+        """
         assert self._bilateral is not None
         model, data, bilateral = self._model, self._projection_data, self._bilateral
         nq = self.robot.nq
@@ -531,7 +636,12 @@ class MoreauJean:
             if np.max(np.abs(residual)) <= BILATERAL_PROJECTION_TOLERANCE:
                 break
             pin.computeJointJacobians(model, data, q1)
-            step = np.linalg.lstsq(bilateral.jacobian(data), residual, rcond=None)[0]
+            if held is None:
+                step = np.linalg.lstsq(bilateral.jacobian(data), residual, rcond=None)[0]
+            else:
+                rows = np.vstack((bilateral.jacobian(data), held))
+                target = np.concatenate((residual, np.zeros(held.shape[0])))
+                step = np.linalg.lstsq(rows, target, rcond=None)[0]
             q1 = pin.integrate(model, q1, -step)
         return q1 if q.size == nq else np.concatenate((q1, q[nq:]))
 
@@ -668,24 +778,26 @@ class MoreauJean:
         b: Vector,
         indices: NDArray[np.intp],
         tangents: NDArray[np.intp] | None,
+        equalities: int = 0,
     ) -> ContactSolution:
         """The contact problem (D, b) of the constraints ``indices``.
 
         Frictionless when ``tangents`` is None, else a Coulomb problem whose constraint
-        ``indices[j]`` has ``tangents[j]`` tangential rows. An unsolved problem raises
+        ``indices[j]`` has ``tangents[j]`` tangential rows, followed by ``equalities``
+        bilateral rows (then never frictionless). An unsolved problem raises
         :class:`ContactSolveError` or warns, as ``on_unsolved`` says.
         """
         solver: LCPSolver | CoulombSolver
         if self._coulomb_rows is not None:
             assert self.friction_solver is not None
-            solution = self._solve_with_joints(D, b, indices, tangents)
+            solution = self._solve_with_joints(D, b, indices, tangents, equalities)
             return self._checked(self.friction_solver, solution)
         if tangents is None or self.friction_solver is None:  # the latter: not with tangents
             solver = self.solver
             solution = self.solver.solve(D, b)
         else:
             solver = self.friction_solver
-            problem = CoulombProblem(D, b, self.constraints.friction[indices], tangents)
+            problem = CoulombProblem(D, b, self.constraints.friction[indices], tangents, equalities)
             solution = self.friction_solver.solve_coulomb(problem)
         return self._checked(solver, solution)
 
@@ -695,6 +807,7 @@ class MoreauJean:
         b: Vector,
         indices: NDArray[np.intp],
         tangents: NDArray[np.intp] | None,
+        equalities: int = 0,
     ) -> ContactSolution:
         r"""The contact problem with the Coulomb joints' rows last (module docstring).
 
@@ -702,14 +815,15 @@ class MoreauJean:
         :math:`\mu = 1`: its tangential row is the joint's (:math:`u = v_j^+`) and its normal
         row an auxiliary one, decoupled from every other, :math:`u_n = \sigma_j (P_n - h F_{c,j})`
         (:math:`\sigma_j = D_{jj}`), so that :math:`P_n = h F_{c,j}` at every solution. The
-        returned solution has the rows of (D, b): the auxiliary ones are dropped.
+        returned solution has the rows of (D, b): the auxiliary ones are dropped. The
+        ``equalities`` bilateral rows, after the joints' ones, stay last.
         """
         assert self.friction_solver is not None
         m, m_j = indices.size, self._coulomb_bounds.size
-        r = D.shape[0]  # m normal, then the contacts' tangential, then m_j joint rows
+        r = D.shape[0]  # m normal, the contacts' tangential, m_j joint, then bilateral rows
         real = np.concatenate((np.arange(m), np.arange(m + m_j, r + m_j)))
         auxiliary = np.arange(m, m + m_j)
-        joint_rows = np.arange(r - m_j, r)
+        joint_rows = np.arange(r - equalities - m_j, r - equalities)
         D_all = np.zeros((r + m_j, r + m_j))
         D_all[np.ix_(real, real)] = D
         sigma = D.diagonal()[joint_rows].copy()
@@ -724,6 +838,7 @@ class MoreauJean:
             b_all,
             np.concatenate((mu, np.ones(m_j))),
             np.concatenate((contact_tangents, np.ones(m_j, dtype=np.intp))),
+            equalities,
         )
         solution = self.friction_solver.solve_coulomb(problem)
         return solution._replace(impulses=solution.impulses[real], velocity=solution.velocity[real])

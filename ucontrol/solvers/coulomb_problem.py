@@ -22,6 +22,12 @@ Its **natural-map residual** (:meth:`CoulombProblem.residual`), in [m/s], is
 with :math:`\sigma_a = D_{n_a n_a}` turning impulses into velocities; it vanishes exactly at
 solutions of the true (non-convex) Coulomb problem, and for frictionless contacts it is the
 LCP's :math:`|\min(\sigma P, u)|` of :func:`~ucontrol.solvers.complementarity_residual`.
+
+**Bilateral rows.** A closed chain adds ``equalities`` rows :math:`J_b` **last** (after the
+tangential rows), whose impulses :math:`P_b` are free in sign and whose velocities vanish,
+:math:`u_b = D_{b\cdot} P + b_b = 0`: the mixed Coulomb problem of a Moreau–Jean step with
+bilateral constraints. Their residual is :math:`\|u_b\|_\infty`, and the problem's residual
+the larger of it and the contacts' natural-map residual.
 """
 
 from __future__ import annotations
@@ -43,25 +49,38 @@ class CoulombProblem:
         mu: Friction coefficient of each contact, >= 0, shape (m,).
         tangents: Tangential rows of each contact (0, 1 or 2), shape (m,); the contacts
             with 0 are frictionless whatever their ``mu``.
+        equalities: Number of bilateral rows, last in ``D`` and ``b`` (module docstring).
 
     Attributes:
         m: Number of contacts.
-        size: Number of rows r = m + sum(tangents).
+        equalities: Number of bilateral rows, the last ones.
+        equality_rows: Indices of the bilateral rows, shape (equalities,).
+        size: Number of rows r = m + sum(tangents) + equalities.
         tangent_rows: Row of the first and second tangential component of each contact,
             shape (m, 2); ``size`` where the contact has no such row (gathers read a 0 there).
         spatial: Whether any contact has two tangential rows.
 
     Raises:
         ShapeError: The shapes do not fit together.
-        InvalidParameterError: A friction coefficient is negative or a tangent count is not
-            0, 1 or 2.
+        InvalidParameterError: A friction coefficient is negative, a tangent count is not
+            0, 1 or 2, or ``equalities`` is negative.
     """
 
-    def __init__(self, D: Vector, b: Vector, mu: Vector, tangents: NDArray[np.intp]) -> None:
+    def __init__(
+        self,
+        D: Vector,
+        b: Vector,
+        mu: Vector,
+        tangents: NDArray[np.intp],
+        equalities: int = 0,
+    ) -> None:
         tangents = np.asarray(tangents, dtype=np.intp)
         mu = np.asarray(mu, dtype=float)
         m = tangents.size
-        size = m + int(tangents.sum())
+        if int(equalities) != equalities or equalities < 0:
+            raise InvalidParameterError("equalities", equalities, "an integer >= 0")
+        equalities = int(equalities)
+        size = m + int(tangents.sum()) + equalities
         if b.shape != (size,):
             raise ShapeError("b", (size,), b.shape)
         if D.shape != (size, size):
@@ -77,6 +96,7 @@ class CoulombProblem:
         self.tangents = tangents
         self.mu = np.where(tangents > 0, mu, 0.0)
         self.m = m
+        self.equalities = equalities
         self.size = size
         first = m + np.concatenate(([0], np.cumsum(tangents)[:-1])).astype(np.intp)
         self.tangent_rows = np.column_stack(
@@ -86,6 +106,7 @@ class CoulombProblem:
         scale = D.diagonal()[:m].copy()
         scale[scale <= 0.0] = 1.0
         self.normal_scale = scale
+        self.equality_rows = np.arange(size - equalities, size)
 
     def velocity(self, P: Vector) -> Vector:
         """Constraint velocities with restitution ``D P + b`` in [m/s], shape (r,)."""
@@ -105,9 +126,12 @@ class CoulombProblem:
             P: Stacked impulses in [N s], shape (r,).
             velocity: ``D P + b`` if already computed, shape (r,).
         """
-        if self.m == 0:
-            return 0.0
         u = self.velocity(P) if velocity is None else velocity
+        bilateral = (
+            float(np.max(np.abs(u[self.size - self.equalities :]))) if self.equalities else 0.0
+        )
+        if self.m == 0:
+            return bilateral
         sigma = self.normal_scale
         u_t = self.tangential(u)
         z_n = sigma * P[: self.m] - (u[: self.m] + self.mu * np.linalg.norm(u_t, axis=1))
@@ -115,7 +139,7 @@ class CoulombProblem:
         pi_n, pi_t = project_on_cones(z_n, sigma_P_t - u_t, self.mu)
         r_n = np.abs(sigma * P[: self.m] - pi_n)
         r_t = np.abs(sigma_P_t - pi_t)
-        return float(max(r_n.max(), r_t.max()))
+        return float(max(r_n.max(), r_t.max(), bilateral))
 
 
 def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vector]:

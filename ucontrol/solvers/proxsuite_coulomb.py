@@ -35,6 +35,12 @@ halfway through ``max_iter`` or has stalled. Starting from small thresholds miss
 impacts (Painlevé's paradox): there the map :math:`s \mapsto \mu P_n(s)` of the sliding
 contacts expands and the solution is a sticking impulse far above the sliding ones.
 
+**Bilateral rows** (:attr:`CoulombProblem.equalities`, a closed chain's loop closures): their
+impulses are free in sign, so each Tresca QP leaves them unbounded and its optimality system
+holds :math:`u_b = D_{b\cdot} P + b_b = 0` exactly as in the frictionless mixed problem; the
+polish treats them as always sticking rows (:math:`u_b = 0`, :math:`P_b` free), the
+Alart–Curnier function holds :math:`\rho_b u_b` on them.
+
 The fixed point converges for moderate friction and conditioning; the solve reports
 ``"solved"`` only when the residual is within ``residual_tolerance``, otherwise
 ``"max_iterations_reached"`` (or ``"stalled"`` when the thresholds stopped moving) and the
@@ -52,7 +58,7 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
 from ucontrol.exceptions import InvalidParameterError
-from ucontrol.solvers.contact_solution import ContactSolution
+from ucontrol.solvers.contact_solution import ContactSolution, velocity_scale
 from ucontrol.solvers.coulomb_problem import CoulombProblem
 from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD
 from ucontrol.solvers.proxsuite_qp import INFINITY, QP_SOLVED, WarmStartedQP
@@ -86,6 +92,8 @@ class ProxsuiteCoulombSolver:
     """
 
     name = "proxsuite-tresca"
+    #: Solves problems with bilateral rows (:attr:`CoulombProblem.equalities`).
+    bilateral_rows = True
 
     def __init__(
         self,
@@ -116,7 +124,7 @@ class ProxsuiteCoulombSolver:
         """
         start = time.perf_counter()
         m = problem.m
-        key = problem.tangents.tobytes()
+        key = problem.tangents.tobytes() + problem.equalities.to_bytes(4, "little")
         guess = self._guesses.get(key)
         free = -problem.tangential(problem.b)
         thresholds, directions = _unbounded(problem, free)
@@ -339,7 +347,12 @@ def _alart_curnier(
     J[:m][closed] = rho[closed, None] * D[:m][closed]
     open_ = np.flatnonzero(~closed)
     J[open_, open_] = 1.0
-    if size == m:
+    equal = problem.equality_rows  # bilateral rows: P free, F = rho u
+    if equal.size:
+        rho_b = 1.0 / velocity_scale(D[np.ix_(equal, equal)])
+        F[equal] = rho_b * u[equal]
+        J[equal] = rho_b[:, None] * D[equal]
+    if size == m + equal.size:
         return F, J
     y = problem.tangential(P) - rho[:, None] * problem.tangential(u)
     radius = mu * np.maximum(P[:m], 0.0)
@@ -395,7 +408,7 @@ def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector 
     slide = np.flatnonzero(~separated & ~stick)
     stick_contacts = np.flatnonzero(stick)
     stick_rows = np.concatenate((stick_contacts, problem.tangent_rows[stick_contacts].ravel()))
-    stick_rows = stick_rows[stick_rows < size]
+    stick_rows = np.concatenate((stick_rows[stick_rows < size], problem.equality_rows))
     moving = norm_u_t[slide] > 0.0
     d = np.where(
         moving[:, None],
