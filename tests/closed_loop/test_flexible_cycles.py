@@ -167,3 +167,24 @@ def test_motor_and_link_states_stay_finite(one_constraint, two_constraints) -> N
 def test_two_constraints_reach_the_ground_and_the_wall_every_cycle(two_constraints) -> None:
     controller, log = two_constraints
     assert_ground_and_wall_every_cycle(controller, log, CYCLES)
+
+
+def test_force_feedback_of_the_flexible_law_divides_the_force_error_by_one_plus_kf() -> None:
+    # As for the rigid law (test_robustness.py): with a 20 % lighter model the open-loop force
+    # error r becomes r / (1 + K_f) with the feedback on the measured force (measured ratio at
+    # K_f = 0.5: 0.66609 against 1 / 1.5, relative difference 9e-4).
+    errors = {}
+    for force_gain in (0.0, 0.5):
+        _, result = run(
+            "two_link_flexible_one_constraint", 1, mass_scale=0.8, force_gain=force_gain
+        )
+        log = result.log
+        cycle = cycle_events(log)[0]
+        assert cycle.complete
+        t_f, t_d = cycle.accumulation_end[GROUND], cycle.takeoff[GROUND]
+        middle = (log.t > t_f + (t_d - t_f) / 3) & (log.t < t_d - (t_d - t_f) / 3)
+        errors[force_gain] = np.mean(
+            log.contact_force[middle, GROUND] - log.lambda_d[middle, GROUND]
+        )
+    assert abs(errors[0.0]) > 1.0  # [N] (measured 1.90)
+    assert errors[0.5] / errors[0.0] == pytest.approx(1.0 / 1.5, rel=1e-2)

@@ -55,3 +55,24 @@ def test_one_contact_lzb_is_newtons_law() -> None:
 def test_impact_law_settings_are_checked(settings: dict[str, Any], match: str) -> None:
     with pytest.raises(InvalidParameterError, match=match):
         _scene("newton_cradle", **settings).build_integrator()
+
+
+def test_lzb_bouncing_ball_comes_to_rest_through_its_accumulation_like_newtons() -> None:
+    """With e = 0.5 the rebounds accumulate at t∞ = t1 (1 + 2e / (1 - e)) = 3 t1 = 1.355 s.
+
+    Rebounds slower than ``zeno_velocity`` are plastic under either law (the accumulation
+    rule), so the LZB ball comes to rest at t∞ as Newton's does, and both runs agree.
+    """
+    runs = {}
+    for law in ("newton", "lzb"):
+        table = tomllib.loads((ROBOTS / "ball.toml").read_text())
+        table.pop("reference", None)
+        table["contacts"][0]["restitution"] = 0.5
+        table["integrator"].update(name="event_driven", impact_law=law)
+        runs[law] = simulate(Scene.from_dict(table, base_dir=ROBOTS), duration=2.0).log
+    t_rest = 3.0 * np.sqrt(2.0 * 1.0 / 9.81)  # [s]
+    log = runs["lzb"]
+    resting = log.t > t_rest + 0.01
+    np.testing.assert_allclose(log.q[resting, 0], 0.1, atol=1e-9)  # on the ground (r = 0.1 m)
+    np.testing.assert_allclose(log.v[resting, 0], 0.0, atol=1e-9)
+    np.testing.assert_allclose(log.q, runs["newton"].q, atol=1e-9)
