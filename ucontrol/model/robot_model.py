@@ -32,7 +32,8 @@ class RobotModel:
 
     Attributes:
         model: The Pinocchio model.
-        data: The Pinocchio data buffer used by every computation of this object.
+        data: The Pinocchio data buffer used by every computation of this object (created on
+            first use: integrators and controllers bring their own).
         name: Robot name from the URDF.
         nq: Configuration size.
         nv: Velocity (tangent space) size.
@@ -47,7 +48,7 @@ class RobotModel:
     ) -> None:
         self.model = model
         self.urdf_path = urdf_path
-        self.data = model.createData()
+        self._data: pin.Data | None = None
         self.name = model.name
         self.floating_base = floating_base
         self.nq = model.nq
@@ -56,6 +57,17 @@ class RobotModel:
         self.actuated = np.arange(first_actuated, model.nv)
         self.nu = self.actuated.size
         self._lower = np.tril_indices(model.nv, -1)
+
+    @property
+    def data(self) -> pin.Data:
+        """The Pinocchio data buffer of this object's computations, created on first use.
+
+        A Pinocchio ``Data`` holds several (nv, nv) and (6, nv) arrays per joint (512 MB at
+        nv = 200): a run whose integrator and controller bring their own never builds this one.
+        """
+        if self._data is None:
+            self._data = self.model.createData()
+        return self._data
 
     @classmethod
     def from_urdf(
