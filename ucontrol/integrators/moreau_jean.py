@@ -533,7 +533,8 @@ class MoreauJean:
         impulse[indices] = solution.impulses[m_b:]
         v_next = v_free + Minv_Jt.dot(solution.impulses)
         q_next = self._advance(state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next))
-        q_next = self._project(q_next)
+        held = J[m_b:][impulse[indices] > 0.0, : self.robot.nv]  # kept by the projection
+        q_next = self._project(q_next, held if held.size else None)
         np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
         return StepOutcome(q_next, v_next, impulse, active, solution, plastic=plastic)
 
