@@ -29,6 +29,8 @@ SCENES = (
     "four_bar",
     "four_bar_stop",
     "block_incline",
+    "block_incline_welded",
+    "slider_crank",
 )
 
 
