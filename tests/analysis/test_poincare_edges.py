@@ -31,7 +31,7 @@ OSCILLATOR = {"mass": 1.0, "stiffness": 1.0, "frequency": 1.0, "restitution": 0.
 
 
 def test_negative_damping_is_named():
-    with pytest.raises(InvalidParameterError, match="-0.5") as caught:
+    with pytest.raises(InvalidParameterError, match=r"-0\.5") as caught:
         impact_oscillator(**OSCILLATOR, damping=-0.5, force=1.0, stop=0.5)
     assert caught.value.name == "damping" and caught.value.value == -0.5
 
@@ -99,7 +99,7 @@ def test_free_response_amplitude_matches_the_integrated_steady_state():
 
 
 def _blow_up_system(gap: float = 1.0) -> ImpactSystem:
-    """x' = x², x(0) = 1: x = 1 / (1 - t) blows up at t = 1."""
+    """The flow x' = x², x(0) = 1: x = 1 / (1 - t) blows up at t = 1."""
     return ImpactSystem(
         flow=lambda t, x: x**2,
         flow_jacobian=lambda t, x: np.diag(2.0 * x),
