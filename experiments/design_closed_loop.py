@@ -25,6 +25,7 @@ from ucontrol.analysis.weak_stability import weak_stability
 from ucontrol.control.brogliato_controller import BrogliatoController
 from ucontrol.control.controller_table import CYCLE_KEYS
 from ucontrol.design import DesignedCycle, DesignTask, design_cycle
+from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,12 +66,21 @@ def main(argv: list[str] | None = None) -> dict[str, dict]:  # type: ignore[type
     )
     args = parser.parse_args(argv)
     task = DesignTask.from_toml(TASKS.get(args.task, Path(args.task)))
-    scene = task.scene
+    # the closed loop runs on the whole scene (the task's model may lock joints)
+    assert task.scene.source is not None
+    scene = Scene.from_toml(task.scene.source)
     results: dict[str, dict] = {}  # type: ignore[type-arg]
     if args.cycle_file is not None:
         designed = DesignedCycle.load(args.cycle_file)
     else:
-        designed, report = design_cycle(task)
+        designed, report = design_cycle(
+            task,
+            progress=lambda k, cost, inf_pr, inf_du: print(
+                f"ipopt iteration {k:4d}: objective {cost:.6g}, inf_pr {inf_pr:.2e}, "
+                f"inf_du {inf_du:.2e}",
+                flush=True,
+            ),
+        )
         results["design"] = {
             "status": report.status,
             "iterations": report.iterations,

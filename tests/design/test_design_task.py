@@ -71,3 +71,18 @@ def test_unknown_contact_missing_scene_and_bounces_on_a_plastic_contact() -> Non
     table["contact_phases"].append(dict(table["contact_phases"][0]))
     with pytest.raises(InvalidParameterError, match="contact_phases"):
         DesignTask.from_dict(table, base_dir=ROBOTS)
+
+
+def test_locked_joints_reduce_the_design_model() -> None:
+    table = tomllib.loads((ROBOTS / "panda_table_task.toml").read_text())
+    task = DesignTask.from_dict(table, base_dir=ROBOTS)
+    assert task.scene.robot.nv == 7  # the two fingers held at q0
+    np.testing.assert_array_equal(task.torque_limit, [87.0] * 4 + [12.0] * 3)  # URDF effort
+    full = task.scene.source
+    assert full is not None and full.name == "panda_table.toml"
+    table["locked_joints"] = ["panda_finger_joint3"]
+    with pytest.raises(NotFoundError, match="panda_finger_joint3"):
+        DesignTask.from_dict(table, base_dir=ROBOTS)
+    table["locked_joints"] = "panda_finger_joint1"
+    with pytest.raises(InvalidParameterError, match="locked_joints"):
+        DesignTask.from_dict(table, base_dir=ROBOTS)

@@ -12,6 +12,8 @@ Format (every key but ``scene`` and one ``[[contact_phases]]`` entry is optional
     frame = "end_effector"                   # tracked frame; default the contact's frame
     period = 10.0                            # [s] fixed period, or period_min/period_max
     bounces = 0                              # bounce flights between landing and contact
+    locked_joints = []                       # joints held at the scene's q0 in the design
+                                             # model (e.g. a gripper's fingers)
 
     [[contact_phases]]
     contact = "end_effector/ground"          # a [[contacts]] name of the scene
@@ -67,16 +69,18 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_float, as_positive, as_vector, check_keys, require_key
 from ucontrol.contact.point_contact import PointContact
 from ucontrol.exceptions import DesignError, InvalidParameterError, NotFoundError, SceneError
+from ucontrol.model.robot_model import RobotModel
 from ucontrol.scene import Scene
 
 Vector = NDArray[np.float64]
@@ -88,6 +92,7 @@ _TOP_KEYS = {
     "period_min",
     "period_max",
     "bounces",
+    "locked_joints",
     "contact_phases",
     "flight",
     "limits",
@@ -413,6 +418,8 @@ class DesignTask:
         if not scene_path.is_absolute():
             scene_path = base_dir / scene_path
         scene = Scene.from_toml(scene_path)
+        if table.get("locked_joints"):
+            scene = locked_scene(scene, table["locked_joints"])
         phases = require_key(table, "the task", "contact_phases")
         if not isinstance(phases, list) or len(phases) != 1:
             raise InvalidParameterError(
@@ -474,3 +481,40 @@ class DesignTask:
             solver=SolverSpec(**sections["solver"]),
             source=source,
         )
+
+
+def locked_scene(scene: Scene, joints: Any) -> Scene:
+    """The scene with ``joints`` held at its ``q0``: the design model of a task.
+
+    Joints the task does not use (a gripper's fingers: 15 g on the Panda, whose accelerations
+    under any torque scale the problem badly) are removed from the design's model with
+    Pinocchio's ``buildReducedModel``; the designed cycle then has the remaining joints only,
+    and the tracking controllers take its frame path (a closed loop runs on the whole scene).
+
+    Raises:
+        InvalidParameterError: ``joints`` is not a list of joint names.
+        NotFoundError: A name is not a joint of the robot.
+        DesignError: The scene has joint stops, flexible joints or joint friction (not
+            reduced with the model).
+    """
+    robot = scene.robot
+    if not isinstance(joints, list) or not all(isinstance(name, str) for name in joints):
+        raise InvalidParameterError("locked_joints", joints, "a list of joint names")
+    names = robot.joint_names
+    for name in joints:
+        if name not in names:
+            raise NotFoundError("joint", name, names)
+    if scene.stops or scene.flexible is not None or scene.joint_friction is not None:
+        raise DesignError(
+            "locked_joints needs a scene without joint stops, flexible joints or joint friction"
+        )
+    model = robot.model
+    ids = [model.getJointId(name) for name in joints]
+    reduced = pin.buildReducedModel(model, ids, scene.q0)
+    keep = [model.joints[i].idx_q for i in range(1, model.njoints) if model.names[i] not in joints]
+    return replace(
+        scene,
+        robot=RobotModel(reduced, urdf_path=robot.urdf_path),
+        q0=scene.q0[keep],
+        v0=scene.v0[keep],
+    )
