@@ -39,3 +39,9 @@ def test_the_extended_state_is_split_into_views_and_its_shape_checked():
     with pytest.raises(ShapeError) as caught:
         flexible.split(q, v[:3])
     assert caught.value.name == "extended velocity v" and caught.value.shape == (3,)
+
+
+def test_an_empty_joint_list_is_named():
+    with pytest.raises(InvalidParameterError, match="at least one joint") as caught:
+        _flexible(())
+    assert caught.value.value == []
