@@ -91,6 +91,18 @@ def test_a_directory_in_use_is_refused_and_a_stale_lock_taken_over(tmp_path: Pat
     assert not (tmp_path / output_files.LOCK_FILE).exists()
 
 
+@pytest.mark.parametrize("content", ["0", "-1", "1099511627776", "not a pid"])
+def test_a_lock_without_a_possible_process_id_is_taken_over(tmp_path: Path, content: str) -> None:
+    """A lock holding no possible process id is stale and taken over.
+
+    0 and -1 would name this process group or every process to os.kill, and 2**40 overflows it.
+    """
+    (tmp_path / output_files.LOCK_FILE).write_text(content)
+    simulate(load_scene("ball"), duration=0.01, out=tmp_path)
+    assert (tmp_path / "log.npz").is_file()
+    assert not (tmp_path / output_files.LOCK_FILE).exists()
+
+
 def _one_run(out: str, report: str, barrier: Any) -> None:
     """A child process: `ucontrol run ball` into the shared directory, its output to a file."""
     with open(report, "w") as stream, contextlib.redirect_stdout(stream):

@@ -157,11 +157,17 @@ class OutputLock:
             self.release()
 
 
+#: Largest process id of Linux (``pid_max`` cannot exceed it); larger ids are not processes.
+_PID_MAX = 2**22
+
+
 def _owner(path: Path) -> int | None:
+    """The process id in the lock file, or None when it holds no possible process id."""
     try:
-        return int(path.read_text().strip())
+        pid = int(path.read_text().strip())
     except (OSError, ValueError):
         return None
+    return pid if 0 < pid <= _PID_MAX else None
 
 
 def _alive(pid: int) -> bool:
