@@ -86,3 +86,11 @@ def test_locked_joints_reduce_the_design_model() -> None:
     table["locked_joints"] = "panda_finger_joint1"
     with pytest.raises(InvalidParameterError, match="locked_joints"):
         DesignTask.from_dict(table, base_dir=ROBOTS)
+
+
+def test_unknown_hessian_is_named() -> None:
+    table = _table()
+    table["solver"]["hessian"] = "bfgs"
+    with pytest.raises(InvalidParameterError, match="hessian") as error:
+        DesignTask.from_dict(table, base_dir=ROBOTS)
+    assert error.value.value == "bfgs"

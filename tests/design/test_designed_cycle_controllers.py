@@ -101,3 +101,8 @@ def test_designed_cycle_beside_a_path_or_missing(cycle_dir: Path) -> None:
     missing.write_text(missing.read_text().replace('"cycle.npz"', '"no_cycle.npz"'))
     with pytest.raises(SceneError, match=r"no_cycle\.npz"):
         Scene.from_toml(missing).build_controller()
+    broken = cycle_dir / "broken"
+    np.savez(broken.with_suffix(".npz"), impulses=np.zeros(1))
+    broken.with_suffix(".json").write_text('{"phases": [{"name": "flight"}]}')
+    with pytest.raises(SceneError, match="not a designed cycle"):
+        read_designed_cycle(broken)

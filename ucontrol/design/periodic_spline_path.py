@@ -1,8 +1,9 @@
 r"""A periodic path through samples: a periodic quintic spline (C⁴), with its derivatives.
 
-Stand-in until the task paths of :mod:`ucontrol.control` provide a periodic spline: it has
-the :class:`ucontrol.control.desired_cycle.NominalPath` protocol (``period``, ``__call__``,
-``derivatives`` up to order 4, the flexible-joint law's need).
+It has the :class:`ucontrol.control.desired_cycle.NominalPath` protocol (``period``,
+``__call__``, ``derivatives`` up to order 4, the flexible-joint law's need). Superseded by
+:class:`ucontrol.control.SplinePath` (the same interpolant), which
+:meth:`ucontrol.design.DesignedCycle.nominal_path` now returns; kept for code that builds one.
 """
 
 from __future__ import annotations
