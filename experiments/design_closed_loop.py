@@ -25,6 +25,7 @@ from ucontrol.analysis.weak_stability import weak_stability
 from ucontrol.control.brogliato_controller import BrogliatoController
 from ucontrol.control.controller_table import CYCLE_KEYS
 from ucontrol.design import DesignedCycle, DesignTask, design_cycle
+from ucontrol.design.design_figures import save_design_figures
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
@@ -59,6 +60,9 @@ def main(argv: list[str] | None = None) -> dict[str, dict]:  # type: ignore[type
     parser.add_argument("--task", default="two_link", help="two_link, panda or a task file")
     parser.add_argument("--cycle-file", type=Path, default=None, help="a designed cycle (.npz)")
     parser.add_argument("--save", type=Path, default=None, help="write the designed cycle here")
+    parser.add_argument(
+        "--figures", type=Path, default=None, help="draw the designed cycle into this folder"
+    )
     parser.add_argument("--cycles", type=int, default=5)
     parser.add_argument("--dt", type=float, default=1e-3, help="time step in [s]")
     parser.add_argument(
@@ -93,6 +97,8 @@ def main(argv: list[str] | None = None) -> dict[str, dict]:  # type: ignore[type
         if args.save is not None:
             designed.save(args.save)
     print(f"designed cycle: landing at {designed.landing_time:.4g} s, period {designed.period}")
+    if args.figures is not None:
+        save_design_figures(designed, task.torque_limit, task.scene.robot.joint_names, args.figures)
     hand_made = scene.build_controller()
     assert isinstance(hand_made, BrogliatoController)
     settings = {k: scene.controller[k] for k in CYCLE_KEYS if k in scene.controller}

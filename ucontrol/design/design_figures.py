@@ -36,6 +36,7 @@ def save_design_figures(
     torque_limit: np.ndarray,
     joint_names: list[str],
     out: str | Path,
+    plane: tuple[int, int] | None = None,
 ) -> list[Path]:
     """Write ``joints.png``, ``task.png`` and ``torques_force.png`` into ``out``.
 
@@ -44,6 +45,8 @@ def save_design_figures(
         torque_limit: Torque limits in [N m], shape (nv,).
         joint_names: Names of the joints, in order.
         out: Output directory (created).
+        plane: World axes (0: x, 1: y, 2: z) of the task figure's path plot; default the two
+            along which the frame moves most.
 
     Returns:
         The paths written.
@@ -73,12 +76,17 @@ def save_design_figures(
     axes[0].set_title("Joint trajectories (bands: flight, bounces, contact)")
     figure.savefig(paths[0], dpi=110)
 
+    if plane is None:
+        spread = np.ptp(np.vstack([phase.position for phase in cycle.phases]), axis=0)
+        plane = tuple(sorted(int(i) for i in np.argsort(spread)[-2:]))  # type: ignore[assignment]
+    assert plane is not None
+    a, b = plane
     figure = Figure(figsize=(8, 4.5), layout="constrained")
     left, right = figure.subplots(1, 2)
     for k, phase in enumerate(cycle.phases):
         left.plot(
-            phase.position[:, 0],
-            phase.position[:, 1],
+            phase.position[:, a],
+            phase.position[:, b],
             marker=".",
             ms=3,
             color={"flight": "C0", "bounce": "C1", "contact": "C3"}[phase.kind],
@@ -87,9 +95,9 @@ def save_design_figures(
     path = cycle.nominal_path()
     t = np.linspace(0.0, cycle.period, 800)
     smooth = np.array([path(float(s))[0] for s in t])
-    left.plot(smooth[:, 0], smooth[:, 1], color="0.5", lw=0.8, label="nominal path (spline)")
-    left.set_xlabel("x [m]")
-    left.set_ylabel("y [m]")
+    left.plot(smooth[:, a], smooth[:, b], color="0.5", lw=0.8, label="nominal path (spline)")
+    left.set_xlabel(f"{'xyz'[a]} [m]")
+    left.set_ylabel(f"{'xyz'[b]} [m]")
     left.set_aspect("equal", adjustable="datalim")
     left.legend(fontsize=8)
     left.set_title(f"{cycle.frame} in the world")
