@@ -16,3 +16,16 @@ def test_design_two_link_runs(tmp_path: Path) -> None:
     assert np.isfinite(rows[2]["q_defect"])
     # figures are drawn for the task's own substeps (8) only
     assert not (tmp_path / "joints.png").exists()
+
+
+def test_design_closed_loop_runs_on_a_saved_cycle(tmp_path: Path) -> None:
+    from two_link_design import two_link_design
+
+    cycle = two_link_design()[0].save(tmp_path / "cycle")
+    results = load_experiment("design_closed_loop").main(
+        ["--cycle-file", str(cycle), "--cycles", "1", "--figures", str(tmp_path / "figures")]
+    )
+    assert results["designed"]["complete_cycles"] == 1
+    assert results["hand-made"]["complete_cycles"] == 1
+    assert 0.0 < results["ratios"]["first_impact_impulse"] < 1.0
+    assert (tmp_path / "figures" / "task.png").is_file()
