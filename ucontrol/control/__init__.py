@@ -11,7 +11,12 @@ from typing import TYPE_CHECKING, Any
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
 from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.controller import ContactState, Controller, LoggingController
-from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle, NominalPath
+from ucontrol.control.desired_cycle import (
+    ContactPhase,
+    DesiredCycle,
+    NominalPath,
+    read_designed_cycle,
+)
 from ucontrol.control.friction_compensation import FrictionCompensation
 from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
 from ucontrol.control.impedance_table import impedance_from_table
@@ -68,6 +73,7 @@ __all__ = [
     "impedance_from_table",
     "juggling_from_table",
     "path_from_table",
+    "read_designed_cycle",
 ]
 
 

@@ -16,13 +16,12 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_float, as_in_interval, as_positive
-from ucontrol.control.spline_path import SplinePath
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.trajectory_segment import smooth_step
 from ucontrol.exceptions import (
@@ -31,6 +30,9 @@ from ucontrol.exceptions import (
     PathThroughSurfaceError,
     SceneError,
 )
+
+if TYPE_CHECKING:
+    from ucontrol.control.spline_path import SplinePath
 
 Vector = NDArray[np.float64]
 
@@ -276,6 +278,8 @@ def read_designed_cycle(path: str | Path) -> tuple[SplinePath, ContactPhase]:
     except (KeyError, ValueError, TypeError, OSError) as error:
         raise SceneError(f"{str(npz)!r} is not a designed cycle: {error!r}") from error
     period = float(times[-1][-1] - times[0][0])
+    from ucontrol.control.spline_path import SplinePath  # scipy.interpolate: on first use
+
     path_ = SplinePath(
         waypoints=np.vstack([p[:-1] for p in positions]),
         times=np.concatenate([t[:-1] for t in times]) - times[0][0],
