@@ -350,14 +350,6 @@ MUTANTS = (
         COULOMB_TESTS,
     ),
     Mutant(
-        "coulomb-no-restart",
-        "friction cone",
-        COULOMB,
-        "if (stalled or outer == self.max_iter // 2) and not restarted:",
-        "if False:",
-        COULOMB_TESTS,
-    ),
-    Mutant(
         "desired-force-sign",
         "force feedback",
         BROGLIATO,

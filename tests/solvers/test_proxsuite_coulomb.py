@@ -116,7 +116,7 @@ def test_pgs_agrees_where_it_converges() -> None:
 
 
 def test_tangential_impact_after_sliding() -> None:
-    """Painlevé: from a sliding warm start the map expands; the restart finds the impulse."""
+    """Painlevé: from a sliding warm start the solve reaches the sticking impulse."""
     mu = 1.5
     D = np.array([[1.87577975, 1.36394614], [1.36394614, 3.12422025]])  # the rod at 1 rad
     solver = ProxsuiteCoulombSolver()
