@@ -428,24 +428,11 @@ class MoreauJean:
                     plastic = True
             impulse[indices] = solution.impulses[: indices.size]
             if tangents is not None and friction_impulse is not None:
-                owners = np.repeat(indices, tangents)
-                tangential = solution.impulses[indices.size : indices.size + owners.size, None]
-                tangential = tangential * directions  # [N s]
-                np.add.at(friction_impulse, owners, tangential)
+                _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
             v_next = v_free + Minv_Jt.dot(solution.impulses)
         else:
             v_next = v_free
-        q_next = self._advance(state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next))
-        np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
-        return StepOutcome(
-            q_next,
-            v_next,
-            impulse,
-            active,
-            solution,
-            plastic=plastic,
-            friction_impulse=friction_impulse,
-        )
+        return self._outcome(state, v_next, impulse, active, solution, plastic, friction_impulse)
 
     def _offsets(
         self, indices: NDArray[np.intp], state: PlantEvaluation
@@ -496,7 +483,7 @@ class MoreauJean:
             self._friction and self.constraints.tangent_count[indices].any()
         ):
             return self._mixed_coulomb_step(state, v_free, inverse_inertia, active, indices)
-        data, h = self._data, self.dt
+        data = self._data
         J_b = self._bilateral.jacobian(data)
         m_b = J_b.shape[0]
         J = np.vstack((J_b, self.constraints.jacobian(data, indices))) if indices.size else J_b
@@ -532,11 +519,8 @@ class MoreauJean:
         impulse = np.zeros(self.constraints.size)
         impulse[indices] = solution.impulses[m_b:]
         v_next = v_free + Minv_Jt.dot(solution.impulses)
-        q_next = self._advance(state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next))
         held = J[m_b:][impulse[indices] > 0.0, : self.robot.nv]  # kept by the projection
-        q_next = self._project(q_next, held if held.size else None)
-        np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
-        return StepOutcome(q_next, v_next, impulse, active, solution, plastic=plastic)
+        return self._outcome(state, v_next, impulse, active, solution, plastic, None, held=held)
 
     def _mixed_coulomb_step(
         self,
@@ -554,7 +538,7 @@ class MoreauJean:
         step as in :meth:`_mixed_step`; the energy guard measures the other rows only.
         """
         assert self._bilateral is not None
-        data, h, constraints = self._data, self.dt, self.constraints
+        data, constraints = self._data, self.constraints
         J_b = self._bilateral.jacobian(data)
         m_b = J_b.shape[0]
         J = constraints.jacobian(data, indices)
@@ -599,13 +583,35 @@ class MoreauJean:
         impulse[indices] = solution.impulses[: indices.size]
         friction_impulse = np.zeros((constraints.size, 3)) if self._friction else None
         if tangents is not None and friction_impulse is not None:
-            owners = np.repeat(indices, tangents)
-            tangential = solution.impulses[indices.size : indices.size + owners.size, None]
-            np.add.at(friction_impulse, owners, tangential * directions)  # [N s]
+            _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
         v_next = v_free + Minv_Jt.dot(solution.impulses)
-        q_next = self._advance(state.q, h * ((1.0 - self.theta) * state.v + self.theta * v_next))
         held = J[: indices.size][impulse[indices] > 0.0, : self.robot.nv]
-        q_next = self._project(q_next, held if held.size else None)
+        return self._outcome(
+            state, v_next, impulse, active, solution, plastic, friction_impulse, held=held
+        )
+
+    def _outcome(
+        self,
+        state: PlantEvaluation,
+        v_next: Vector,
+        impulse: Vector,
+        active: NDArray[np.bool_],
+        solution: ContactSolution | None,
+        plastic: bool,
+        friction_impulse: Vector | None,
+        *,
+        held: Vector | None = None,
+    ) -> StepOutcome:
+        """The step's outcome from :math:`v_{k+1}`, and the persistence memory of the next step.
+
+        :math:`q_{k+1}` is step 4's, projected onto the bilateral constraints on a closed chain
+        with the ``held`` contacts' normal rows kept (shape (k, nv) or None).
+        """
+        q_next = self._advance(
+            state.q, self.dt * ((1.0 - self.theta) * state.v + self.theta * v_next)
+        )
+        if self._bilateral is not None:
+            q_next = self._project(q_next, held if held is not None and held.size else None)
         np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
         return StepOutcome(
             q_next,
@@ -864,6 +870,27 @@ def _cholesky_solve(factor: Vector, b: Vector) -> Vector:
     """``W⁻¹ b`` from :func:`_upper_cholesky`'s factor; b of shape (n,) or (n, k)."""
     x, _ = _potrs(factor, b, lower=False)
     return x
+
+
+def _add_friction_impulses(
+    friction_impulse: Vector,
+    indices: NDArray[np.intp],
+    tangents: NDArray[np.intp],
+    directions: Vector,
+    solution: ContactSolution,
+) -> None:
+    """Add the tangential impulses of ``solution`` to their constraints' rows, in [N s].
+
+    Args:
+        friction_impulse: World friction impulse of every constraint, shape (n, 3), updated.
+        indices: Active constraints, shape (m,); their normal rows come first in ``solution``.
+        tangents: Tangential rows of each active constraint (0, 1 or 2), shape (m,).
+        directions: World direction of each tangential row, shape (sum(tangents), 3).
+        solution: The step's contact solution (normal rows, then the tangential ones).
+    """
+    owners = np.repeat(indices, tangents)
+    tangential = solution.impulses[indices.size : indices.size + owners.size, None]
+    np.add.at(friction_impulse, owners, tangential * directions)
 
 
 def _pad(rows: Vector, size: int) -> Vector:
