@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import ROBOTS
-from test_collision_pairs import _SHAPES, _box_scene, _configuration, _pairs, _robot
+from test_collision_pairs import _box_scene, _configuration, _pairs, _robot, _two_spheres
 
 from ucontrol.contact import CollisionPair, ConstraintSet, EnvironmentShape
 from ucontrol.contact.surface_motion import Sinusoid
@@ -109,20 +109,6 @@ def test_vertex_drift_is_the_derivative_of_the_normal_velocity(
         assert len(witness) == 5
         reference = _flow_derivative(constraints, q, v, 1e-6)
         np.testing.assert_allclose(drift[witness], reference[witness], rtol=0, atol=5e-9)
-
-
-def _two_spheres(tmp_path: Path):
-    text = _SHAPES.replace(
-        '<collision><origin xyz="0.01 0.02 -0.03" rpy="0.1 0.2 0.3"/>\n      '
-        '<geometry><box size="0.2 0.1 0.08"/></geometry></collision>',
-        "",
-    ).replace('<origin xyz="0.3 0 0"/><geometry><sphere', '<origin xyz="0 0 0"/><geometry><sphere')
-    text = text.replace(
-        '<collision><origin xyz="0 0.3 0" rpy="0.4 0 0"/>\n      '
-        '<geometry><cylinder radius="0.05" length="0.2"/></geometry></collision>',
-        "",
-    )
-    return _robot(tmp_path, text)
 
 
 def _sphere_drift(p: np.ndarray, w: np.ndarray, a: np.ndarray) -> float:

@@ -196,7 +196,8 @@ def test_sphere_rows_equal_the_analytic_contacts(tmp_path: Path, rng: np.random.
     )
 
 
-def test_link_pair_of_spheres_equals_the_sphere_sphere_contact(tmp_path: Path) -> None:
+def _two_spheres(tmp_path: Path) -> RobotModel:
+    """The robot of _SHAPES with only its two spheres, each centred on its link's origin."""
     text = _SHAPES.replace(
         '<collision><origin xyz="0.01 0.02 -0.03" rpy="0.1 0.2 0.3"/>\n      '
         '<geometry><box size="0.2 0.1 0.08"/></geometry></collision>',
@@ -207,7 +208,11 @@ def test_link_pair_of_spheres_equals_the_sphere_sphere_contact(tmp_path: Path) -
         '<geometry><cylinder radius="0.05" length="0.2"/></geometry></collision>',
         "",
     )
-    robot = _robot(tmp_path, text)
+    return _robot(tmp_path, text)
+
+
+def test_link_pair_of_spheres_equals_the_sphere_sphere_contact(tmp_path: Path) -> None:
+    robot = _two_spheres(tmp_path)
     rng = np.random.default_rng(3)
     shapes = ConstraintSet(robot, collision_pairs=[CollisionPair(link="first", other="second")])
     analytic = ConstraintSet(
