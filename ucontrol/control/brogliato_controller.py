@@ -158,13 +158,23 @@ class BrogliatoController:
         self._compiled_law: CompiledFunction | None = None
         if type(self)._order == 2:  # the rigid law (subclasses bring their own)
             law = CompiledFunction(_rigid_law_function(robot.nv, task.m, self._redundant))
-            if law.compiled:  # M, C and h read in place from the Pinocchio data
+            if law.compiled:  # M, C, h and the frame position read in place from the data
                 for i, name in enumerate(("M", "C", "nle")):
                     law.bind_input(i, getattr(self._data, name))
+                law.bind_input(5, self._data.oMf[task.frame_id].translation)  # a view
                 law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
                 self._compiled_law = law
-                # The other inputs are written in place at each call (see _rigid_law_function).
+                # The other inputs are written in place at each call (see _rigid_law_function):
+                # J, dJ, v, q ⊖ q_p, the force term, and the columns of the target (X_d, dX_d,
+                # ddX_d) and of the reference (X_d, dX_d), each (m,).
                 self._law_inputs = [law.input_view(i) for i in range(11)]
+                target, reference = law.input_view(8), law.input_view(9)
+                self._law_columns = (*target.T, *reference.T)
+                self._coordinates = self.machine.coordinates.tolist()  # task rows of contacts
+        nv, m = robot.nv, task.m
+        # Outputs of the compiled law: tau (nv,), V1, V, X (m,).
+        self._V1_index, self._X_outputs = nv, slice(nv + 2, nv + 2 + m)
+        self._tau_outputs = slice(0, nv) if self._all_actuated else robot.actuated
         self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
         self.reset()
 
@@ -172,12 +182,14 @@ class BrogliatoController:
         """Forget the run: phases back to free, events and measurements cleared."""
         self.machine.reset()
         n, m = len(self.machine.contacts), self.task.m
-        self._plant_index: NDArray[np.int64] | None = None
+        self._plant_index: list[int] | None = None
         self._last_t = -np.inf
         self.V = self.V1 = 0.0
         self.X = np.zeros(m)
         self.desired = DesiredState.zeros(m, n, self._order)
+        # Measurements of the last call, written in place by _measure.
         self.contact_force = np.zeros(n)
+        self._closed = np.zeros(n, dtype=bool)
         self._settled = np.zeros(n, dtype=bool)
         self._persistent = np.zeros(n, dtype=bool)
 
@@ -222,26 +234,40 @@ class BrogliatoController:
         machine, desired = self.machine, self.desired
         if self._log_fields is None or self._log_fields[0] is not log:
             self._log_fields = (log, log.extra_fields(list(LOG_FIELDS)))
-        k, fields = len(log), self._log_fields[1]
-        values = (
-            machine.phase,
-            machine.phases,
-            machine.events,
-            self.V,
-            self.V1,
-            machine.depth,
-            self.X,
-            desired.reference[0],
-            desired.target[0],
-            desired.force,
-            self.contact_force,
-        )  # in the order of LOG_FIELDS
-        for field, value in zip(fields, values, strict=True):
-            field[k] = value
-        machine.events[:] = 0  # events are logged once
+        k = len(log)
+        (
+            phase,
+            contact_phase,
+            events,
+            V,
+            V1,
+            virtual_depth,
+            task_position,
+            task_desired,
+            task_target,
+            lambda_d,
+            contact_force,
+        ) = self._log_fields[1]  # in the order of LOG_FIELDS
+        phase[k] = machine.phase.value
+        contact_phase[k] = machine.phases
+        events[k] = machine.events
+        V[k] = self.V
+        V1[k] = self.V1
+        virtual_depth[k] = machine.depth
+        task_position[k] = self.X
+        task_desired[k] = desired.reference[0]
+        task_target[k] = desired.target[0]
+        lambda_d[k] = desired.force
+        contact_force[k] = self.contact_force
+        machine.events.fill(0)  # events are logged once
 
     def _measure(self, t: float, contacts: ContactState) -> NDArray[np.bool_]:
-        """Check the time, read the contact forces; return which declared contacts closed."""
+        """Check the time, read the contact forces; return which declared contacts closed.
+
+        Writes ``contact_force`` (their :attr:`ContactState.force`) and the flags in place,
+        one declared contact at a time (a handful: Python scalars cost less than array
+        operations).
+        """
         if t < self._last_t:
             raise InvalidParameterError(
                 "t", t, f">= {self._last_t} (the controller is stateful: reset() it per run)"
@@ -249,13 +275,23 @@ class BrogliatoController:
         self._last_t = t
         if self._plant_index is None:
             self._plant_index = self._find_contacts(contacts.names)
-        index = self._plant_index
-        self.contact_force = contacts.impulse[index] / contacts.dt  # their ContactState.force
-        # The impulse / dt of a step is a contact force only if the contact stayed closed over
-        # it without impact: feeding an impact back would push the robot off the surface.
-        closed = self.contact_force > 0.0
-        self._persistent = closed & self._settled
-        self._settled = closed & (contacts.normal_velocity[index] >= -IMPACT_SPEED)
+        impulse, speed = contacts.impulse.tolist(), contacts.normal_velocity.tolist()
+        dt = contacts.dt  # [s]
+        force, closed, settled, persistent = (
+            self.contact_force,
+            self._closed,
+            self._settled,
+            self._persistent,
+        )
+        for i, j in enumerate(self._plant_index):
+            force_i = impulse[j] / dt  # [N]
+            # The impulse / dt of a step is a contact force only if the contact stayed closed
+            # over it without impact: feeding an impact back would push the robot off the
+            # surface.
+            closed_i = force_i > 0.0
+            force[i], closed[i] = force_i, closed_i
+            persistent[i] = closed_i and settled[i]
+            settled[i] = closed_i and speed[j] >= -IMPACT_SPEED
         return closed
 
     def _advance(
@@ -271,11 +307,11 @@ class BrogliatoController:
         self.desired = desired
         return desired, V1
 
-    def _find_contacts(self, names: list[str]) -> NDArray[np.int64]:
+    def _find_contacts(self, names: list[str]) -> list[int]:
         missing = [name for name in self.machine.contacts if name not in names]
         if missing:
             raise NotFoundError("plant contact", missing[0], names)
-        return np.array([names.index(name) for name in self.machine.contacts])
+        return [names.index(name) for name in self.machine.contacts]
 
     def _kinematics(self, q: Vector, v: Vector) -> tuple[TaskState, Matrix, _Dynamics]:
         """Task state, mass matrix and the terms of the law at (q, v)."""
@@ -317,51 +353,47 @@ class BrogliatoController:
     def _compiled_call(self, t: float, q: Vector, v: Vector, closed: NDArray[np.bool_]) -> Vector:
         """The law through its compiled form (same terms as :meth:`_torque`)."""
         model, data, inputs = self._model, self._data, self._law_inputs
-        self._pinocchio_pass(q, v)
+        self._pinocchio_pass(q, v)  # M, C, h and the frame position: bound inputs
         frame_id = self.task.frame_id
         inputs[3][...] = pin.getFrameJacobian(model, data, frame_id, _LWA)
         inputs[4][...] = pin.getFrameJacobianTimeVariation(model, data, frame_id, _LWA)
-        inputs[5][...] = data.oMf[frame_id].translation
         inputs[6][...] = v
         if self._redundant:
             inputs[7][...] = pin.difference(model, self.posture, q)
         machine = self.machine
         desired = machine.desired(t)
         out = self._compiled_values(desired)
-        if machine.update(t, closed, float(out[self._V1_at]), desired):
+        if machine.update(t, closed, out.item(self._V1_index), desired):
             desired = machine.desired(t)
             out = self._compiled_values(desired)
         self.desired = desired
-        m, nv = self.task.m, self.robot.nv
-        self.V1, self.V = float(out[nv]), float(out[nv + 1])
-        self.X = out[nv + 2 : nv + 2 + m].copy()
-        tau = out[:nv].copy()
-        return tau if self._all_actuated else tau[self.robot.actuated]
-
-    @property
-    def _V1_at(self) -> int:
-        return self.robot.nv
+        self.V1, self.V = out.item(self._V1_index), out.item(self._V1_index + 1)
+        self.X[...] = out[self._X_outputs]
+        return out[self._tau_outputs].copy()
 
     def _compiled_values(self, desired: DesiredState) -> Vector:
         """Outputs (tau, V1, V, X) of the compiled law for ``desired``.
 
-        The kinematic inputs are those :meth:`_compiled_call` wrote in place.
+        The kinematic inputs are those :meth:`_compiled_call` wrote in place. The array
+        returned is the law's output buffer, rewritten by its next call.
         """
-        law, inputs = self._compiled_law, self._law_inputs
+        law = self._compiled_law
         assert law is not None
-        force = inputs[10]
+        force = self._law_inputs[10]
         force.fill(0.0)
         if np.count_nonzero(desired.constrained):
-            held = desired.constrained
-            lambda_d = desired.force[held]
-            measured = np.where(self._persistent[held], self.contact_force[held], lambda_d)
-            force[self.machine.coordinates[held]] = -lambda_d + self.gains.force_gain * (
-                measured - lambda_d
-            )
-        np.concatenate(desired.target, out=law.input_buffer(8))
-        np.concatenate(desired.reference, out=law.input_buffer(9))
-        (out,) = law()
-        return out
+            force_gain, coordinates = self.gains.force_gain, self._coordinates
+            measured, persistent = self.contact_force.tolist(), self._persistent.tolist()
+            for i, (held, lambda_d) in enumerate(
+                zip(desired.constrained.tolist(), desired.force.tolist(), strict=True)
+            ):
+                if held:  # the measured force where valid, else λ_d [N]
+                    force_i = measured[i] if persistent[i] else lambda_d
+                    force[coordinates[i]] = -lambda_d + force_gain * (force_i - lambda_d)
+        X_d, dX_d, ddX_d, X_ref, dX_ref = self._law_columns
+        X_d[...], dX_d[...], ddX_d[...] = desired.target
+        X_ref[...], dX_ref[...] = desired.reference
+        return law()[0]
 
     def _sliding(self, state: TaskState, X_d: Vector, dX_d: Vector, dyn: _Dynamics) -> Vector:
         r""":math:`s_q = v - \dot q_r` for the desired (X_d, dX_d), shape (nv,), in [rad/s]."""
