@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import ROBOTS
 
-from ucontrol.control.compiled_function import CompiledFunction
+from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.exceptions import SimulationError
 from ucontrol.integrators.moreau_jean import _cholesky_solve, _upper_cholesky
 from ucontrol.log import Log

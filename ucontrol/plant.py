@@ -8,7 +8,7 @@ gaps, normal velocities and energies the controller and the log need, then
 
 from __future__ import annotations
 
-from typing import NamedTuple, Protocol
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -17,6 +17,9 @@ from numpy.typing import NDArray
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.solvers.contact_solution import ContactSolution
+
+if TYPE_CHECKING:
+    from ucontrol.contact.compiled_rows import ConstraintRows
 
 Vector = NDArray[np.float64]
 
@@ -33,6 +36,9 @@ class PlantEvaluation(NamedTuple):
         potential_energy: Gravitational plus the joint springs' elastic energy, in [J].
         t: Time of the evaluation in [s], or None when it was not given (constraints that do
             not depend on time).
+        normal_rows: The constraints' normal Jacobian rows J at q, shape (n, nv), when they
+            were computed with the gaps (:class:`~ucontrol.contact.compiled_rows.ConstraintRows`),
+            else None.
     """
 
     q: Vector
@@ -42,6 +48,7 @@ class PlantEvaluation(NamedTuple):
     kinetic_energy: float
     potential_energy: float
     t: float | None = None
+    normal_rows: Vector | None = None
 
 
 def evaluate_plant(
@@ -53,26 +60,33 @@ def evaluate_plant(
     *,
     frames: bool = True,
     t: float | None = None,
+    rows: ConstraintRows | None = None,
 ) -> PlantEvaluation:
     """All dynamics terms, constraint gaps, normal velocities and energies at (q, v).
 
     Runs ``pin.computeAllTerms`` (and the frame placements when ``frames``) on ``data`` at the
     links' state; with flexible joints (q, v) are the extended state and the energies include
     the motors and the springs. ``t`` [s] is required when the constraints depend on time
-    (moving surfaces: :attr:`ConstraintSet.time_dependent`).
+    (moving surfaces: :attr:`ConstraintSet.time_dependent`). With ``rows`` (the compiled
+    constraints of ``constraints``) the gaps, normal velocities and normal rows come from one
+    compiled call instead of the frame placements.
     """
     model = constraints.robot.model
     q1, v1 = (q, v) if flexible is None else flexible.split(q, v)[:2]
     pin.computeAllTerms(model, data, q1, v1)
-    if frames:
-        pin.updateFramePlacements(model, data)
-    gap, normal_velocity = constraints.evaluate(data, q1, v1, t)
+    normal_rows = None
+    if rows is not None:
+        gap, normal_velocity, normal_rows = rows(q1, v1)
+    else:
+        if frames:
+            pin.updateFramePlacements(model, data)
+        gap, normal_velocity = constraints.evaluate(data, q1, v1, t)
     kinetic, potential = data.kinetic_energy, data.potential_energy
     if flexible is not None:
         motors, springs = flexible.energies(q, v)
         kinetic += motors
         potential += springs
-    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t)
+    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
 
 
 class StepOutcome(NamedTuple):

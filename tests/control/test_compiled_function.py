@@ -10,7 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ucontrol.control.compiled_function import (
+from ucontrol.model.compiled_function import (
     CACHE_ENV,
     NO_COMPILE_ENV,
     CompiledFunction,

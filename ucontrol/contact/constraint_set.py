@@ -76,6 +76,12 @@ class ConstraintSet:
         time_dependent: Whether some contact is against a moving surface or shape.
         n_contacts: Number of point, sphere–sphere and collision contacts (the first
             constraints).
+        plane_terms: Each point contact's plane normal and offset
+            :math:`n \cdot p_0 + r` in [m] (its gap is :math:`n \cdot p_F - d`), shape
+            (len(contacts), 4).
+        stop_coordinates: Each stop bound's configuration and velocity index (idx_q, idx_v).
+        stop_terms: Each stop bound's sign (+1 lower, -1 upper) and bound in [rad] or [m]
+            (its gap is :math:`\sigma (q_j - b)`), shape (len(stop_coordinates), 2).
         size: Number of constraints n.
 
     Raises:
@@ -127,6 +133,7 @@ class ConstraintSet:
         restitution = [contact.restitution for contact in all_contacts]
         friction = [contact.friction for contact in all_contacts]
         self._pairs_end = len(all_contacts)
+        self.plane_terms = np.column_stack((self._normals, self._offsets)).reshape(-1, 4)
         if self.collision is not None:
             names += self.collision.names
             restitution += self.collision.restitution.tolist()
@@ -149,6 +156,8 @@ class ConstraintSet:
                 names.append(f"{stop.joint}/{side}")
                 restitution.append(stop.restitution)
                 friction.append(0.0)
+        self.stop_coordinates = list(zip(stop_q, stop_v, strict=True))
+        self.stop_terms = np.column_stack((stop_sign, stop_bound)).reshape(-1, 2)
         self._stop_q = np.array(stop_q, dtype=int)
         self._stop_v = np.array(stop_v, dtype=int)
         self._stop_sign = np.array(stop_sign)

@@ -159,6 +159,7 @@ from scipy.linalg.lapack import dpotrf as _potrf
 from scipy.linalg.lapack import dpotrs as _potrs
 
 from ucontrol._validation import as_float, as_in_interval, as_positive
+from ucontrol.contact.compiled_rows import compiled_rows
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidParameterError
 from ucontrol.model.flexible_joints import FlexibleJoints
@@ -289,6 +290,8 @@ class MoreauJean:
         self._bilateral = constraints.bilateral
         self._projection_data = robot.model.createData() if self._bilateral is not None else None
         self._has_contacts = constraints.n_contacts > 0 or self._bilateral is not None
+        # Gaps, velocities and rows of plane contacts and stops in one compiled call, if possible.
+        self._rows = compiled_rows(constraints)
         if self._bilateral is not None:
             if self.friction_solver is not None and not getattr(
                 self.friction_solver, "bilateral_rows", False
@@ -361,7 +364,14 @@ class MoreauJean:
             InvalidParameterError: ``t`` is None and some surface moves.
         """
         return evaluate_plant(
-            self._data, self.constraints, self.flexible, q, v, frames=self._has_contacts, t=t
+            self._data,
+            self.constraints,
+            self.flexible,
+            q,
+            v,
+            frames=self._has_contacts,
+            t=t,
+            rows=self._rows,
         )
 
     def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
@@ -395,7 +405,11 @@ class MoreauJean:
         solution = None
         plastic = False
         if indices.size or self._coulomb_rows is not None:
-            J = self.constraints.jacobian(data, indices)
+            J = (
+                self.constraints.jacobian(data, indices)
+                if state.normal_rows is None
+                else state.normal_rows[indices]
+            )
             tangents = self.constraints.tangent_count[indices] if self._friction else None
             if tangents is not None and tangents.any():
                 T, directions = self.constraints.tangent_rows(data, indices)

@@ -23,6 +23,8 @@ RevoluteUnaligned, PX, PY, PZ and PrismaticUnaligned joints.
 
 from __future__ import annotations
 
+import functools
+
 import casadi as ca
 import numpy as np
 import pinocchio as pin
@@ -69,7 +71,6 @@ class SymbolicModel:
         self._robot = robot
         self.nv = model.nv
         q = ca.SX.sym("q", self.nv)
-        v = ca.SX.sym("v", self.nv)
         self._q = q
         rotations: list[ca.SX] = [ca.SX.eye(3)]
         positions: list[ca.SX] = [ca.SX.zeros(3)]
@@ -90,7 +91,29 @@ class SymbolicModel:
             rotations.append(rotation)
             positions.append(position)
         self._rotations, self._positions = rotations, positions
+        self._world_axes = world_axes
 
+    @property
+    def mass_matrix(self) -> ca.Function:
+        """``(q (nv,)) -> M (nv, nv)`` in [kg m²] (mixed units), built on first use."""
+        return self._dynamics[0]
+
+    @property
+    def coriolis_matrix(self) -> ca.Function:
+        r"""``(q (nv,), v (nv,)) -> C (nv, nv)``, :math:`\dot M - 2C` skew, built on first use."""
+        return self._dynamics[1]
+
+    @property
+    def gravity(self) -> ca.Function:
+        """``(q (nv,)) -> g (nv,)`` in [N m] (or [N]), built on first use."""
+        return self._dynamics[2]
+
+    @functools.cached_property
+    def _dynamics(self) -> tuple[ca.Function, ca.Function, ca.Function]:
+        """The Functions M(q), C(q, v) and g(q) (module docstring)."""
+        model, q = self._robot.model, self._q
+        v = ca.SX.sym("v", self.nv)
+        rotations, positions, world_axes = self._rotations, self._positions, self._world_axes
         M = ca.SX.zeros(self.nv, self.nv)
         g = ca.SX.zeros(self.nv)
         gravity = ca.DM(np.asarray(model.gravity.linear))
@@ -109,9 +132,11 @@ class SymbolicModel:
         dM_v = ca.jacobian(M_v, q)
         M_dot = ca.reshape(ca.jacobian(ca.vec(M), q) @ v, self.nv, self.nv)
         C = 0.5 * (M_dot + dM_v - dM_v.T)
-        self.mass_matrix = ca.Function("M", [q], [M], ["q"], ["M"])
-        self.coriolis_matrix = ca.Function("C", [q, v], [C], ["q", "v"], ["C"])
-        self.gravity = ca.Function("g", [q], [g], ["q"], ["g"])
+        return (
+            ca.Function("M", [q], [M], ["q"], ["M"]),
+            ca.Function("C", [q, v], [C], ["q", "v"], ["C"]),
+            ca.Function("g", [q], [g], ["q"], ["g"]),
+        )
 
     def frame_position(self, frame: str) -> ca.Function:
         """``(q (nv,)) -> p (3,)``: position of the origin of ``frame`` in the world in [m].

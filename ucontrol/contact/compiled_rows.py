@@ -1,0 +1,142 @@
+r"""Gaps, normal velocities and normal Jacobian rows of every constraint in one compiled call.
+
+:meth:`ConstraintSet.evaluate <ucontrol.contact.constraint_set.ConstraintSet.evaluate>` and
+:meth:`~ucontrol.contact.constraint_set.ConstraintSet.jacobian` read Pinocchio's data one
+contact at a time: a frame placement, a frame velocity and a frame Jacobian per contact, each a
+Python call of about 1 µs, most of a Moreau–Jean step with a few contacts. For a fixed-base robot
+of revolute and prismatic joints whose constraints are point contacts against fixed planes and
+joint stops, :class:`ConstraintRows` writes the same quantities as one casadi Function of
+(q, v), compiled to C (:class:`~ucontrol.model.compiled_function.CompiledFunction`):
+
+.. math::
+
+    g_i = n_i \cdot p_{F_i}(q) - d_i, \qquad
+    J_i = n_i^T \frac{\partial p_{F_i}}{\partial q}, \qquad u_i = J_i v
+
+for contact i (frame origin :math:`p_{F_i}`, plane normal :math:`n_i`, offset
+:math:`d_i = n_i \cdot p_0 + r_i`), and :math:`g = \sigma (q_j - b)`, :math:`J = \sigma e_j^T`
+for a stop on coordinate j with bound b (:math:`\sigma = +1` lower, :math:`-1` upper). The
+frame positions are those of :class:`~ucontrol.model.symbolic_model.SymbolicModel`; they equal
+Pinocchio's to round-off (about 1e-16 m). The normals, offsets, signs and bounds are inputs, so
+one library serves every plane and bound of a robot's contact frames and stop coordinates.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.exceptions import InvalidParameterError
+
+Vector = NDArray[np.float64]
+
+
+class RowValues(NamedTuple):
+    """The constraints at one state (q, v), fresh arrays.
+
+    Attributes:
+        gap: Gaps in [m] or [rad], shape (n,).
+        normal_velocity: ``J v`` in [m/s] or [rad/s], shape (n,).
+        rows: Normal Jacobian rows J, shape (n, nv).
+    """
+
+    gap: Vector
+    normal_velocity: Vector
+    rows: Vector
+
+
+class ConstraintRows:
+    """The constraints of a :class:`ConstraintSet` as one compiled call (module docstring).
+
+    Build it with :func:`compiled_rows`, which says whether a set qualifies.
+
+    Args:
+        constraints: Point contacts against fixed planes and joint stops of a fixed-base robot
+            of revolute and prismatic joints.
+
+    Raises:
+        InvalidParameterError: The robot has a joint :class:`SymbolicModel` does not support.
+    """
+
+    def __init__(self, constraints: ConstraintSet) -> None:
+        import casadi as ca  # imported only for the sets that qualify
+
+        from ucontrol.model.compiled_function import CompiledFunction
+        from ucontrol.model.symbolic_model import SymbolicModel
+
+        robot = constraints.robot
+        model = SymbolicModel(robot)
+        nv, n_c, n = robot.nv, constraints.n_contacts, constraints.size
+        q, v = ca.SX.sym("q", nv), ca.SX.sym("v", nv)
+        planes = ca.SX.sym("planes", 4, n_c)  # columns (normal, offset)
+        stops = ca.SX.sym("stops", 2, n - n_c)  # columns (sign, bound)
+        gaps, rows = [], []
+        for i, contact in enumerate(constraints.contacts):
+            position = model.frame_position(contact.frame)(q)
+            normal = planes[:3, i]
+            gaps.append(ca.dot(normal, position) - planes[3, i])
+            rows.append(normal.T @ ca.jacobian(position, q))
+        for k, (index_q, index_v) in enumerate(constraints.stop_coordinates):
+            sign, bound = stops[0, k], stops[1, k]
+            gaps.append(sign * (q[index_q] - bound))
+            row = ca.SX.zeros(1, nv)
+            row[index_v] = sign
+            rows.append(row)
+        J = ca.vertcat(*rows)
+        outputs = ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J))
+        self.function = CompiledFunction(
+            ca.Function("constraint_rows", [q, v, planes, stops], [outputs])
+        )
+        # Column-major (4, n_c) and (2, n_s) inputs: the rows of the (n_c, 4) and (n_s, 2) terms.
+        self.function.input_buffer(2)[:] = constraints.plane_terms.ravel()
+        self.function.input_buffer(3)[:] = constraints.stop_terms.ravel()
+        self._n, self._nv = n, nv
+
+    @property
+    def compiled(self) -> bool:
+        """Whether calls run compiled C (not casadi's virtual machine)."""
+        return self.function.compiled
+
+    def __call__(self, q: Vector, v: Vector) -> RowValues:
+        """Gaps, normal velocities and rows at (q (nq,), v (nv,)), in new arrays."""
+        (out,) = self.function(q, v)
+        out = out.copy()
+        n = self._n
+        return RowValues(out[:n], out[n : 2 * n], out[2 * n :].reshape((n, self._nv), order="F"))
+
+
+def compiled_rows(constraints: ConstraintSet) -> ConstraintRows | None:
+    """:class:`ConstraintRows` of ``constraints`` when they qualify and compile, else None.
+
+    They qualify with at least one point contact and nothing but point contacts against fixed
+    planes and joint stops, without friction or bilateral constraints, on a fixed-base robot
+    of revolute and prismatic joints; they compile where a C compiler is present (and
+    ``UCONTROL_NO_COMPILE`` is not set). Elsewhere the Pinocchio path of
+    :class:`ConstraintSet` is faster than casadi's virtual machine, and is used.
+    """
+    if not qualifies(constraints):
+        return None
+    try:
+        rows = ConstraintRows(constraints)
+    except InvalidParameterError:  # a free-flyer base, a spherical or a continuous joint
+        return None
+    return rows if rows.compiled else None
+
+
+def qualifies(constraints: ConstraintSet) -> bool:
+    """Whether ``constraints`` are plane point contacts (at least one) and stops alone.
+
+    Without friction, sphere–sphere contacts, collision pairs, moving surfaces or bilateral
+    constraints; the robot's joints are checked when the rows are built.
+    """
+    return bool(
+        constraints.contacts
+        and not constraints.sphere_contacts
+        and constraints.collision is None
+        and constraints.bilateral is None
+        and not constraints.time_dependent
+        and not constraints.has_friction
+    )

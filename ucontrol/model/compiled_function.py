@@ -1,0 +1,241 @@
+r"""Casadi Functions compiled to C, cached on disk, with the casadi virtual machine as fallback.
+
+A law written as a casadi expression (the flexible-joint law, the link reference of
+:class:`~ucontrol.control.FlexibleBrogliatoController`) costs some 30 µs per call through
+casadi's Python interface, most of it converting numbers to and from ``casadi.DM``.
+:class:`CompiledFunction` generates the C code of the Function once
+(``casadi.CodeGenerator``), compiles it with the system C compiler into a shared library and
+calls it through ``ctypes`` on preallocated numpy buffers (about 1 µs per call).
+
+- Cache: ``$UCONTROL_CACHE_DIR`` or ``$XDG_CACHE_HOME/ucontrol`` or ``~/.cache/ucontrol``,
+  sub-directory ``casadi``; one library per Function, named by the SHA-256 of the Function's
+  serialized form, the casadi version and the compiler command, so a changed law is rebuilt
+  and an unchanged one never is.
+- Concurrency: the build of an entry holds an exclusive ``fcntl`` lock on its lock file, and
+  the library is written under a temporary name then renamed (atomic on POSIX): concurrent
+  processes (tests, dask workers) build it once and never load a partial file.
+- Fallback: without a C compiler, when compilation or loading fails, or with the environment
+  variable ``UCONTROL_NO_COMPILE=1``, the same interface calls the casadi Function itself
+  (same results to round-off; slower). ``$CC`` chooses the compiler (default ``cc``).
+
+Every input and output is a dense column vector (matrices are passed column-major and
+flattened); the outputs are densified at construction.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import fcntl
+import hashlib
+import logging
+import os
+import shlex
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+Vector = NDArray[np.float64]
+
+#: Set to 1 to use the casadi virtual machine instead of compiled code.
+NO_COMPILE_ENV = "UCONTROL_NO_COMPILE"
+#: Overrides the cache directory.
+CACHE_ENV = "UCONTROL_CACHE_DIR"
+#: Compiler flags (optimisation level chosen for build time: the laws are a few thousand lines).
+CFLAGS = ("-O1", "-fPIC", "-shared")
+#: Seconds a build may take before it is abandoned for the fallback.
+BUILD_TIMEOUT_S = 300.0
+
+_logger = logging.getLogger(__name__)
+
+
+def cache_dir() -> Path:
+    """Directory holding the compiled libraries."""
+    root = os.environ.get(CACHE_ENV)
+    if root:
+        return Path(root) / "casadi"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg) if xdg else Path.home() / ".cache"
+    return base / "ucontrol" / "casadi"
+
+
+def compilation_disabled() -> bool:
+    """Whether ``UCONTROL_NO_COMPILE`` asks for the casadi fallback."""
+    return os.environ.get(NO_COMPILE_ENV, "").strip() not in ("", "0")
+
+
+class CompiledFunction:
+    """A casadi Function called on numpy vectors, compiled to C when possible.
+
+    Args:
+        function: A casadi Function of dense vector inputs.
+        compile: Try to compile it (default: unless ``UCONTROL_NO_COMPILE`` is set).
+
+    Attributes:
+        function: The casadi Function (outputs densified).
+        compiled: Whether calls run the compiled library (False: casadi's virtual machine).
+        library_path: The shared library used, or None.
+    """
+
+    def __init__(self, function: ca.Function, *, compile: bool | None = None) -> None:
+        self.function = _densified(function)
+        self.name = self.function.name()
+        f = self.function
+        self._in_sizes = [f.nnz_in(i) for i in range(f.n_in())]
+        self._out_sizes = [f.nnz_out(i) for i in range(f.n_out())]
+        self._outputs = [np.zeros(n) for n in self._out_sizes]
+        self._in_buffers = [np.zeros(n) for n in self._in_sizes]
+        self._in_shapes = [f.size_in(i) for i in range(f.n_in())]
+        self._in_views = [  # column-major views of the buffers in the inputs' shapes
+            buffer if shape[1] == 1 else buffer.reshape(shape, order="F")
+            for buffer, shape in zip(self._in_buffers, self._in_shapes, strict=True)
+        ]
+        self.compiled = False
+        self.library_path: Path | None = None
+        if compile is None:
+            compile = not compilation_disabled()
+        if compile:
+            try:
+                self.library_path = _build(f)
+                self._bind(self.library_path)
+                self.compiled = True
+            except (OSError, RuntimeError, subprocess.SubprocessError) as error:
+                _logger.info("casadi function %s not compiled (%s): fallback", self.name, error)
+
+    def __call__(self, *inputs: Vector | None) -> tuple[Vector, ...]:
+        """Outputs, each a dense vector of shape (nnz,), for ``inputs``.
+
+        Each input is an array of the input's shape (a matrix may be given in any memory
+        order; it is read column-major as casadi does), or None for an input already written
+        in place into :meth:`input_buffer`. The arrays returned are buffers reused by the next
+        call: copy what must be kept.
+        """
+        buffers, views = self._in_buffers, self._in_views
+        for i, x in enumerate(inputs):
+            if x is not None:
+                views[i][...] = x
+        if not self.compiled:
+            values: Any = self.function(
+                *(b.reshape(shape, order="F") for b, shape in zip(buffers, self._in_shapes))
+            )
+            if self.function.n_out() == 1:
+                values = (values,)
+            for out, value in zip(self._outputs, values, strict=True):
+                out[:] = np.asarray(value).ravel(order="F")
+            return tuple(self._outputs)
+        status = self._call(self._arg, self._res, self._iw, self._w, 0)
+        if status != 0:
+            raise RuntimeError(f"compiled casadi function {self.name} returned {status}")
+        return tuple(self._outputs)
+
+    def bind_input(self, i: int, array: NDArray[np.float64]) -> None:
+        """Read input ``i`` from ``array``'s memory at every call, without a copy.
+
+        For buffers whose memory stays put (e.g. the matrices of a ``pinocchio.Data``): pass
+        None for that input at each call. ``array`` is kept alive by this object.
+
+        Raises:
+            ValueError: ``array`` is not a column-major float64 array of the input's size.
+        """
+        flat = np.ravel(array, order="F")
+        if (
+            array.dtype != np.float64
+            or flat.size != self._in_sizes[i]
+            or not np.shares_memory(flat, array)
+        ):
+            raise ValueError(
+                f"input {i} of {self.name} needs a column-major float64 array of "
+                f"{self._in_sizes[i]} values, got {array.dtype} {array.shape}"
+            )
+        self._in_buffers[i] = flat
+        self._in_views[i] = array
+        if self.compiled:
+            self._arg[i] = flat.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+    def input_buffer(self, i: int) -> Vector:
+        """The buffer of input ``i`` (shape (nnz,), column-major), to be written in place."""
+        return self._in_buffers[i]
+
+    def input_view(self, i: int) -> NDArray[np.float64]:
+        """:meth:`input_buffer` ``i`` in the input's shape (a column-major view of it)."""
+        return self._in_views[i]
+
+    def _bind(self, path: Path) -> None:
+        library = ctypes.CDLL(str(path))
+        call = getattr(library, self.name)
+        call.restype = ctypes.c_int
+        f = self.function
+        double_p = ctypes.POINTER(ctypes.c_double)
+        self._library = library  # keeps it loaded
+        self._arg = (double_p * max(f.sz_arg(), 1))()
+        for i, buffer in enumerate(self._in_buffers):
+            self._arg[i] = buffer.ctypes.data_as(double_p)
+        self._res = (double_p * max(f.sz_res(), 1))()
+        for i, out in enumerate(self._outputs):
+            self._res[i] = out.ctypes.data_as(double_p)
+        self._iw_buffer = np.zeros(max(f.sz_iw(), 1), dtype=np.int64)
+        self._w_buffer = np.zeros(max(f.sz_w(), 1))
+        self._iw = self._iw_buffer.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong))
+        self._w = self._w_buffer.ctypes.data_as(double_p)
+        call.argtypes = [
+            ctypes.POINTER(double_p),
+            ctypes.POINTER(double_p),
+            ctypes.POINTER(ctypes.c_longlong),
+            double_p,
+            ctypes.c_int,
+        ]
+        self._call = call
+
+
+def _densified(function: ca.Function) -> ca.Function:
+    """``function`` with dense outputs (SX or MX Functions)."""
+    if all(function.sparsity_out(i).is_dense() for i in range(function.n_out())):
+        return function
+    symbols: Any = function.sx_in() if function.is_a("SXFunction") else function.mx_in()
+    outputs = function.call(symbols)
+    return ca.Function(function.name(), symbols, [ca.densify(o) for o in outputs])
+
+
+def _compiler() -> list[str]:
+    command = shlex.split(os.environ.get("CC", "cc"))
+    if not command or shutil.which(command[0]) is None:
+        raise OSError(f"no C compiler ({' '.join(command) or 'CC empty'})")
+    return command
+
+
+def _build(function: ca.Function) -> Path:
+    """Path of the compiled library of ``function``, built (once) if absent."""
+    compiler = _compiler()
+    key = hashlib.sha256()
+    key.update(function.serialize().encode())
+    key.update(ca.CasadiMeta.version().encode())
+    key.update(" ".join([*compiler, *CFLAGS]).encode())
+    digest = key.hexdigest()[:24]
+    directory = cache_dir()
+    directory.mkdir(parents=True, exist_ok=True)
+    library = directory / f"{function.name()}_{digest}.so"
+    if library.is_file():
+        return library
+    with open(directory / f"{library.name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # one builder; the others wait, then find it built
+        if library.is_file():
+            return library
+        with tempfile.TemporaryDirectory(dir=directory) as work:
+            source = Path(work) / f"{function.name()}.c"
+            generator = ca.CodeGenerator(source.name, {"with_header": False})
+            generator.add(function)
+            source.write_text(generator.dump())
+            target = Path(work) / library.name
+            subprocess.run(
+                [*compiler, *CFLAGS, "-o", str(target), str(source), "-lm"],
+                check=True,
+                capture_output=True,
+                timeout=BUILD_TIMEOUT_S,
+            )
+            os.replace(target, library)  # atomic: readers see no partial library
+    return library
