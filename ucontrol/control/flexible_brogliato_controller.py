@@ -94,7 +94,6 @@ motor acceleration, which holds the input itself.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import casadi as ca
@@ -209,9 +208,22 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._law.input_buffer(1)[:] = np.concatenate(  # parameters: constant per controller
             [[gains.gamma1, gains.gamma2], flexible.stiffness, flexible.motor_inertia]
         )
-        # The inputs of the law and of Newton's step, written in place before each call.
-        self._law_input = self._law.input_buffer(0)
+        # The inputs of the law and of Newton's step, written in place before each call: the
+        # law's (see _law_function) as views of its parts; the derivatives of the reference
+        # read (q1d, X_d', ..., X_d'''') in place from the law's input.
+        nv, nf = robot.nv, flexible.nf
+        x = self._law.input_buffer(0)
+        size = 2 * nv + 2 * nf  # q1, dq1 (nv,), q2, dq2 (nf,)
+        self._state_input = (x[:nv], x[nv : 2 * nv], x[2 * nv : size - nf], x[size - nf : size])
+        self._reference_input = x[size : size + 5 * nv]  # then q1d and its 4 derivatives
+        self._target_input = tuple(x[size + k * nv : size + (k + 1) * nv] for k in range(1, 5))
+        self._force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
+        self._reference_derivatives.bind_input(0, self._reference_input)
         self._newton_input = self._newton_step.input_buffer(0)
+        self._newton_q = self._newton_input[:nv]  # Newton's iterate, updated in place
+        # Outputs of the law: u (nu,), X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
+        self._nf = nf
+        self._V1_index = 2 * nv + 1
 
     def reset(self) -> None:
         """Forget the run, including the last link reference (Newton's starting point)."""
@@ -226,20 +238,19 @@ class FlexibleBrogliatoController(BrogliatoController):
         """Actuator torques, shape (nu,), in [N m] (or [N]): motor torques on flexible joints."""
         q1, dq1, q2, dq2 = self.flexible.split(q, v)
         closed = self._measure(t, contacts)
-        state = np.concatenate([q1, dq1, q2, dq2])
-        law: list[_LawValues] = []
-
-        def lyapunov(desired: DesiredState) -> float:
-            law.append(self._evaluate(t, state, desired))
-            return law[-1].V1
-
-        self._advance(t, closed, lyapunov)
-        values = law[-1]
-        self.V, self.V1, self.X = values.V, values.V1, values.X
-        self.link_desired, self.motor_desired = values.link_desired, values.motor_desired
-        self._link_rows = values.link_rows
+        state = self._state_input  # the measured state: the same input for every evaluation
+        state[0][...], state[1][...], state[2][...], state[3][...] = q1, dq1, q2, dq2
+        self._advance(t, closed, lambda desired: self._evaluate(t, q1, desired))
+        # The law's input and output hold the last evaluation (that after the phase update).
+        nv, nf = self.robot.nv, self._nf
+        out = self._law_output.copy()
+        self.V, self.V1 = out.item(2 * nv), out.item(2 * nv + 1)
+        self.X = out[nv : 2 * nv]
+        self.motor_desired = tuple(out[2 * nv + 2 :].reshape(3, nf))
+        self._link_rows = self._reference_input.reshape(5, nv).copy()
+        self.link_desired = tuple(self._link_rows)
         self._reference_time = t
-        return values.u
+        return out[:nv]
 
     def prepare_log(self, log: Log) -> None:
         """Declare the rigid controller's fields and :data:`FLEXIBLE_LOG_FIELDS`."""
@@ -255,92 +266,79 @@ class FlexibleBrogliatoController(BrogliatoController):
         log.record_extra("motor_desired", self.motor_desired[0])
         log.record_extra("link_desired", self.link_desired[0])
 
-    def _evaluate(self, t: float, state: Vector, desired: DesiredState) -> _LawValues:
-        """The law at time ``t`` [s] and measured ``state`` = (q1, dq1, q2, dq2)."""
-        nv, nf = self.robot.nv, self.flexible.nf
-        q1d = self._link_reference(t, desired.target[0], state[:nv])
-        x = self._law_input  # state, q1d and its 4 derivatives, force term (3, n), λ (2, n)
-        size = state.size
-        x[:size] = state
-        reference_input = x[size : size + 5 * nv]  # (q1d, X_d derivatives 1 to 4) in place
-        reference_input[:nv] = q1d
-        np.concatenate(desired.target[1:], out=reference_input[nv:])
-        (derivatives,) = self._reference_derivatives(reference_input)
-        reference_input[nv:] = derivatives  # q1d derivatives 1 to 4
-        link_rows = reference_input.reshape(5, nv).copy()
-        start = size + 5 * nv
+    def _evaluate(self, t: float, q1: Vector, desired: DesiredState) -> float:
+        """Evaluate the law at time ``t`` [s] on ``desired``; return its V1 [J].
+
+        The measured state is the one :meth:`__call__` wrote into the law's input, ``q1`` its
+        link configuration (nv,) (Newton's start on the first call). The law's input and
+        output (``self._law_output``) hold this evaluation until the next one.
+        """
+        nv = self.robot.nv
+        reference = self._reference_input  # q1d, then X_d derivatives 1 to 4
+        reference[:nv] = self._link_reference(t, desired.target[0], q1)
+        X_1, X_2, X_3, X_4 = self._target_input
+        X_1[...], X_2[...], X_3[...], X_4[...] = desired.target[1:]
+        (derivatives,) = self._reference_derivatives()  # reads ``reference`` in place
+        reference[nv:] = derivatives  # q1d derivatives 1 to 4
         if np.count_nonzero(desired.constrained):
-            # λ_d and its derivatives, (3, n): 0 unless held; the force λ used and its
-            # derivatives: the measured value with the derivatives of λ_d, or λ_d where there
-            # is no valid measurement.
-            lambda_d = np.array([desired.force, *desired.force_derivatives])  # [N], [N/s], ...
-            lambda_m = lambda_d.copy()
-            measured = desired.constrained & self._persistent
-            lambda_m[0, measured] = self.contact_force[measured]
-            force_term = -lambda_d + self.gains.force_gain * (lambda_m - lambda_d)
-            x[start : start + force_term.size] = force_term.ravel()
-            x[start + force_term.size :] = lambda_m[:2].ravel()
+            # λ_d and its derivatives (3, n): 0 unless held; the force λ used and its
+            # derivative (2, n): the measured value with the derivatives of λ_d, or λ_d where
+            # there is no valid measurement. Force term -λ_d + K_f (λ - λ_d) (3, n), row by
+            # row, then λ: on Python scalars (n is a handful).
+            force_gain = self.gains.force_gain
+            lambda_d = [desired.force.tolist(), *(d.tolist() for d in desired.force_derivatives)]
+            lambda_m = [lambda_d[0].copy(), lambda_d[1]]
+            measured = self.contact_force.tolist()
+            for i, (held, persistent) in enumerate(
+                zip(desired.constrained.tolist(), self._persistent.tolist(), strict=True)
+            ):
+                if held and persistent:
+                    lambda_m[0][i] = measured[i]  # [N]
+            values = [
+                -d + force_gain * (m - d)
+                for row_d, row_m in zip(lambda_d, [*lambda_m, lambda_d[2]], strict=True)
+                for d, m in zip(row_d, row_m, strict=True)
+            ]
+            self._force_input[...] = values + lambda_m[0] + lambda_m[1]
         else:
-            x[start:] = 0.0  # no contact held: no force in the model
-        (out,) = self._law()
-        out = out.copy()
-        return _LawValues(
-            u=out[:nv],
-            X=out[nv : 2 * nv],
-            V=float(out[2 * nv]),
-            V1=float(out[2 * nv + 1]),
-            link_desired=tuple(link_rows),
-            link_rows=link_rows,
-            motor_desired=tuple(out[2 * nv + 2 :].reshape(3, nf)),
-        )
+            self._force_input.fill(0.0)  # no contact held: no force in the model
+        (self._law_output,) = self._law()
+        return self._law_output.item(self._V1_index)
 
     def _link_reference(self, t: float, X_d: Vector, q1: Vector) -> Vector:
         r""":math:`q_{1d} = \phi^{-1}(X_d)` at ``t`` [s] by Newton's method, shape (nv,).
 
         Newton starts from the Taylor expansion of the last call's :math:`q_{1d}` (first call:
-        the measured link configuration ``q1``).
+        the measured link configuration ``q1``). The array returned is Newton's input buffer,
+        rewritten by the next call.
 
         Raises:
             SolverError: Newton's method does not converge (target out of reach, singular
                 task Jacobian).
         """
+        q, x = self._newton_q, self._newton_input  # q: a view of the input's first nv
         if self._reference_time is None:
-            q = q1.copy()
+            q[...] = q1
         else:
             dt = t - self._reference_time  # [s]
             taylor = (1.0, dt, dt * dt / 2, dt**3 / 6, dt**4 / 24)  # [s^k / k!]
-            q = np.dot(taylor, self._link_rows)
+            q[...] = np.dot(taylor, self._link_rows)
         nv = q.size
-        x = self._newton_input
         x[nv:] = X_d
         for _ in range(NEWTON_ITERATIONS):
-            x[:nv] = q
             (out,) = self._newton_step()
             step = out[:nv]
             values = step.tolist()
-            if not all(math.isfinite(value) for value in values):  # singular task Jacobian
+            if not all(map(math.isfinite, values)):  # singular task Jacobian
                 break
             q -= step
-            if max(abs(value) for value in values) <= NEWTON_TOLERANCE:
+            if max(map(abs, values)) <= NEWTON_TOLERANCE:
                 return q
         raise SolverError(
             "Newton's method for the link reference q1d = φ⁻¹(X_d)",
             f"no convergence to X_d = {X_d.tolist()} from q = {q.tolist()}",
             float(np.max(np.abs(out[nv:]))),
         )
-
-
-@dataclass(frozen=True)
-class _LawValues:
-    """What one evaluation of the law gives (see :class:`FlexibleBrogliatoController`)."""
-
-    u: Vector
-    X: Vector
-    V: float
-    V1: float
-    link_desired: tuple[Vector, ...]
-    link_rows: NDArray[np.float64]
-    motor_desired: tuple[Vector, ...]
 
 
 def _time_derivative(expression: ca.SX, variables: list[ca.SX], rates: list[ca.SX]) -> ca.SX:
