@@ -234,12 +234,18 @@ class ImpedanceController:
         _check_path(path, contacts, self.contact_phases)
         self._model = robot.model
         self._data = robot.model.createData()
+        self._position = self._data.oMf[self.frame_id].translation  # a view of the data
+        self._identity = np.eye(robot.nv)
+        self._actuated = (
+            None if np.array_equal(robot.actuated, np.arange(robot.nv)) else robot.actuated
+        )
+        self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
         self.reset()
 
     def reset(self) -> None:
         """Forget the run (plant contact indices, last values)."""
         n = len(self.contacts)
-        self._plant_index: NDArray[np.int64] | None = None
+        self._plant_index: list[int] | None = None
         self.x = np.zeros(3)
         self.x_desired = np.zeros(3)
         self.force_desired = np.zeros(n)
@@ -275,12 +281,14 @@ class ImpedanceController:
         """Torques, shape (nu,), in [N m] (or [N] for prismatic joints)."""
         if self._plant_index is None:
             self._plant_index = _find_contacts([c.name for c in self.contacts], contacts.names)
-        self.contact_force = contacts.force[self._plant_index]
+        impulse, dt, contact_force = contacts.impulse.tolist(), contacts.dt, self.contact_force
+        for i, j in enumerate(self._plant_index):  # their ContactState.force, in place
+            contact_force[i] = impulse[j] / dt  # [N]
         model, data, gains = self._model, self._data, self.gains
         pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
+        pin.updateFramePlacement(model, data, self.frame_id)
         J = pin.getFrameJacobian(model, data, self.frame_id, _LWA)[:3]
-        x = data.oMf[self.frame_id].translation.copy()
+        x = self._position  # the frame position in data, until the next call [m]
         x_d, dx_d, f_d, window = self.desired(t)
         force = gains.stiffness @ (x_d - x) + gains.damping @ (dx_d - J @ v)  # [N]
         force -= self._normals.T @ f_d
@@ -288,11 +296,11 @@ class ImpedanceController:
         if gains.joint_damping > 0.0:
             tau -= gains.joint_damping * v
         if gains.has_posture:
-            N = np.eye(model.nv) - np.linalg.pinv(J, rcond=1e-10) @ J  # symmetric projector
+            N = self._identity - _pseudo_inverse(J, 1e-10) @ J  # symmetric projector
             posture = gains.posture_stiffness * pin.difference(model, q, self.posture)
             tau += N @ (posture - gains.posture_damping * v)
         self.x, self.x_desired, self.force_desired, self.window = x, x_d, f_d, window
-        return np.asarray(tau[self.robot.actuated], dtype=float)
+        return tau if self._actuated is None else tau[self._actuated]
 
     def prepare_log(self, log: Log) -> None:
         """Declare the fields of :data:`LOG_FIELDS` and the contact names (metadata)."""
@@ -306,19 +314,36 @@ class ImpedanceController:
 
     def record(self, log: Log) -> None:
         """Write the values of the last call into the current row."""
-        log.record_extra("task_position", self.x)
-        log.record_extra("task_desired", self.x_desired)
-        log.record_extra("lambda_d", self.force_desired)
-        log.record_extra("contact_force", self.contact_force)
-        log.record_extra("contact_window", self.window.astype(np.int64))
+        if self._log_fields is None or self._log_fields[0] is not log:
+            self._log_fields = (log, log.extra_fields(list(LOG_FIELDS)))
+        k = len(log)
+        task_position, task_desired, lambda_d, contact_force, contact_window = self._log_fields[1]
+        task_position[k] = self.x
+        task_desired[k] = self.x_desired
+        lambda_d[k] = self.force_desired
+        contact_force[k] = self.contact_force
+        contact_window[k] = self.window  # as 0 / 1
 
 
-def _find_contacts(wanted: list[str], names: list[str]) -> NDArray[np.int64]:
+def _find_contacts(wanted: list[str], names: list[str]) -> list[int]:
     """Indices of the controller's contacts among the plant's constraints."""
     for name in wanted:
         if name not in names:
             raise NotFoundError("plant contact", name, names)
-    return np.array([names.index(name) for name in wanted], dtype=np.int64)
+    return [names.index(name) for name in wanted]
+
+
+def _pseudo_inverse(A: Matrix, rcond: float) -> Matrix:
+    """Moore-Penrose pseudo-inverse of ``A`` (m, n), shape (n, m): ``np.linalg.pinv(A, rcond)``.
+
+    The same operations as numpy's (2.x) on a real matrix, bitwise, without its generality
+    (stacks, complex, empty, hermitian): singular values below ``rcond`` times the largest
+    are dropped.
+    """
+    u, s, vt = np.linalg.svd(A, full_matrices=False)
+    large = s > rcond * s.max()
+    inverse = np.divide(1.0, s, where=large, out=np.zeros_like(s))
+    return np.asarray(vt.T @ (inverse[:, np.newaxis] * u.T), dtype=float)
 
 
 def _check_path(
