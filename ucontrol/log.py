@@ -229,6 +229,20 @@ class Log:
         arrays["solver_outer_iterations"][k] = outer_iterations
         self.size = k + 1
 
+    def record_step_without_solve(
+        self, u: NDArray[Any], impulse: NDArray[Any], active: NDArray[Any]
+    ) -> None:
+        """:meth:`record_step` of a step without a contact solve, then close the row.
+
+        Its solver fields keep the zeros the rows are allocated with (:data:`NO_SOLVE`): rows
+        are written once, in order.
+        """
+        arrays, k = self._arrays, self.size
+        arrays["u"][k] = u
+        arrays["impulse"][k] = impulse
+        arrays["active"][k] = active
+        self.size = k + 1
+
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the filled rows to ``path`` (``.npz``) atomically and return the path.
 

@@ -206,6 +206,8 @@ class _ClosedLoop:
             np.ones(robot.nu),
         )
         self.tau = np.zeros(self.v.size)
+        # The input is tau itself when it acts on every velocity coordinate, in order.
+        self.tau_is_u = bool(np.array_equal(self.actuated, np.arange(self.v.size)))
         self.no_impulse = np.zeros(size)
         self.none_active = np.zeros(size, dtype=bool)
         # The last step's impulses and active set, and their sums over the control period.
@@ -237,15 +239,12 @@ class _ClosedLoop:
         if not math.isfinite(energy):
             raise _NonFiniteState(f"the energy became non-finite ({energy}) at t = {t:.6g} s")
         log, q, v = self.log, self.q, self.v
-        log.record_state(
-            t,
-            q[: self.nq],
-            v[: self.nv],
-            state.gap,
-            state.normal_velocity,
-            energy,
-        )
-        if self.flexible is not None:
+        if self.flexible is None:
+            log.record_state(t, q, v, state.gap, state.normal_velocity, energy)
+        else:  # the links' coordinates, then the motors'
+            log.record_state(
+                t, q[: self.nq], v[: self.nv], state.gap, state.normal_velocity, energy
+            )
             log.record_extra("motor_q", q[self.nq :])
             log.record_extra("motor_v", v[self.nv :])
         self.row_open = True
@@ -273,7 +272,10 @@ class _ClosedLoop:
         self.commanded_u = output
         self.u = output if self.actuators is None else self.actuators.apply(output)
         self.u_sum = float(self.u.dot(self.ones_u))  # the input's part of the finiteness check
-        self.tau[self.actuated] = self.u
+        if self.tau_is_u:
+            self.tau = self.u
+        else:
+            self.tau[self.actuated] = self.u
 
     def advance(self, state: PlantEvaluation) -> None:
         """One plant step from ``state`` under the held input; closes the log row."""
@@ -315,7 +317,7 @@ class _ClosedLoop:
     def close_row(self) -> None:
         """Close an open log row as a step without impulses (the end, or a failure)."""
         if self.row_open:
-            self.log.record_step(self.u, self.no_impulse, self.none_active, 0, 0.0)
+            self.log.record_step_without_solve(self.u, self.no_impulse, self.none_active)
             self.row_open = False
 
     def finish(self) -> None:
@@ -465,7 +467,7 @@ def _record_step(log: Log, u: NDArray[np.float64], outcome: StepOutcome) -> None
     if outcome.friction_impulse is not None:
         log.record_extra("friction_impulse", outcome.friction_impulse)
     if solution is None:
-        log.record_step(u, outcome.impulse, outcome.active, 0, 0.0)
+        log.record_step_without_solve(u, outcome.impulse, outcome.active)
         return
     log.record_step(
         u,

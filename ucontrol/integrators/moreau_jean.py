@@ -286,6 +286,10 @@ class MoreauJean:
             for joint, kind in zip(robot.model.joints, kinds, strict=True)
             if kind == "JointModelPlanar"
         ]
+        # nq = nv: every joint a vector space (only free-flyer, planar, spherical and
+        # unbounded revolute joints have nq > nv), so q ⊕ dq = q + dq, as pin.integrate
+        # computes it, motors included.
+        self._vector_space = robot.nq == robot.nv
         self._data = robot.model.createData()
         self._bilateral = constraints.bilateral
         self._projection_data = robot.model.createData() if self._bilateral is not None else None
@@ -778,6 +782,8 @@ class MoreauJean:
         velocity rotated to the world at step k, and rotate by the exponential of their angular
         velocity (:math:`\mathbb{R}^3 \times SO(3)`, module docstring).
         """
+        if self._vector_space:
+            return q + dq
         if self.flexible is None:
             q_next = pin.integrate(self._model, q, dq)
         else:
