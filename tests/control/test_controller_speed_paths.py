@@ -1,0 +1,121 @@
+"""The controllers' fast per-call paths against plain array references.
+
+The measurement of the contact forces and flags, the flexible law's force input and the
+impedance law's pseudo-inverse are written on Python scalars or as bare numpy operations for
+speed; each is checked here against the array formula it replaces, bitwise (same IEEE
+operations in the same order), on random inputs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ucontrol.control.brogliato_controller import IMPACT_SPEED
+from ucontrol.control.controller import ContactState
+from ucontrol.control.impedance_controller import _pseudo_inverse
+from ucontrol.control.phase_machine import DesiredState
+from ucontrol.scene import load_scene
+
+ROBOTS = Path(__file__).resolve().parents[2] / "robots"
+
+
+def _controller(name: str):  # type: ignore[no-untyped-def]
+    return load_scene(ROBOTS / f"{name}.toml").build_controller()
+
+
+def _random_contacts(rng: np.random.Generator, names: list[str], dt: float = 1e-3) -> ContactState:
+    """Impulses zero, positive or negative and normal velocities around -IMPACT_SPEED."""
+    n = len(names)
+    impulse = rng.choice([0.0, 1.0, -1e-3], n) * rng.uniform(0.0, 1e-2, n)  # [N s]
+    normal_velocity = -IMPACT_SPEED * rng.choice([0.0, 0.5, 1.0, 2.0], n)  # [m/s]
+    return ContactState(names, np.zeros(n), normal_velocity, impulse, impulse > 0.0, dt)
+
+
+@pytest.mark.parametrize("shape", [(3, 9), (2, 2), (3, 7), (6, 4)])
+@pytest.mark.parametrize("rank_deficit", [0, 1])
+def test_pseudo_inverse_is_numpys(
+    rng: np.random.Generator, shape: tuple[int, int], rank_deficit: int
+) -> None:
+    rank = min(shape) - rank_deficit
+    for _ in range(20):
+        A = rng.standard_normal((shape[0], rank)) @ rng.standard_normal((rank, shape[1]))
+        for rcond in (1e-10, 1e-15, 0.3):
+            expected = np.linalg.pinv(A, rcond=rcond)
+            assert np.array_equal(_pseudo_inverse(A, rcond), expected)
+
+
+def test_brogliato_measurement_matches_array_reference(rng: np.random.Generator) -> None:
+    """Forces impulse/dt, closed > 0, persistent = closed and settled at the last call."""
+    law = _controller("two_link_two_constraints")
+    declared = list(law.machine.contacts)
+    names = ["stop_a", declared[1], "stop_b", declared[0]]  # the plant's order differs
+    index = np.array([names.index(name) for name in declared])
+    settled = np.zeros(len(declared), dtype=bool)
+    for k in range(200):
+        contacts = _random_contacts(rng, names, dt=rng.uniform(1e-4, 2e-3))
+        closed = law._measure(1e-3 * k, contacts)
+        force = contacts.impulse[index] / contacts.dt  # [N]
+        expected_closed = force > 0.0
+        assert np.array_equal(law.contact_force, force)
+        assert np.array_equal(closed, expected_closed)
+        assert np.array_equal(law._persistent, expected_closed & settled)
+        settled = expected_closed & (contacts.normal_velocity[index] >= -IMPACT_SPEED)
+        assert np.array_equal(law._settled, settled)
+
+
+def test_flexible_force_input_matches_array_reference(rng: np.random.Generator) -> None:
+    """The law's force input: -λ_d + K_f (λ - λ_d) (3, n) and λ (2, n), as arrays."""
+    law = _controller("two_link_flexible_two_constraints")
+    n = len(law.machine.contacts)
+    q = np.array([1.5, -0.9])
+    law._state_input[0][...] = q
+    base = law.machine.desired(0.0)
+    for _ in range(50):
+        constrained = rng.random(n) < 0.7
+        lambda_d = np.where(constrained, rng.uniform(0.0, 5.0, (3, n)), 0.0)  # [N], [N/s], ...
+        desired = DesiredState(
+            target=base.target,
+            reference=base.reference,
+            force=lambda_d[0],
+            constrained=constrained,
+            force_derivatives=(lambda_d[1], lambda_d[2]),
+        )
+        law.contact_force[...] = rng.uniform(0.0, 5.0, n)
+        law._persistent[...] = rng.random(n) < 0.5
+        law._evaluate(0.0, q, desired)
+        if not constrained.any():
+            assert np.array_equal(law._force_input, np.zeros(5 * n))
+            continue
+        lambda_m = lambda_d.copy()
+        measured = constrained & law._persistent
+        lambda_m[0, measured] = law.contact_force[measured]
+        term = -lambda_d + law.gains.force_gain * (lambda_m - lambda_d)
+        expected = np.concatenate([term.ravel(), lambda_m[:2].ravel()])
+        assert np.array_equal(law._force_input, expected)
+
+
+@pytest.mark.parametrize(
+    "scene",
+    [
+        "two_link_one_constraint",
+        "two_link_flexible_one_constraint",
+        "two_link_one_constraint_impedance",
+    ],
+)
+def test_torque_is_not_overwritten_by_the_next_call(scene: str) -> None:
+    """The torque returned is held by the loop: no later call may write into it."""
+    law = _controller(scene)
+    if hasattr(law, "machine"):
+        names = list(law.machine.contacts)
+    else:
+        names = [contact.name for contact in law.contacts]
+    n, nq = len(names), (4 if "flexible" in scene else 2)
+    q = np.array([0.9, -1.6, 0.9, -1.6][:nq])
+    contacts = ContactState(names, np.ones(n), np.zeros(n), np.zeros(n), np.zeros(n, bool), 1e-3)
+    first = law(0.0, q, np.zeros(nq), contacts)
+    kept = first.copy()
+    law(0.5, q + 0.1, np.ones(nq), contacts)
+    assert np.array_equal(first, kept)
