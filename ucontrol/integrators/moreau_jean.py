@@ -320,10 +320,12 @@ class MoreauJean:
         if flexible is not None:
             ht = self.dt * self.theta
             self._stiffness = flexible.coupling_matrix(flexible.stiffness)  # K_q
-            self._implicit_forces = ht * flexible.coupling_matrix(flexible.damping) + ht * ht * (
+            implicit = ht * flexible.coupling_matrix(flexible.damping) + ht * ht * (
                 self._stiffness
             )  # hθ C_v + h²θ² K_q
-            self._motor_inertia = np.diag(flexible.motor_inertia)
+            nv = robot.nv
+            implicit[nv:, nv:] += np.diag(flexible.motor_inertia)  # + B on the motors
+            self._implicit_forces = implicit  # W without the links' M(q)
 
     def _set_joint_friction(
         self,
@@ -751,7 +753,6 @@ class MoreauJean:
             force -= (h * self.theta) * (self._stiffness @ state.v)
             W = self._implicit_forces.copy()
             W[:nv, :nv] += M
-            W[nv:, nv:] += self._motor_inertia
         if self._viscous is not None:  # θ-implicit joint viscous friction (module docstring)
             force[:nv] -= self._viscous * v1  # -D v_k [N m]
             links = np.arange(nv)

@@ -20,7 +20,7 @@ link. Motor coordinates exist only when a scene declares flexible joints.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,6 +58,8 @@ class FlexibleJoints:
     nq: int
     nv: int
     input_index: NDArray[np.intp]
+    _extended_q: tuple[int] = field(init=False, repr=False, compare=False)
+    _extended_v: tuple[int] = field(init=False, repr=False, compare=False)
 
     @classmethod
     def from_robot(
@@ -114,6 +116,11 @@ class FlexibleJoints:
             input_index=np.array([actuated.index(i) for i in v_index], dtype=np.intp),
         )
 
+    def __post_init__(self) -> None:
+        # The extended sizes, read at every step (split).
+        object.__setattr__(self, "_extended_q", (self.nq + len(self.joints),))
+        object.__setattr__(self, "_extended_v", (self.nv + len(self.joints),))
+
     @property
     def nf(self) -> int:
         """Number of flexible joints (motor coordinates)."""
@@ -157,11 +164,12 @@ class FlexibleJoints:
         Returns:
             q1 (nq,), dq1 (nv,), q2 (nf,), dq2 (nf,) — views, not copies.
         """
-        if q.shape != (self.nq + self.nf,):
-            raise ShapeError("extended configuration q", (self.nq + self.nf,), q.shape)
-        if v.shape != (self.nv + self.nf,):
-            raise ShapeError("extended velocity v", (self.nv + self.nf,), v.shape)
-        return q[: self.nq], v[: self.nv], q[self.nq :], v[self.nv :]
+        if q.shape != self._extended_q:
+            raise ShapeError("extended configuration q", self._extended_q, q.shape)
+        if v.shape != self._extended_v:
+            raise ShapeError("extended velocity v", self._extended_v, v.shape)
+        nq, nv = self.nq, self.nv
+        return q[:nq], v[:nv], q[nq:], v[nv:]
 
     def deflection(self, q1: Vector, q2: Vector) -> Vector:
         """Spring deflection :math:`S q_1 - q_2` in [rad] (or [m]), shape (nf,)."""
@@ -182,7 +190,7 @@ class FlexibleJoints:
         """
         q1, v1, q2, v2 = self.split(q, v)
         transmission = self.spring_torque(q1, v1, q2, v2)  # on the motors
-        forces = np.zeros(self.nv + self.nf)
+        forces = np.zeros(self._extended_v)
         forces[self.v_index] = -transmission
         forces[self.nv :] = transmission
         return forces
