@@ -157,15 +157,22 @@ class BrogliatoController:
         self._all_actuated = bool(np.array_equal(robot.actuated, np.arange(robot.nv)))
         self._compiled_law: CompiledFunction | None = None
         if type(self)._order == 2:  # the rigid law (subclasses bring their own)
-            law = CompiledFunction(_rigid_law_function(robot.nv, task.m, self._redundant))
-            if law.compiled:  # M, C, h and the frame position read in place from the data
-                for i, name in enumerate(("M", "C", "nle")):
+            model, joint = robot.model, robot.model.frames[task.frame_id].parentJoint
+            support = [  # the velocity coordinates that move the task frame
+                int(i)
+                for j in model.supports[joint][1:]
+                for i in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
+            ]
+            law = CompiledFunction(_rigid_law_function(robot.nv, task.m, self._redundant, support))
+            if law.compiled:  # the kinematics and dynamics read in place from the data
+                for i, name in enumerate(("M", "C", "nle", "J", "dJ")):
                     law.bind_input(i, getattr(self._data, name))
-                law.bind_input(5, self._data.oMf[task.frame_id].translation)  # a view
+                law.bind_input(5, self._data.oMf[task.frame_id].translation)  # views
+                law.bind_input(12, self._data.ov[joint].vector)
                 law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
                 self._compiled_law = law
                 # The other inputs are written in place at each call (see _rigid_law_function):
-                # J, dJ, v, q ⊖ q_p, the force term, and the columns of the target (X_d, dX_d,
+                # v, q ⊖ q_p, the force term, and the columns of the target (X_d, dX_d,
                 # ddX_d) and of the reference (X_d, dX_d), each (m,).
                 self._law_inputs = [law.input_view(i) for i in range(11)]
                 target, reference = law.input_view(8), law.input_view(9)
@@ -352,14 +359,11 @@ class BrogliatoController:
 
     def _compiled_call(self, t: float, q: Vector, v: Vector, closed: NDArray[np.bool_]) -> Vector:
         """The law through its compiled form (same terms as :meth:`_torque`)."""
-        model, data, inputs = self._model, self._data, self._law_inputs
-        self._pinocchio_pass(q, v)  # M, C, h and the frame position: bound inputs
-        frame_id = self.task.frame_id
-        inputs[3][...] = pin.getFrameJacobian(model, data, frame_id, _LWA)
-        inputs[4][...] = pin.getFrameJacobianTimeVariation(model, data, frame_id, _LWA)
+        inputs = self._law_inputs
+        self._pinocchio_pass(q, v)  # M, C, h, the joint Jacobians, ...: bound inputs
         inputs[6][...] = v
         if self._redundant:
-            inputs[7][...] = pin.difference(model, self.posture, q)
+            inputs[7][...] = pin.difference(self._model, self.posture, q)
         machine = self.machine
         desired = machine.desired(t)
         out = self._compiled_values(desired)
@@ -458,24 +462,30 @@ def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
     )
 
 
-def _rigid_law_function(nv: int, m: int, redundant: bool) -> ca.Function:
+def _rigid_law_function(nv: int, m: int, redundant: bool, support: list[int]) -> ca.Function:
     r"""The rigid law of :class:`BrogliatoController` as one casadi Function (for C code).
 
     The same terms as :meth:`BrogliatoController._kinematics` and
     :meth:`BrogliatoController._torque`. Inputs: M (nv, nv) (upper triangle read),
-    C(q, v) (nv, nv), h (nv,), the frame Jacobian and its time variation in
-    LOCAL_WORLD_ALIGNED (6, nv), the frame position (3,), v (nv,), :math:`q \ominus q_p`
-    (nv,), the target (m, 3) (position, velocity, acceleration as columns), the reference
-    (m, 2), the force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)` on the task rows
-    (m,) (0 off the held contacts), and the parameters (:func:`_law_parameters`: the task map
-    A (m, 3) column-major, b (m,), γ1, γ2, γp, γN), so that one compiled library serves every
-    task geometry and every gain of a given size (sweeps do not recompile). Output, stacked:
-    tau (nv,), V1, V on the reference, the task coordinates X (m,).
+    C(q, v) (nv, nv), h (nv,), the joint Jacobians and their time variation in the WORLD
+    convention (6, nv) (Pinocchio's ``data.J``, ``data.dJ``), the frame position (3,),
+    v (nv,), :math:`q \ominus q_p` (nv,), the target (m, 3) (position, velocity,
+    acceleration as columns), the reference (m, 2), the force term
+    :math:`-\lambda_d + K_f(\lambda - \lambda_d)` on the task rows (m,) (0 off the held
+    contacts), the parameters (:func:`_law_parameters`: the task map A (m, 3) column-major,
+    b (m,), γ1, γ2, γp, γN), so that one compiled library serves every task geometry and
+    every gain of a given robot (sweeps do not recompile), and the spatial velocity of the
+    frame's parent joint in the world (6,) (linear, angular; ``data.ov``). The frame's
+    Jacobian and its time variation in LOCAL_WORLD_ALIGNED on the columns ``support`` are
+    those of ``pin.getFrameJacobian`` and ``pin.getFrameJacobianTimeVariation``, in their
+    operations. Output, stacked: tau (nv,), V1, V on the reference, the task coordinates
+    X (m,).
     """
     M_upper, C = ca.SX.sym("M", nv, nv), ca.SX.sym("C", nv, nv)
     nle, v = ca.SX.sym("nle", nv), ca.SX.sym("v", nv)
-    J6, dJ6 = ca.SX.sym("J", 6, nv), ca.SX.sym("dJ", 6, nv)
+    J_world, dJ_world = ca.SX.sym("J", 6, nv), ca.SX.sym("dJ", 6, nv)
     p, posture_error = ca.SX.sym("p", 3), ca.SX.sym("posture_error", nv)
+    joint_velocity = ca.SX.sym("joint_velocity", 6)
     target, reference = ca.SX.sym("target", m, 3), ca.SX.sym("reference", m, 2)
     force = ca.SX.sym("force", m)
     parameters = ca.SX.sym("parameters", 3 * m + m + 4)
@@ -483,7 +493,13 @@ def _rigid_law_function(nv: int, m: int, redundant: bool) -> ca.Function:
     b = parameters[3 * m : 4 * m]
     gamma1, gamma2, posture_gain, null_space_gain = ca.vertsplit(parameters[4 * m :], 1)
     M = ca.triu(M_upper) + ca.triu(M_upper, False).T
-    J, dJ = A @ J6[:3, :], A @ dJ6[:3, :]
+    # Frame Jacobian: v_p = v_O + ω × p; its time variation adds -(v_j + ω_j × p) × ω_col.
+    J_lin, dJ_lin = ca.SX.zeros(3, nv), ca.SX.zeros(3, nv)
+    shift = joint_velocity[:3] + _cross(joint_velocity[3:], p)  # [m/s]
+    for j in support:
+        J_lin[:, j] = J_world[:3, j] - _cross(p, J_world[3:, j])
+        dJ_lin[:, j] = dJ_world[:3, j] - _cross(p, dJ_world[3:, j]) - _cross(shift, J_world[3:, j])
+    J, dJ = A @ J_lin, A @ dJ_lin
     X = A @ p - b  # [m]
     dX = J @ v
     JJt = J @ J.T
@@ -516,5 +532,15 @@ def _rigid_law_function(nv: int, m: int, redundant: bool) -> ca.Function:
     if redundant:
         tau += M @ null_acceleration - null_space_gain * (N.T @ (M @ (N @ s_q)))
     tau += J.T @ force
-    inputs = [M_upper, C, nle, J6, dJ6, p, v, posture_error, target, reference, force, parameters]
+    inputs = [
+        *(M_upper, C, nle, J_world, dJ_world, p, v, posture_error),
+        *(target, reference, force, parameters, joint_velocity),
+    ]
     return ca.Function("brogliato_law", inputs, [ca.vertcat(tau, V1, V, X)])
+
+
+def _cross(a: ca.SX, b: ca.SX) -> ca.SX:
+    """Cross product of 3-vectors in the operations of Eigen's ``cross``."""
+    return ca.vertcat(
+        a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+    )
