@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from ucontrol.control.controller import ContactState, Controller, Vector
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
@@ -46,13 +48,16 @@ class FrictionCompensation:
         self.controller = controller
         self.friction = friction
         self._nv = robot.nv
-        self._actuated = robot.actuated
+        # The actuated link coordinates, or None when they are all of them, in order.
+        self._actuated = (
+            None if np.array_equal(robot.actuated, np.arange(robot.nv)) else robot.actuated
+        )
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Torques of the wrapped law plus the believed friction, shape (nu,)."""
         torque = self.controller(t, q, v, contacts)
         friction = self.friction.model_torque(v[: self._nv])  # [N m] on the link coordinates
-        return torque + friction[self._actuated]
+        return torque + (friction if self._actuated is None else friction[self._actuated])
 
     def __getattr__(self, name: str) -> Any:
         controller = self.__dict__.get("controller")
