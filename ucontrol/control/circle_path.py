@@ -80,16 +80,30 @@ class CirclePath:
     def plane_coefficients(self, t: float, order: int) -> NDArray[np.float64]:
         r"""Coordinates along (u, w) of :math:`p - c` and of its derivatives, (order + 1, 2).
 
-        Row k is :math:`r \omega^k (\cos(\varphi + k\pi/2), \sin(\varphi + k\pi/2))`.
+        Row k is :math:`r \omega^k (\cos(\varphi + k\pi/2), \sin(\varphi + k\pi/2))`: the
+        :meth:`plane_table` applied to :math:`(\cos\varphi, \sin\varphi)`.
+        """
+        angle = self.angle(t)
+        return self.plane_table(order) @ np.array([math.cos(angle), math.sin(angle)])
+
+    def angle(self, t: float) -> float:
+        r"""The angle :math:`\varphi = \varphi_0 + 2\pi t / P` at time ``t`` [s], in [rad]."""
+        omega = 2.0 * math.pi / self.period  # [rad/s]
+        return self.start_angle + omega * t
+
+    def plane_table(self, order: int) -> NDArray[np.float64]:
+        r"""The constant part of the :meth:`plane_coefficients`, shape (order + 1, 2, 2).
+
+        Entry k is :math:`r \omega^k R^k` with R the rotation by :math:`\pi/2`, so that
+        row k of the coefficients is entry k applied to :math:`(\cos\varphi, \sin\varphi)`:
+        each coefficient is one product :math:`\pm r \omega^k \cos\varphi` or
+        :math:`\pm r \omega^k \sin\varphi`, and the whole trajectory's time dependence is the
+        pair :math:`(\cos\varphi, \sin\varphi)` (one matrix product per sample).
         """
         omega = 2.0 * math.pi / self.period  # [rad/s]
-        angle = self.start_angle + omega * t
-        c, s = math.cos(angle), math.sin(angle)
         r = self.radius
-        turns = ((c, s), (-s, c), (-c, -s), (s, -c))  # (cos, sin) of the angle + k π/2
-        coefficients = [(r * c, r * s)]
+        quarter_turn = np.array([[0.0, -1.0], [1.0, 0.0]])  # (cos, sin) -> (-sin, cos)
+        table = [r * np.eye(2)]
         for k in range(1, order + 1):
-            scale = r * omega**k
-            a, b = turns[k % 4]
-            coefficients.append((scale * a, scale * b))
-        return np.array(coefficients)
+            table.append(r * omega**k * np.linalg.matrix_power(quarter_turn, k))
+        return np.array(table)

@@ -215,10 +215,9 @@ class DesiredCycle:
             t_d: Takeoff time of the current cycle in [s].
             order: Number of derivatives, >= 0.
         """
-        T = self.force_fall_time
+        T, force = self.force_fall_time, phase.force
         beta = smooth_step((t - t_d) / T + 1.0, order)
-        derivatives = (-phase.force * beta[k] / T**k for k in range(1, order + 1))
-        return (phase.force * (1.0 - beta[0]), *derivatives)
+        return (force * (1.0 - beta[0]), *[-force * beta[k] / T**k for k in range(1, order + 1)])
 
     def check(self, task: TaskCoordinates) -> None:
         """Check the cycle against the task: known contacts, no path through an obstacle.

@@ -32,8 +32,9 @@ declared values: nothing of cycle k leaks into cycle k + 1 except the state of t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+import math
+import operator
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,9 +60,11 @@ Vector = NDArray[np.float64]
 TIME_TOLERANCE = 1e-9
 
 
-@dataclass(frozen=True)
-class DesiredState:
-    r"""The desired trajectory at one time, in task coordinates.
+class DesiredState(NamedTuple):
+    r"""The desired trajectory at one time, in task coordinates (an immutable record).
+
+    Every call of :meth:`PhaseMachine.desired` returns fresh ``target`` arrays; ``reference``
+    shares them where nothing is clipped.
 
     Attributes:
         target: Position and its first k time derivatives tracked by the law (k = the
@@ -70,9 +73,10 @@ class DesiredState:
         reference: Position and velocity on which V is built: the target with the gaps of
             transiting contacts clipped at the surface (0, at rest), each shape (m,).
         force: Desired contact force :math:`\lambda_d` of each declared contact in [N],
-            shape (n,) (0 outside the constrained phase). When every contact is free, this,
-            ``constrained`` and ``force_derivatives`` are read-only zeros shared between calls.
-        constrained: Whether each declared contact is in its constrained phase, shape (n,).
+            shape (n,) (0 outside the constrained phase). When every contact is free, this
+            and ``force_derivatives`` are read-only zeros shared between calls.
+        constrained: Whether each declared contact is in its constrained phase, shape (n,);
+            read-only, shared between the calls made in the same phases.
         force_derivatives: The first k - 2 time derivatives of ``force`` [N/s^i], each
             shape (n,): the law's force term has as many derivatives as its ``target[2]`` term.
     """
@@ -122,20 +126,24 @@ class PhaseMachine:
         self.coordinates = np.array([task.names.index(name) for name in self.contacts])
         self._coordinate_list = [int(j) for j in self.coordinates]
         self._A_t = np.ascontiguousarray(task.A.T)  # (3, m)
-        # a path in a plane (u, w) around c: task components of u, w and of c
-        self._plane: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._split_rows = operator.itemgetter(*range(order + 1))  # (order + 1, m) -> rows
+        # A path in a plane (u, w) around c whose samples are a constant table applied to
+        # (cos φ, sin φ): that table in task coordinates, ((order + 1) m, 2), and c - b.
+        self._plane: tuple[Any, NDArray[np.float64], NDArray[np.float64]] | None = None
         path: Any = cycle.path
-        if hasattr(path, "plane_coefficients"):
-            axes, centre = path.axes, path.centre
-            self._plane = (axes @ self._A_t, centre @ self._A_t - task.b)
+        if hasattr(path, "plane_table"):
+            basis = path.axes @ self._A_t  # (2, m): task components of u and w
+            table = np.einsum("kli,lj->kji", path.plane_table(order), basis)
+            offset = path.centre @ self._A_t - task.b  # [m]
+            self._plane = (path, np.ascontiguousarray(table.reshape(-1, 2)), offset)
+            self._cos_sin = np.zeros(2)
         self.reset()
 
     def reset(self) -> None:
         """Back to the state at t = 0: every contact free, first approach in cycle 0."""
         n = len(self.contacts)
-        # DesiredState's force, constrained and force derivatives when every contact is free.
+        # DesiredState's force and force derivatives when no contact is constrained.
         self._no_force = _read_only(np.zeros(n))
-        self._none_constrained = _read_only(np.zeros(n, dtype=bool))
         self._no_force_derivatives = tuple(_read_only(np.zeros(n)) for _ in range(self.order - 2))
         self.phases = [Phase.FREE] * n
         self.depth = np.zeros(n)
@@ -145,17 +153,69 @@ class PhaseMachine:
         self._takeoff_started = np.zeros(n)
         self._segments: list[TrajectorySegment] = [Nominal()] * self.task.m
         self._frozen = [False] * self.task.m
-        self._all_nominal = True  # every coordinate follows the nominal path (free phase)
+        self._schedule()
 
-    def _set_segment(self, j: int, segment: TrajectorySegment) -> None:
-        """Coordinate ``j`` follows ``segment`` from now on."""
-        self._segments[j] = segment
-        self._all_nominal = all(type(s) is Nominal for s in self._segments)
+    def _schedule(self) -> None:
+        """Cache what :meth:`desired` and :meth:`update` read from the phases and segments.
+
+        Called whenever they may have changed (reset, end of an :meth:`update` that ran its
+        checks): the coordinates off the nominal path, the contacts whose reference may be
+        clipped, the constrained ones, and the time before which :meth:`update` has nothing to
+        do while the contacts stay as they are (see :meth:`_due_time`).
+        """
+        self._off_nominal = [
+            (j, segment) for j, segment in enumerate(self._segments) if type(segment) is not Nominal
+        ]
+        self._phase = overall_phase(self.phases)
+        self._all_free = self._phase is Phase.FREE
+        self._transiting_coordinates = [
+            j for j, phase in zip(self._coordinate_list, self.phases) if phase in TRANSITION_PHASES
+        ]
+        held = [phase is Phase.CONSTRAINED for phase in self.phases]
+        self._held = [i for i, is_held in enumerate(held) if is_held]
+        self._constrained = _read_only(np.array(held, dtype=bool))
+        self._due, self._watched, self._expected = self._due_time()
+
+    def _due_time(self) -> tuple[float, list[int], list[bool]]:
+        """When :meth:`update` may next act, and on which contact closures it depends.
+
+        Returns:
+            The earliest time [s], up to :data:`TIME_TOLERANCE`, at which a time-triggered
+            transition is due (an approach, a takeoff, the end of the rest time, of a takeoff
+            or of a blend); the contacts whose closure matters and the closures that keep the
+            phases as they are: an approaching contact that closes has its first impact, a
+            transiting one that opens or closes restarts or starts its rest time.
+        """
+        cycle = self.cycle
+        times = [
+            segment.t0 + segment.duration
+            for segment in self._segments
+            if type(segment) is BlendToNominal
+        ]
+        watched: list[int] = []
+        expected: list[bool] = []
+        for i, phase in enumerate(self.phases):
+            if phase is Phase.FREE:
+                times.append(self.approach_time(i))
+            elif phase is Phase.TAKEOFF:
+                times.append(float(self._takeoff_started[i]) + cycle.takeoff_time)
+            else:
+                times.append(self.takeoff_time(i))
+            if phase is Phase.APPROACH:
+                watched.append(i)
+                expected.append(False)
+            elif phase is Phase.TRANSITION:
+                since = self._closed_since[i]
+                watched.append(i)
+                expected.append(since is not None)
+                if since is not None:
+                    times.append(since + cycle.rest_time)
+        return min(times) - TIME_TOLERANCE, watched, expected
 
     @property
     def phase(self) -> Phase:
         """Phase of the cycle as a whole (see :func:`ucontrol.control.phase.overall_phase`)."""
-        return overall_phase(self.phases)
+        return self._phase
 
     def approach_time(self, i: int) -> float:
         r""":math:`\tau_0` of the current cycle of contact ``i`` in [s]."""
@@ -169,53 +229,69 @@ class PhaseMachine:
 
     def desired(self, t: float) -> DesiredState:
         """The desired trajectory at time ``t`` [s] in the current phases."""
-        order, task = self.order, self.task
-        if self._plane is not None:  # a planar path: p - c and its derivatives along (u, w)
-            basis, offset = self._plane
-            path: Any = self.cycle.path
-            nominal = np.dot(path.plane_coefficients(t, order), basis)  # (order + 1, m)
-            nominal[0] += offset
-        else:
-            nominal = np.array(self.cycle.path.derivatives(t, order)) @ self._A_t
-            nominal[0] -= task.b
-        target_rows = nominal
-        if not self._all_nominal:  # the other coordinates keep their nominal column
-            columns = nominal.T.tolist()
-            for j, segment in enumerate(self._segments):
-                if type(segment) is not Nominal:
-                    target_rows[:, j] = segment(t, tuple(columns[j]))
-        target = tuple(target_rows)
-        reference_rows = target_rows[:2].copy()
-        reference = (reference_rows[0], reference_rows[1])
-        n = len(self.contacts)
-        if self.phases.count(Phase.FREE) == n:  # no force: shared read-only zeros
+        rows = self._nominal(t)
+        for j, segment in self._off_nominal:  # the other coordinates keep their nominal column
+            column = rows[:, j]
+            column[:] = segment(t, tuple(column.tolist()))
+        target = self._split_rows(rows)
+        if self._all_free:  # no clipping, no force: shared read-only zeros
             return DesiredState(
                 target,
-                reference,
+                (target[0], target[1]),
                 self._no_force,
-                self._none_constrained,
+                self._constrained,
                 self._no_force_derivatives,
             )
-        force = np.zeros(n)
-        force_derivatives = tuple(np.zeros(n) for _ in range(order - 2))
-        constrained = np.zeros(n, dtype=bool)
-        for i, phase in enumerate(self.phases):
-            if phase is Phase.FREE:
-                continue
-            j = self._coordinate_list[i]
-            if phase in TRANSITION_PHASES and target_rows[0, j] < 0.0:
-                reference[0][j] = reference[1][j] = 0.0
-            elif phase is Phase.CONSTRAINED:
-                constrained[i] = True
-                values = self.cycle.desired_force_derivatives(
-                    self.cycle.contact_phases[i], t, self.takeoff_time(i), order - 2
-                )
-                for x, value in zip((force, *force_derivatives), values, strict=True):
-                    x[i] = value
-        return DesiredState(target, reference, force, constrained, force_derivatives)
+        return DesiredState(target, self._reference(target), *self._forces(t))
+
+    def _nominal(self, t: float) -> NDArray[np.float64]:
+        r"""The nominal path and its derivatives at ``t`` [s] in task coordinates, (order + 1, m).
+
+        A fresh array; for a planar path, one product of its constant table with
+        :math:`(\cos\varphi, \sin\varphi)`.
+        """
+        if self._plane is not None:
+            path, table, offset = self._plane
+            angle = path.angle(t)
+            cos_sin = self._cos_sin
+            cos_sin[0], cos_sin[1] = math.cos(angle), math.sin(angle)
+            nominal = np.dot(table, cos_sin).reshape(self.order + 1, -1)
+            nominal[0] += offset
+        else:
+            nominal = np.array(self.cycle.path.derivatives(t, self.order)) @ self._A_t
+            nominal[0] -= self.task.b
+        return nominal
+
+    def _reference(self, target: tuple[Vector, ...]) -> tuple[Vector, Vector]:
+        """Position and velocity of ``target``, the gaps of transiting contacts clipped at 0."""
+        position, velocity = target[0], target[1]
+        clipped = [j for j in self._transiting_coordinates if position[j] < 0.0]
+        if clipped:
+            position, velocity = position.copy(), velocity.copy()
+            for j in clipped:
+                position[j] = velocity[j] = 0.0
+        return position, velocity
+
+    def _forces(self, t: float) -> tuple[Vector, NDArray[np.bool_], tuple[Vector, ...]]:
+        """Desired forces [N], constrained contacts and force derivatives [N/s^k] at ``t`` [s]."""
+        if not self._held:
+            return self._no_force, self._constrained, self._no_force_derivatives
+        order, cycle = self.order, self.cycle
+        rows = [[0.0] * len(self.phases) for _ in range(order - 1)]  # λ_d, k - 2 derivatives
+        for i in self._held:
+            values = cycle.desired_force_derivatives(
+                cycle.contact_phases[i], t, self.takeoff_time(i), order - 2
+            )
+            for row, value in zip(rows, values, strict=True):
+                row[i] = value
+        forces = np.array(rows)
+        return forces[0], self._constrained, tuple(forces[1:]) if order > 2 else ()
 
     def update(self, t: float, closed: NDArray[np.bool_], V1: float, now: DesiredState) -> bool:
         r"""Advance the phases to time ``t`` and return whether any event happened.
+
+        Returns at once while ``t`` is before every due time and no contact that matters has
+        opened or closed (see :meth:`_due_time`).
 
         Args:
             t: Time in [s] (non-decreasing from call to call).
@@ -226,17 +302,29 @@ class PhaseMachine:
                 law, :math:`\tfrac12 s_1^T M s_1 + \tfrac12 s_2^T B s_2` for flexible joints.
             now: :meth:`desired` at ``t`` before the update (segments start from it).
         """
+        if t < self._due:
+            if not self._watched:
+                return False
+            flags = closed.tolist()
+            if [flags[i] for i in self._watched] == self._expected:
+                return False
+        happened = self._advance(t, closed, V1, now)
+        self._schedule()
+        return happened
+
+    def _advance(self, t: float, closed: NDArray[np.bool_], V1: float, now: DesiredState) -> bool:
+        """The checks of :meth:`update`, one contact after the other."""
         cycle = self.cycle
         happened = False
         for j, segment in enumerate(self._segments):  # an ended blend is the nominal path
             if type(segment) is BlendToNominal and (t - segment.t0) / segment.duration >= 1.0:
-                self._set_segment(j, Nominal())
+                self._segments[j] = Nominal()
         for i, phase in enumerate(self.phases):
             j = self.coordinates[i]
             event = Event.NONE
             if phase is Phase.FREE and _reached(t, self.approach_time(i)):
                 self.depth[i] = cycle.depth(V1)
-                self._set_segment(j, self._stop(t, now, j, -self.depth[i]))
+                self._segments[j] = self._stop(t, now, j, -self.depth[i])
                 self._frozen[j] = False  # its own transition now drives it
                 self.phases[i] = Phase.APPROACH
                 self._freeze(t, now)
@@ -256,7 +344,7 @@ class PhaseMachine:
                     self._closed_since[i] = t
                 elif _reached(t, since + cycle.rest_time):
                     self.phases[i] = Phase.CONSTRAINED
-                    self._set_segment(j, Constant(0.0))
+                    self._segments[j] = Constant(0.0)
                     self.depth[i] = 0.0
                     self._release(t)
                     event = Event.ACCUMULATION_END
@@ -267,7 +355,7 @@ class PhaseMachine:
                 t, self._takeoff_started[i] + cycle.takeoff_time
             ):
                 self.phases[i] = Phase.FREE
-                self._set_segment(j, Nominal())
+                self._segments[j] = Nominal()
                 self._cycle_index[i] += 1
                 self._freeze(t, now)
             if event:
@@ -293,7 +381,7 @@ class PhaseMachine:
             parabola = SmoothParabola(
                 t, cycle.takeoff_acceleration, cycle.takeoff_ramp_time, self.order - 2
             )
-        self._set_segment(self.coordinates[i], self._blend(parabola, t, cycle.takeoff_time))
+        self._segments[self.coordinates[i]] = self._blend(parabola, t, cycle.takeoff_time)
         if was_transiting:
             self._release(t)
 
@@ -309,7 +397,7 @@ class PhaseMachine:
             if j in busy or self._frozen[j]:
                 continue
             p, dp = now.target[0][j], now.target[1][j]
-            self._set_segment(j, self._stop(t, now, j, p + 0.5 * dp * self.cycle.approach_time))
+            self._segments[j] = self._stop(t, now, j, p + 0.5 * dp * self.cycle.approach_time)
             self._frozen[j] = True
 
     def _release(self, t: float) -> None:
@@ -318,7 +406,7 @@ class PhaseMachine:
             return
         for j, frozen in enumerate(self._frozen):
             if frozen:
-                self._set_segment(j, self._blend(self._segments[j], t, self.cycle.blend_time))
+                self._segments[j] = self._blend(self._segments[j], t, self.cycle.blend_time)
                 self._frozen[j] = False
 
     def _stop(self, t: float, now: DesiredState, j: int, p1: float) -> TrajectorySegment:

@@ -58,7 +58,7 @@ def smooth_step(sigma: float, order: int = 2, continuity: int = 2) -> Sample:
     elif sigma >= 1.0:
         values = (1.0,)
     elif continuity != 2:
-        values = _polynomial_sample(_smooth_step_coefficients(continuity), sigma, order + 1)
+        values = _polynomial_sample(_smooth_step_table(continuity), sigma, order + 1)
     else:
         values = (
             sigma**3 * (10.0 - 15.0 * sigma + 6.0 * sigma**2),
@@ -85,13 +85,39 @@ def _smooth_step_coefficients(continuity: int) -> tuple[float, ...]:
     return tuple(float(c) for c in (Polynomial([0.0, 1.0]) ** (n + 1) * tail).coef)
 
 
+@functools.cache
+def _smooth_step_table(continuity: int) -> PolynomialTable:
+    r"""The :func:`_derivative_table` of :math:`\beta_n` (see :func:`smooth_step`)."""
+    return _derivative_table(_smooth_step_coefficients(continuity))
+
+
+#: A polynomial and its successive derivatives down to a constant, each by increasing degree.
+PolynomialTable = tuple[tuple[float, ...], ...]
+
+
+def _derivative_table(coefficients: Sequence[float]) -> PolynomialTable:
+    """The coefficients of P, P', P'', ... (while not identically 0), by increasing degree.
+
+    Built once per polynomial so that :func:`_polynomial_sample` only runs Horner's scheme.
+
+    Args:
+        coefficients: Those of P, by increasing degree.
+    """
+    table = []
+    c = list(coefficients)
+    while c:
+        table.append(tuple(c))
+        c = [i * a for i, a in enumerate(c)][1:]
+    return tuple(table)
+
+
 def _polynomial_sample(
-    coefficients: Sequence[float], sigma: float, size: int, duration: float = 1.0
+    table: PolynomialTable, sigma: float, size: int, duration: float = 1.0
 ) -> Sample:
     r"""A polynomial P of :math:`\sigma = (t - t_0)/T` and its time derivatives at ``sigma``.
 
     Args:
-        coefficients: Those of P, by increasing degree.
+        table: P and its derivatives (:func:`_derivative_table`).
         sigma: The argument.
         size: Number of values returned.
         duration: T in [s] (1: derivatives with respect to :math:`\sigma`).
@@ -100,16 +126,14 @@ def _polynomial_sample(
         :math:`P^{(k)}(\sigma) / T^k` for k < ``size`` (0 beyond the degree of P).
     """
     values = []
-    c = list(coefficients)
     scale = 1.0  # T^k [s^k]
-    for _ in range(size):
+    for c in table[:size]:
         value = 0.0
         for a in reversed(c):  # Horner
             value = value * sigma + a
         values.append(value / scale)
-        c = [i * a for i, a in enumerate(c)][1:]
         scale *= duration
-    return tuple(values)
+    return _padded(tuple(values), size)
 
 
 class TrajectorySegment(Protocol):
@@ -205,7 +229,7 @@ class RestHermite:
     start: Sample
     p1: float
     duration: float
-    _coefficients: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    _table: PolynomialTable = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n, T = len(self.start) - 1, self.duration
@@ -214,7 +238,8 @@ class RestHermite:
         inverse = [float(math.comb(n + j, j)) for j in range(n + 1)]  # (1 - σ)^-(n+1), deg <= n
         remainder = Polynomial((Polynomial(c) * Polynomial(inverse)).coef[: n + 1])
         hermite = Polynomial([self.p1]) + Polynomial([1.0, -1.0]) ** (n + 1) * remainder
-        object.__setattr__(self, "_coefficients", tuple(float(a) for a in hermite.coef))
+        table = _derivative_table([float(a) for a in hermite.coef])
+        object.__setattr__(self, "_table", table)
 
     def __call__(self, t: float, nominal: Sample) -> Sample:
         """Hermite sample at ``t``; ``(p1, 0, 0, ...)`` once it has ended."""
@@ -222,7 +247,7 @@ class RestHermite:
         sigma = (t - self.t0) / T
         if sigma >= 1.0:
             return _padded((self.p1,), len(nominal))
-        return _polynomial_sample(self._coefficients, max(sigma, 0.0), len(nominal), T)
+        return _polynomial_sample(self._table, max(sigma, 0.0), len(nominal), T)
 
 
 @dataclass(frozen=True)
@@ -267,22 +292,22 @@ class SmoothParabola:
     acceleration: float
     ramp_time: float
     continuity: int
-    _ramp: tuple[float, ...] = field(init=False, repr=False, compare=False)
-    _parabola: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    _ramp: PolynomialTable = field(init=False, repr=False, compare=False)
+    _parabola: PolynomialTable = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         scale = self.acceleration * self.ramp_time**2  # a T_r² [position]
         ramp = Polynomial(_smooth_step_coefficients(self.continuity)).integ(2)  # B
         # B(1) + (σ - 1)/2 + (σ - 1)²/2 = B(1) - σ/2 + σ²/2
         parabola = (float(ramp(1.0)), -0.5, 0.5)
-        object.__setattr__(self, "_ramp", tuple(scale * float(a) for a in ramp.coef))
-        object.__setattr__(self, "_parabola", tuple(scale * a for a in parabola))
+        object.__setattr__(self, "_ramp", _derivative_table([scale * float(a) for a in ramp.coef]))
+        object.__setattr__(self, "_parabola", _derivative_table([scale * a for a in parabola]))
 
     def __call__(self, t: float, nominal: Sample) -> Sample:
         """Takeoff sample at ``t``; 0 at rest before ``t0``."""
         sigma = max((t - self.t0) / self.ramp_time, 0.0)
-        coefficients = self._ramp if sigma < 1.0 else self._parabola
-        return _polynomial_sample(coefficients, sigma, len(nominal), self.ramp_time)
+        table = self._ramp if sigma < 1.0 else self._parabola
+        return _polynomial_sample(table, sigma, len(nominal), self.ramp_time)
 
 
 @dataclass(frozen=True)
@@ -322,9 +347,15 @@ class BlendToNominal:
         base = self.base(t, nominal)
         error = [n - b for n, b in zip(nominal, base, strict=True)]
         blended = []
-        for k in range(order + 1):
+        for k, binomials in enumerate(_binomial_rows(order)):
             value = base[k]
-            for i in range(k + 1):
-                value += math.comb(k, i) * beta[i] * error[k - i]
+            for i, weight in enumerate(binomials):
+                value += weight * beta[i] * error[k - i]
             blended.append(value)
         return tuple(blended)
+
+
+@functools.cache
+def _binomial_rows(order: int) -> tuple[tuple[float, ...], ...]:
+    r"""Rows 0 to ``order`` of Pascal's triangle: row k holds :math:`\binom{k}{i}`, i <= k."""
+    return tuple(tuple(float(math.comb(k, i)) for i in range(k + 1)) for k in range(order + 1))
