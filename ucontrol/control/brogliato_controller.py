@@ -37,13 +37,13 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
-from ucontrol.control.compiled_function import CompiledFunction
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.phase import Phase
 from ucontrol.control.phase_machine import DesiredState, PhaseMachine
 from ucontrol.control.task_coordinates import TaskCoordinates, TaskState
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.model.robot_model import RobotModel
 
 if TYPE_CHECKING:

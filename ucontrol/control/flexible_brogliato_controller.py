@@ -101,12 +101,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
-from ucontrol.control.compiled_function import CompiledFunction
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.phase_machine import DesiredState
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.exceptions import InvalidParameterError, SolverError
+from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.model.symbolic_model import SymbolicModel

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import ctypes
 import fcntl
+import functools
 import hashlib
 import logging
 import os
@@ -89,6 +90,7 @@ class CompiledFunction:
         self._in_sizes = [f.nnz_in(i) for i in range(f.n_in())]
         self._out_sizes = [f.nnz_out(i) for i in range(f.n_out())]
         self._outputs = [np.zeros(n) for n in self._out_sizes]
+        self._results = tuple(self._outputs)  # what every call returns
         self._in_buffers = [np.zeros(n) for n in self._in_sizes]
         self._in_shapes = [f.size_in(i) for i in range(f.n_in())]
         self._in_views = [  # column-major views of the buffers in the inputs' shapes
@@ -127,11 +129,11 @@ class CompiledFunction:
                 values = (values,)
             for out, value in zip(self._outputs, values, strict=True):
                 out[:] = np.asarray(value).ravel(order="F")
-            return tuple(self._outputs)
-        status = self._call(self._arg, self._res, self._iw, self._w, 0)
+            return self._results
+        status = self._call()
         if status != 0:
             raise RuntimeError(f"compiled casadi function {self.name} returned {status}")
-        return tuple(self._outputs)
+        return self._results
 
     def bind_input(self, i: int, array: NDArray[np.float64]) -> None:
         """Read input ``i`` from ``array``'s memory at every call, without a copy.
@@ -182,14 +184,10 @@ class CompiledFunction:
         self._w_buffer = np.zeros(max(f.sz_w(), 1))
         self._iw = self._iw_buffer.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong))
         self._w = self._w_buffer.ctypes.data_as(double_p)
-        call.argtypes = [
-            ctypes.POINTER(double_p),
-            ctypes.POINTER(double_p),
-            ctypes.POINTER(ctypes.c_longlong),
-            double_p,
-            ctypes.c_int,
-        ]
-        self._call = call
+        # No argtypes: ctypes passes the pointer arrays as they are and 0 as a C int
+        # (converting the arguments through argtypes costs 1.2 µs a call, against 0.35 µs).
+        call.argtypes = None
+        self._call = functools.partial(call, self._arg, self._res, self._iw, self._w, 0)
 
 
 def _densified(function: ca.Function) -> ca.Function:
