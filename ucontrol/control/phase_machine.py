@@ -73,8 +73,9 @@ class DesiredState(NamedTuple):
         reference: Position and velocity on which V is built: the target with the gaps of
             transiting contacts clipped at the surface (0, at rest), each shape (m,).
         force: Desired contact force :math:`\lambda_d` of each declared contact in [N],
-            shape (n,) (0 outside the constrained phase). When every contact is free, this
-            and ``force_derivatives`` are read-only zeros shared between calls.
+            shape (n,) (0 outside the constrained phase). When no contact is constrained, or
+            while every constrained one holds its plateau, this and ``force_derivatives`` are
+            read-only values shared between calls.
         constrained: Whether each declared contact is in its constrained phase, shape (n,);
             read-only, shared between the calls made in the same phases.
         force_derivatives: The first k - 2 time derivatives of ``force`` [N/s^i], each
@@ -167,13 +168,26 @@ class PhaseMachine:
             (j, segment) for j, segment in enumerate(self._segments) if type(segment) is not Nominal
         ]
         self._phase = overall_phase(self.phases)
-        self._all_free = self._phase is Phase.FREE
         self._transiting_coordinates = [
             j for j, phase in zip(self._coordinate_list, self.phases) if phase in TRANSITION_PHASES
         ]
         held = [phase is Phase.CONSTRAINED for phase in self.phases]
-        self._held = [i for i, is_held in enumerate(held) if is_held]
         self._constrained = _read_only(np.array(held, dtype=bool))
+        self._held = [  # each constrained contact, its phase and its takeoff time [s]
+            (i, self.cycle.contact_phases[i], self.takeoff_time(i))
+            for i, is_held in enumerate(held)
+            if is_held
+        ]
+        # Before the first fall of a held contact's force starts, every force is its plateau:
+        # the same values at every call (the smooth step is 0 there, see
+        # DesiredCycle.desired_force_derivatives), computed once.
+        self._plateau_until = -math.inf
+        if self._held:
+            fall_time = self.cycle.force_fall_time
+            self._plateau_until = min(t_d for _, _, t_d in self._held) - fall_time
+            self._plateau_until -= TIME_TOLERANCE
+            force, derivatives = self._forces(self._plateau_until)
+            self._plateau = (_read_only(force), tuple(map(_read_only, derivatives)))
         self._due, self._watched, self._expected = self._due_time()
 
     def _due_time(self) -> tuple[float, list[int], list[bool]]:
@@ -234,15 +248,18 @@ class PhaseMachine:
             column = rows[:, j]
             column[:] = segment(t, tuple(column.tolist()))
         target = self._split_rows(rows)
-        if self._all_free:  # no clipping, no force: shared read-only zeros
+        reference = (target[0], target[1])
+        if self._transiting_coordinates:  # gaps below the surface are clipped
+            reference = self._reference(target)
+        if not self._held:  # no force: shared read-only zeros
             return DesiredState(
-                target,
-                (target[0], target[1]),
-                self._no_force,
-                self._constrained,
-                self._no_force_derivatives,
+                target, reference, self._no_force, self._constrained, self._no_force_derivatives
             )
-        return DesiredState(target, self._reference(target), *self._forces(t))
+        if t < self._plateau_until:
+            force, force_derivatives = self._plateau
+        else:
+            force, force_derivatives = self._forces(t)
+        return DesiredState(target, reference, force, self._constrained, force_derivatives)
 
     def _nominal(self, t: float) -> NDArray[np.float64]:
         r"""The nominal path and its derivatives at ``t`` [s] in task coordinates, (order + 1, m).
@@ -272,20 +289,16 @@ class PhaseMachine:
                 position[j] = velocity[j] = 0.0
         return position, velocity
 
-    def _forces(self, t: float) -> tuple[Vector, NDArray[np.bool_], tuple[Vector, ...]]:
-        """Desired forces [N], constrained contacts and force derivatives [N/s^k] at ``t`` [s]."""
-        if not self._held:
-            return self._no_force, self._constrained, self._no_force_derivatives
+    def _forces(self, t: float) -> tuple[Vector, tuple[Vector, ...]]:
+        """Desired forces [N] and their derivatives [N/s^k] at ``t`` [s], some contact held."""
         order, cycle = self.order, self.cycle
         rows = [[0.0] * len(self.phases) for _ in range(order - 1)]  # λ_d, k - 2 derivatives
-        for i in self._held:
-            values = cycle.desired_force_derivatives(
-                cycle.contact_phases[i], t, self.takeoff_time(i), order - 2
-            )
+        for i, phase, t_d in self._held:
+            values = cycle.desired_force_derivatives(phase, t, t_d, order - 2)
             for row, value in zip(rows, values, strict=True):
                 row[i] = value
-        forces = np.array(rows)
-        return forces[0], self._constrained, tuple(forces[1:]) if order > 2 else ()
+        force, *derivatives = map(np.array, rows)
+        return force, tuple(derivatives)
 
     def update(self, t: float, closed: NDArray[np.bool_], V1: float, now: DesiredState) -> bool:
         r"""Advance the phases to time ``t`` and return whether any event happened.
@@ -413,7 +426,7 @@ class PhaseMachine:
         """Coordinate ``j`` from its sample in ``now`` to ``p1`` at rest over the approach time."""
         T = self.cycle.approach_time
         if self.order == 2:
-            return RestCubic(t, now.target[0][j], now.target[1][j], p1, T)
+            return RestCubic(t, float(now.target[0][j]), float(now.target[1][j]), float(p1), T)
         return RestHermite(t, tuple(float(x[j]) for x in now.target), p1, T)
 
     def _blend(self, base: TrajectorySegment, t: float, duration: float) -> BlendToNominal:

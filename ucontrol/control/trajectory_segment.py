@@ -91,12 +91,12 @@ def _smooth_step_table(continuity: int) -> PolynomialTable:
     return _derivative_table(_smooth_step_coefficients(continuity))
 
 
-#: A polynomial and its successive derivatives down to a constant, each by increasing degree.
+#: A polynomial and its successive derivatives down to a constant, each by decreasing degree.
 PolynomialTable = tuple[tuple[float, ...], ...]
 
 
 def _derivative_table(coefficients: Sequence[float]) -> PolynomialTable:
-    """The coefficients of P, P', P'', ... (while not identically 0), by increasing degree.
+    """The coefficients of P, P', P'', ... (while not identically 0), by decreasing degree.
 
     Built once per polynomial so that :func:`_polynomial_sample` only runs Horner's scheme.
 
@@ -106,7 +106,7 @@ def _derivative_table(coefficients: Sequence[float]) -> PolynomialTable:
     table = []
     c = list(coefficients)
     while c:
-        table.append(tuple(c))
+        table.append(tuple(reversed(c)))  # in the order of Horner's scheme
         c = [i * a for i, a in enumerate(c)][1:]
     return tuple(table)
 
@@ -129,7 +129,7 @@ def _polynomial_sample(
     scale = 1.0  # T^k [s^k]
     for c in table[:size]:
         value = 0.0
-        for a in reversed(c):  # Horner
+        for a in c:  # Horner
             value = value * sigma + a
         values.append(value / scale)
         scale *= duration
@@ -197,12 +197,13 @@ class RestCubic:
         sigma = max(sigma, 0.0)
         s2, s3 = sigma * sigma, sigma * sigma * sigma
         p0, v0, p1 = self.p0, self.v0, self.p1
+        drop = p0 - p1
         position = (
             (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + sigma) * T * v0 + (3 * s2 - 2 * s3) * p1
         )
-        velocity = (6 * s2 - 6 * sigma) * (p0 - p1) / T + (3 * s2 - 4 * sigma + 1) * v0
-        acceleration = (12 * sigma - 6) * (p0 - p1) / T**2 + (6 * sigma - 4) * v0 / T
-        jerk = 12 * (p0 - p1) / T**3 + 6 * v0 / T**2
+        velocity = (6 * s2 - 6 * sigma) * drop / T + (3 * s2 - 4 * sigma + 1) * v0
+        acceleration = (12 * sigma - 6) * drop / T**2 + (6 * sigma - 4) * v0 / T
+        jerk = 12 * drop / T**3 + 6 * v0 / T**2
         return _padded((position, velocity, acceleration, jerk), len(nominal))
 
 
