@@ -44,7 +44,7 @@ def refine_lcp_solution(
     polish: bool,
     residual_tolerance: float,
     iterations: int,
-    unsolved_status: str,
+    unsolved_status: object,
     start: float,
 ) -> ContactSolution:
     """Polish the QP solution ``x`` (m,) of ``(D, b)``; Lemke for small stalled problems.
@@ -57,22 +57,25 @@ def refine_lcp_solution(
         residual_tolerance: Residual in [m/s] above which Lemke's method is tried, and up to
             which the solve is ``"solved"``.
         iterations: The backend's iteration count.
-        unsolved_status: Status of a solve left above ``residual_tolerance`` (the backend's).
+        unsolved_status: Status of a solve left above ``residual_tolerance`` (the backend's),
+            turned into text (``str``) only then.
         start: ``time.perf_counter()`` at the start of the solve, for its timing.
 
     Returns:
         The solve; ``polished`` when the polish or Lemke's method replaced the QP's impulses.
     """
-    scale = velocity_scale(D)
+    diagonal = D.diagonal()
     impulses = np.maximum(x, 0.0)
-    velocity = D @ impulses + b
-    residual = natural_map_residual(scale, impulses, velocity)
+    velocity = D.dot(impulses)
+    velocity += b
+    residual = natural_map_residual(diagonal, impulses, velocity)
     polished = False
     if polish and residual > POLISH_THRESHOLD:
-        candidate = _solve_on_active_set(D, b, scale * impulses > velocity)
+        active = velocity_scale(D) * impulses > velocity
+        candidate = _solve_on_active_set(D, b, active)
         if candidate is not None:
             candidate_velocity = D @ candidate + b
-            candidate_residual = natural_map_residual(scale, candidate, candidate_velocity)
+            candidate_residual = natural_map_residual(diagonal, candidate, candidate_velocity)
             if candidate_residual <= residual:
                 impulses, velocity, residual = candidate, candidate_velocity, candidate_residual
                 polished = True
@@ -89,7 +92,7 @@ def refine_lcp_solution(
     return ContactSolution(
         impulses,
         velocity,
-        "solved" if residual <= residual_tolerance else unsolved_status,
+        "solved" if residual <= residual_tolerance else str(unsolved_status),
         iterations,
         residual,
         time.perf_counter() - start,

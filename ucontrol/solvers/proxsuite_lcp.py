@@ -74,7 +74,7 @@ class ProxsuiteLCPSolver:
         self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
         self.exact_single = exact_single
         self.polish = polish
-        self._qp = WarmStartedQP(eps_abs=eps_abs, max_iter=max_iter)
+        self._qp = WarmStartedQP(eps_abs=eps_abs, max_iter=max_iter, fixed_constraints=True)
         self.eps_abs = self._qp.eps_abs
         self.max_iter = self._qp.max_iter
         self._bounds: dict[int, tuple[NDArray[np.float64], ...]] = {}
@@ -102,7 +102,7 @@ class ProxsuiteLCPSolver:
             polish=self.polish,
             residual_tolerance=self.residual_tolerance,
             iterations=int(results.info.iter),
-            unsolved_status=str(results.info.status),
+            unsolved_status=results.info.status,
             start=start,
         )
 
@@ -139,12 +139,13 @@ class ProxsuiteLCPSolver:
             results = self._qp.solve(D, b, None, None, None)
         impulses = np.array(results.x)
         impulses[equalities:] = np.maximum(impulses[equalities:], 0.0)
-        scale = velocity_scale(D)[equalities:]
+        diagonal = D.diagonal()[equalities:]
         velocity = D @ impulses + b
-        residual = _mixed_residual(scale, impulses, velocity, equalities)
+        residual = _mixed_residual(diagonal, impulses, velocity, equalities)
         polished = False
         if self.polish and residual > POLISH_THRESHOLD:
             active = np.ones(m, dtype=bool)
+            scale = velocity_scale(D)[equalities:]
             active[equalities:] = scale * impulses[equalities:] > velocity[equalities:]
             candidate = np.zeros(m)
             rows = np.flatnonzero(active)
@@ -152,7 +153,7 @@ class ProxsuiteLCPSolver:
             if np.all(candidate[equalities:] >= 0.0):
                 candidate_velocity = D @ candidate + b
                 candidate_residual = _mixed_residual(
-                    scale, candidate, candidate_velocity, equalities
+                    diagonal, candidate, candidate_velocity, equalities
                 )
                 if candidate_residual <= residual:
                     impulses, velocity, residual = candidate, candidate_velocity, candidate_residual
@@ -170,16 +171,19 @@ class ProxsuiteLCPSolver:
 
 
 def _mixed_residual(
-    scale: NDArray[np.float64],
+    diagonal: NDArray[np.float64],
     impulses: NDArray[np.float64],
     velocity: NDArray[np.float64],
     equalities: int,
 ) -> float:
-    """Largest bilateral velocity and unilateral natural-map residual, in [m/s]."""
+    """Largest bilateral velocity and unilateral natural-map residual, in [m/s].
+
+    ``diagonal`` is that of D on the unilateral rows, shape (m - equalities,).
+    """
     residual = float(np.max(np.abs(velocity[:equalities])))
     if impulses.size > equalities:
         residual = max(
             residual,
-            natural_map_residual(scale, impulses[equalities:], velocity[equalities:]),
+            natural_map_residual(diagonal, impulses[equalities:], velocity[equalities:]),
         )
     return residual
