@@ -138,7 +138,7 @@ def _solve_on_active_set(D: Vector, b: Vector, active: NDArray[np.bool_]) -> Vec
         P_active = -b_active / D_active[0, 0]
     else:
         P_active = _non_negative_solve(D_active, -b_active)
-    if np.any(P_active < 0.0):
+    if (P_active < 0.0).any():
         return None
     candidate[active] = P_active
     return candidate
@@ -154,11 +154,11 @@ def _non_negative_solve(A: Vector, y: Vector) -> NDArray[np.floating]:
     x: NDArray[np.floating]
     try:
         x = np.linalg.solve(A, y)
-        if np.all(x >= 0.0) and np.max(np.abs(A @ x - y)) <= 1e-12 * (1.0 + np.max(np.abs(y))):
+        if (x >= 0.0).all() and np.abs(A @ x - y).max() <= 1e-12 * (1.0 + np.abs(y).max()):
             return x
     except np.linalg.LinAlgError:
         pass
     x = np.linalg.lstsq(A, y, rcond=1e-12)[0]
-    if np.any(x < 0.0):
+    if (x < 0.0).any():
         x = scipy.optimize.nnls(A, y)[0]
     return x
