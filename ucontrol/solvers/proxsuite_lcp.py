@@ -150,7 +150,7 @@ class ProxsuiteLCPSolver:
             candidate = np.zeros(m)
             rows = np.flatnonzero(active)
             candidate[rows] = np.linalg.lstsq(D[np.ix_(rows, rows)], -b[rows], rcond=None)[0]
-            if np.all(candidate[equalities:] >= 0.0):
+            if (candidate[equalities:] >= 0.0).all():
                 candidate_velocity = D @ candidate + b
                 candidate_residual = _mixed_residual(
                     diagonal, candidate, candidate_velocity, equalities
@@ -180,7 +180,7 @@ def _mixed_residual(
 
     ``diagonal`` is that of D on the unilateral rows, shape (m - equalities,).
     """
-    residual = float(np.max(np.abs(velocity[:equalities])))
+    residual = float(np.abs(velocity[:equalities]).max())
     if impulses.size > equalities:
         residual = max(
             residual,
