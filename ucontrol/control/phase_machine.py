@@ -127,7 +127,12 @@ class PhaseMachine:
         self.coordinates = np.array([task.names.index(name) for name in self.contacts])
         self._coordinate_list = [int(j) for j in self.coordinates]
         self._A_t = np.ascontiguousarray(task.A.T)  # (3, m)
-        self._split_rows = operator.itemgetter(*range(order + 1))  # (order + 1, m) -> rows
+        # The samples of the desired trajectory are one flat array, ((order + 1) m,): derivative
+        # k of the task coordinates at [k m, (k + 1) m), coordinate j at [j::m].
+        m = task.m
+        rows = [slice(k * m, (k + 1) * m) for k in range(order + 1)]
+        self._split_rows = operator.itemgetter(*rows)
+        self._columns = [slice(j, None, m) for j in range(m)]
         # A path in a plane (u, w) around c whose samples are a constant table applied to
         # (cos φ, sin φ): that table in task coordinates, ((order + 1) m, 2), and c - b.
         self._plane: tuple[Any, NDArray[np.float64], NDArray[np.float64]] | None = None
@@ -165,7 +170,9 @@ class PhaseMachine:
         do while the contacts stay as they are (see :meth:`_due_time`).
         """
         self._off_nominal = [
-            (j, segment) for j, segment in enumerate(self._segments) if type(segment) is not Nominal
+            (self._columns[j], segment)
+            for j, segment in enumerate(self._segments)
+            if type(segment) is not Nominal
         ]
         self._phase = overall_phase(self.phases)
         self._transiting_coordinates = [
@@ -243,11 +250,11 @@ class PhaseMachine:
 
     def desired(self, t: float) -> DesiredState:
         """The desired trajectory at time ``t`` [s] in the current phases."""
-        rows = self._nominal(t)
-        for j, segment in self._off_nominal:  # the other coordinates keep their nominal column
-            column = rows[:, j]
-            column[:] = segment(t, tuple(column.tolist()))
-        target = self._split_rows(rows)
+        samples = self._nominal(t)
+        for column, segment in self._off_nominal:  # the others keep their nominal samples
+            values = samples[column]
+            values[:] = segment(t, tuple(values.tolist()))
+        target = self._split_rows(samples)
         reference = (target[0], target[1])
         if self._transiting_coordinates:  # gaps below the surface are clipped
             reference = self._reference(target)
@@ -262,22 +269,24 @@ class PhaseMachine:
         return DesiredState(target, reference, force, self._constrained, force_derivatives)
 
     def _nominal(self, t: float) -> NDArray[np.float64]:
-        r"""The nominal path and its derivatives at ``t`` [s] in task coordinates, (order + 1, m).
+        r"""The nominal path and its derivatives at ``t`` [s] in task coordinates, ((order + 1) m,).
 
-        A fresh array; for a planar path, one product of its constant table with
-        :math:`(\cos\varphi, \sin\varphi)`.
+        A fresh flat array (derivative k at [k m, (k + 1) m)); for a planar path, one product of
+        its constant table with :math:`(\cos\varphi, \sin\varphi)`.
         """
         if self._plane is not None:
             path, table, offset = self._plane
             angle = path.angle(t)
             cos_sin = self._cos_sin
             cos_sin[0], cos_sin[1] = math.cos(angle), math.sin(angle)
-            nominal = np.dot(table, cos_sin).reshape(self.order + 1, -1)
-            nominal[0] += offset
+            samples = np.dot(table, cos_sin)
+            position = samples[: self.task.m]
+            position += offset
         else:
-            nominal = np.array(self.cycle.path.derivatives(t, self.order)) @ self._A_t
-            nominal[0] -= self.task.b
-        return nominal
+            samples = (np.array(self.cycle.path.derivatives(t, self.order)) @ self._A_t).ravel()
+            position = samples[: self.task.m]
+            position -= self.task.b
+        return samples
 
     def _reference(self, target: tuple[Vector, ...]) -> tuple[Vector, Vector]:
         """Position and velocity of ``target``, the gaps of transiting contacts clipped at 0."""

@@ -59,15 +59,18 @@ def smooth_step(sigma: float, order: int = 2, continuity: int = 2) -> Sample:
         values = (1.0,)
     elif continuity != 2:
         values = _polynomial_sample(_smooth_step_table(continuity), sigma, order + 1)
-    else:
+    else:  # the quintic in closed form; its derivatives 3 to 5 only when asked for
         values = (
             sigma**3 * (10.0 - 15.0 * sigma + 6.0 * sigma**2),
             30.0 * sigma**2 * (1.0 - sigma) ** 2,
             60.0 * sigma * (1.0 - sigma) * (1.0 - 2.0 * sigma),
-            60.0 * (1.0 - 6.0 * sigma + 6.0 * sigma**2),
-            360.0 * (2.0 * sigma - 1.0),
-            720.0,
         )
+        if order > 2:
+            values += (
+                60.0 * (1.0 - 6.0 * sigma + 6.0 * sigma**2),
+                360.0 * (2.0 * sigma - 1.0),
+                720.0,
+            )
     return _padded(values, order + 1)
 
 
@@ -187,6 +190,13 @@ class RestCubic:
     v0: float
     p1: float
     duration: float
+    _drop: float = field(init=False, repr=False, compare=False)  # p0 - p1
+    _jerk: float = field(init=False, repr=False, compare=False)  # the constant third derivative
+
+    def __post_init__(self) -> None:
+        T, drop = self.duration, self.p0 - self.p1
+        object.__setattr__(self, "_drop", drop)
+        object.__setattr__(self, "_jerk", 12 * drop / T**3 + 6 * self.v0 / T**2)
 
     def __call__(self, t: float, nominal: Sample) -> Sample:
         """Hermite cubic sample at ``t``; ``(p1, 0, 0, ...)`` once it has ended."""
@@ -196,15 +206,13 @@ class RestCubic:
             return _padded((self.p1,), len(nominal))
         sigma = max(sigma, 0.0)
         s2, s3 = sigma * sigma, sigma * sigma * sigma
-        p0, v0, p1 = self.p0, self.v0, self.p1
-        drop = p0 - p1
+        p0, v0, p1, drop = self.p0, self.v0, self.p1, self._drop
         position = (
             (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + sigma) * T * v0 + (3 * s2 - 2 * s3) * p1
         )
         velocity = (6 * s2 - 6 * sigma) * drop / T + (3 * s2 - 4 * sigma + 1) * v0
         acceleration = (12 * sigma - 6) * drop / T**2 + (6 * sigma - 4) * v0 / T
-        jerk = 12 * drop / T**3 + 6 * v0 / T**2
-        return _padded((position, velocity, acceleration, jerk), len(nominal))
+        return _padded((position, velocity, acceleration, self._jerk), len(nominal))
 
 
 @dataclass(frozen=True)
