@@ -16,7 +16,11 @@ import pytest
 
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.solvers import ProxsuiteLCPSolver, lcp_refinement, solve_lcp_lemke
-from ucontrol.solvers.contact_solution import natural_map_residual, velocity_scale
+from ucontrol.solvers.contact_solution import (
+    PYTHON_RESIDUAL_SIZE,
+    natural_map_residual,
+    velocity_scale,
+)
 from ucontrol.solvers.lcp_refinement import refine_lcp_solution
 from ucontrol.solvers.proxsuite_qp import INFINITY, WarmStartedQP
 
@@ -36,7 +40,7 @@ def _numpy_natural_map(D: np.ndarray, P: np.ndarray, w: np.ndarray) -> float:
     return float(np.max(np.abs(np.minimum(velocity_scale(D) * P, w))))
 
 
-@pytest.mark.parametrize("m", [0, *_SIZES])
+@pytest.mark.parametrize("m", [0, *_SIZES, PYTHON_RESIDUAL_SIZE, PYTHON_RESIDUAL_SIZE + 1, 100])
 def test_natural_map_residual_is_the_numpy_expression(rng: np.random.Generator, m: int) -> None:
     for _ in range(200):
         A = rng.standard_normal((m, m))
@@ -50,10 +54,12 @@ def test_natural_map_residual_is_the_numpy_expression(rng: np.random.Generator, 
         assert natural_map_residual(D.diagonal(), P, w) == _numpy_natural_map(D, P, w)
 
 
+@pytest.mark.parametrize("m", [3, PYTHON_RESIDUAL_SIZE + 1])
 @pytest.mark.parametrize("where", ["impulse", "velocity", "diagonal"])
-def test_natural_map_residual_keeps_a_nan(rng: np.random.Generator, where: str) -> None:
-    D, P, w = np.eye(3), np.array([0.0, 1.0, 2.0]), np.array([1.0, 0.0, 0.5])
-    {"impulse": P, "velocity": w, "diagonal": D}[where].flat[rng.integers(3) * 4 % 3] = np.nan
+def test_natural_map_residual_keeps_a_nan(rng: np.random.Generator, where: str, m: int) -> None:
+    D, P, w = np.eye(m), rng.uniform(0.0, 1.0, m), rng.standard_normal(m)
+    row = rng.integers(m)
+    {"impulse": P, "velocity": w, "diagonal": D}[where][..., row] = np.nan  # D: a column
     assert np.isnan(_numpy_natural_map(D, P, w))
     assert np.isnan(natural_map_residual(D.diagonal(), P, w))
 

@@ -8,6 +8,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+#: Largest problem whose natural-map residual is computed on Python floats, in rows.
+PYTHON_RESIDUAL_SIZE = 32
+
 
 def complementarity_residual(
     D: NDArray[np.float64], b: NDArray[np.float64], impulses: NDArray[np.float64]
@@ -34,10 +37,13 @@ def natural_map_residual(
     """``max |min(d ⊙ P, w)|`` in [m/s] for impulses P and velocities w = D P + b, all (m,).
 
     ``diagonal`` is the diagonal d of D in [m/s per N s] (or :func:`velocity_scale`): an
-    entry ``<= 0`` counts as 1. A NaN anywhere gives NaN, and an empty problem 0. A loop on
-    Python floats: contact problems are small (~1 µs for m = 4, where the same numpy
-    expression costs ~4.6 µs; equal at m ~ 35).
+    entry ``<= 0`` counts as 1. A NaN anywhere gives NaN, and an empty problem 0. Up to
+    :data:`PYTHON_RESIDUAL_SIZE` rows a loop on Python floats (~1 µs for m = 4, where the
+    numpy expression costs ~4.6 µs; equal at m ~ 35), numpy beyond.
     """
+    if impulses.size > PYTHON_RESIDUAL_SIZE:
+        scale = np.where(diagonal <= 0.0, 1.0, diagonal)
+        return float(np.abs(np.minimum(scale * impulses, velocity)).max())
     residual = 0.0
     for d, p, w in zip(diagonal.tolist(), impulses.tolist(), velocity.tolist(), strict=True):
         s = p if d <= 0.0 else d * p  # [m/s]
