@@ -301,12 +301,10 @@ class PhaseMachine:
     def _forces(self, t: float) -> tuple[Vector, tuple[Vector, ...]]:
         """Desired forces [N] and their derivatives [N/s^k] at ``t`` [s], some contact held."""
         order, cycle = self.order, self.cycle
-        rows = [[0.0] * len(self.phases) for _ in range(order - 1)]  # λ_d, k - 2 derivatives
+        rows = np.zeros((order - 1, len(self.phases)))  # λ_d and its k - 2 derivatives
         for i, phase, t_d in self._held:
-            values = cycle.desired_force_derivatives(phase, t, t_d, order - 2)
-            for row, value in zip(rows, values, strict=True):
-                row[i] = value
-        force, *derivatives = map(np.array, rows)
+            rows[:, i] = cycle.desired_force_derivatives(phase, t, t_d, order - 2)
+        force, *derivatives = rows
         return force, tuple(derivatives)
 
     def update(self, t: float, closed: NDArray[np.bool_], V1: float, now: DesiredState) -> bool:
