@@ -150,7 +150,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -170,6 +170,9 @@ from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
 from ucontrol.solvers.coulomb_problem import CoulombProblem
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
+
+if TYPE_CHECKING:
+    from ucontrol.integrators.compiled_free_step import CompiledFreeStep
 
 Vector = NDArray[np.float64]
 
@@ -326,6 +329,7 @@ class MoreauJean:
             nv = robot.nv
             implicit[nv:, nv:] += np.diag(flexible.motor_inertia)  # + B on the motors
             self._implicit_forces = implicit  # W without the links' M(q)
+        self._free_step = self._compiled_free_step()
 
     def _set_joint_friction(
         self,
@@ -357,6 +361,34 @@ class MoreauJean:
         """Forget which constraints carried an impulse in the last step (a new run)."""
         self._activation[:] = 0.0
         self._first_step = True
+
+    def _compiled_free_step(self) -> CompiledFreeStep | None:
+        """The free part of the step as one compiled call, where the step allows it.
+
+        With the compiled constraint rows (plane contacts and stops of a robot whose joints
+        are vector spaces), without midpoint Coriolis forces, Coulomb joints or bilateral
+        constraints, and where a C compiler is present.
+        """
+        if (
+            self._rows is None
+            or self.midpoint
+            or self._coulomb_rows is not None
+            or self._bilateral is not None
+        ):
+            return None
+        from ucontrol.integrators.compiled_free_step import CompiledFreeStep
+
+        step = CompiledFreeStep(
+            self._data.M,
+            self._data.nle,
+            self.constraints.size,
+            dt=self.dt,
+            theta=self.theta,
+            horizon=self.gamma * self.dt,
+            flexible=self.flexible,
+            viscous=self._viscous,
+        )
+        return step if step.compiled else None
 
     def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
         """Dynamics, kinematics and constraint gaps at (q, v) and time t; prepares :meth:`step`.
@@ -390,14 +422,18 @@ class MoreauJean:
         """
         model, data, h = self._model, self._data, self.dt
         inverse_inertia: Callable[[Vector], Vector]
-        if self.flexible is None and not self.midpoint and self._viscous is None:
-            pin.cholesky.decompose(model, data)
-            v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)
-            inverse_inertia = self._rigid_inverse_inertia
+        free_step, q_free = self._free_step, None
+        if free_step is not None:  # the same terms in one compiled call
+            v_free, q_free, predicted = free_step(state, tau)
         else:
-            v_free, inverse_inertia = self._free_velocity(state, tau)
-        # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
-        predicted = state.gap + (self.gamma * h) * state.normal_velocity
+            if self.flexible is None and not self.midpoint and self._viscous is None:
+                pin.cholesky.decompose(model, data)
+                v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)
+                inverse_inertia = self._rigid_inverse_inertia
+            else:
+                v_free, inverse_inertia = self._free_velocity(state, tau)
+            # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
+            predicted = state.gap + (self.gamma * h) * state.normal_velocity
         if self._first_step:
             self._first_step = False
             closed = (state.gap <= START_GAP_TOLERANCE) & (predicted > self._activation)
@@ -426,8 +462,11 @@ class MoreauJean:
                 J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
             if self._coulomb_rows is not None:  # Coulomb joints' rows last
                 J = np.vstack((J, self._coulomb_rows))
-            Minv_Jt = inverse_inertia(J)
-            D = J.dot(Minv_Jt)
+            if free_step is not None:
+                Minv_Jt, D = free_step.contact_terms(indices)
+            else:
+                Minv_Jt = inverse_inertia(J)
+                D = J.dot(Minv_Jt)
             u_free = J.dot(v_free)
             rate_now = None
             if self.constraints.time_dependent:  # velocities relative to moving surfaces
@@ -450,9 +489,12 @@ class MoreauJean:
             if tangents is not None and friction_impulse is not None:
                 _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
             v_next = v_free + Minv_Jt.dot(solution.impulses)
+            q_free = None  # the impulses move q too
         else:
             v_next = v_free
-        return self._outcome(state, v_next, impulse, active, solution, plastic, friction_impulse)
+        return self._outcome(
+            state, v_next, impulse, active, solution, plastic, friction_impulse, q_next=q_free
+        )
 
     def _offsets(
         self, indices: NDArray[np.intp], state: PlantEvaluation
@@ -621,15 +663,18 @@ class MoreauJean:
         friction_impulse: Vector | None,
         *,
         held: Vector | None = None,
+        q_next: Vector | None = None,
     ) -> StepOutcome:
         """The step's outcome from :math:`v_{k+1}`, and the persistence memory of the next step.
 
-        :math:`q_{k+1}` is step 4's, projected onto the bilateral constraints on a closed chain
-        with the ``held`` contacts' normal rows kept (shape (k, nv) or None).
+        :math:`q_{k+1}` is step 4's (or ``q_next`` when it is already known), projected onto
+        the bilateral constraints on a closed chain with the ``held`` contacts' normal rows
+        kept (shape (k, nv) or None).
         """
-        q_next = self._advance(
-            state.q, self.dt * ((1.0 - self.theta) * state.v + self.theta * v_next)
-        )
+        if q_next is None:
+            q_next = self._advance(
+                state.q, self.dt * ((1.0 - self.theta) * state.v + self.theta * v_next)
+            )
         if self._bilateral is not None:
             q_next = self._project(q_next, held if held is not None and held.size else None)
         np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
