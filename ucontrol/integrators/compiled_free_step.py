@@ -131,7 +131,7 @@ class CompiledFreeStep:
         _, _, c, d = self._split
         Winv_Jt = self._last[c:d].reshape((size, n), order="F")
         delassus = self._last[d:].reshape((n, n), order="F")
-        return Winv_Jt[:, indices], delassus[np.ix_(indices, indices)]
+        return Winv_Jt[:, indices], delassus[indices[:, None], indices]
 
 
 def _constant_terms(
