@@ -348,18 +348,19 @@ class BlendToNominal:
         if sigma >= 1.0:
             return nominal
         order = len(nominal) - 1
-        beta = list(smooth_step(sigma, order, self.continuity))
+        beta = smooth_step(sigma, order, self.continuity)
+        rates = [beta[0]]  # the time derivatives of β [1/s^i]
         scale = 1.0
-        for i in range(1, order + 1):
+        for value in beta[1:]:
             scale *= T
-            beta[i] /= scale  # [1/s^i]
+            rates.append(value / scale)
         base = self.base(t, nominal)
         error = [n - b for n, b in zip(nominal, base, strict=True)]
         blended = []
         for k, binomials in enumerate(_binomial_rows(order)):
             value = base[k]
             for i, weight in enumerate(binomials):
-                value += weight * beta[i] * error[k - i]
+                value += weight * rates[i] * error[k - i]
             blended.append(value)
         return tuple(blended)
 
