@@ -52,6 +52,7 @@ class CirclePath:
         if np.any(norms < 1e-12) or abs(axes[0] @ axes[1]) > 1e-9 * norms.prod():
             raise InvalidParameterError("axes", self.axes, "two orthogonal non-zero vectors")
         object.__setattr__(self, "axes", axes / norms[:, None])
+        object.__setattr__(self, "_plane_tables", {})  # order -> plane_table(order)
 
     def __call__(self, t: float) -> tuple[Vector, Vector, Vector]:
         """Position [m], velocity [m/s] and acceleration [m/s²] at time ``t`` [s], each (3,)."""
@@ -84,7 +85,7 @@ class CirclePath:
         :meth:`plane_table` applied to :math:`(\cos\varphi, \sin\varphi)`.
         """
         angle = self.angle(t)
-        return self.plane_table(order) @ np.array([math.cos(angle), math.sin(angle)])
+        return np.dot(self.plane_table(order), np.array([math.cos(angle), math.sin(angle)]))
 
     def angle(self, t: float) -> float:
         r"""The angle :math:`\varphi = \varphi_0 + 2\pi t / P` at time ``t`` [s], in [rad]."""
@@ -98,12 +99,17 @@ class CirclePath:
         row k of the coefficients is entry k applied to :math:`(\cos\varphi, \sin\varphi)`:
         each coefficient is one product :math:`\pm r \omega^k \cos\varphi` or
         :math:`\pm r \omega^k \sin\varphi`, and the whole trajectory's time dependence is the
-        pair :math:`(\cos\varphi, \sin\varphi)` (one matrix product per sample).
+        pair :math:`(\cos\varphi, \sin\varphi)` (one matrix product per sample). Built once per
+        order, read-only.
         """
-        omega = 2.0 * math.pi / self.period  # [rad/s]
-        r = self.radius
-        quarter_turn = np.array([[0.0, -1.0], [1.0, 0.0]])  # (cos, sin) -> (-sin, cos)
-        table = [r * np.eye(2)]
-        for k in range(1, order + 1):
-            table.append(r * omega**k * np.linalg.matrix_power(quarter_turn, k))
-        return np.array(table)
+        tables: dict[int, NDArray[np.float64]] = self.__dict__["_plane_tables"]
+        if order not in tables:
+            omega = 2.0 * math.pi / self.period  # [rad/s]
+            r = self.radius
+            quarter_turn = np.array([[0.0, -1.0], [1.0, 0.0]])  # (cos, sin) -> (-sin, cos)
+            table = [r * np.eye(2)]
+            for k in range(1, order + 1):
+                table.append(r * omega**k * np.linalg.matrix_power(quarter_turn, k))
+            tables[order] = np.array(table)
+            tables[order].flags.writeable = False
+        return tables[order]
