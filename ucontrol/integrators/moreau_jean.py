@@ -148,6 +148,7 @@ solver's best impulses (``on_unsolved = "warn"``); the residual is in every step
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -155,8 +156,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
-from scipy.linalg.lapack import dpotrf as _potrf
-from scipy.linalg.lapack import dpotrs as _potrs
 
 from ucontrol._validation import as_float, as_in_interval, as_positive
 from ucontrol.contact.compiled_rows import compiled_rows
@@ -920,6 +919,14 @@ class MoreauJean:
         return solution._replace(impulses=solution.impulses[real], velocity=solution.velocity[real])
 
 
+@functools.cache
+def _lapack_cholesky() -> tuple[Any, Any]:
+    """LAPACK's ``dpotrf`` and ``dpotrs``, scipy.linalg loaded by the first step needing them."""
+    from scipy.linalg.lapack import dpotrf, dpotrs
+
+    return dpotrf, dpotrs
+
+
 def _upper_cholesky(W: Vector) -> Vector:
     """Upper Cholesky factor of the symmetric positive definite W (its upper triangle read).
 
@@ -929,7 +936,7 @@ def _upper_cholesky(W: Vector) -> Vector:
     Raises:
         numpy.linalg.LinAlgError: W is not positive definite.
     """
-    factor, info = _potrf(W, lower=False, clean=False)
+    factor, info = _lapack_cholesky()[0](W, lower=False, clean=False)
     if info != 0:
         raise np.linalg.LinAlgError(f"the iteration matrix W is not positive definite ({info})")
     return factor
@@ -937,7 +944,7 @@ def _upper_cholesky(W: Vector) -> Vector:
 
 def _cholesky_solve(factor: Vector, b: Vector) -> Vector:
     """``W⁻¹ b`` from :func:`_upper_cholesky`'s factor; b of shape (n,) or (n, k)."""
-    x, _ = _potrs(factor, b, lower=False)
+    x, _ = _lapack_cholesky()[1](factor, b, lower=False)
     return x
 
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.optimize
 from numpy.typing import NDArray
 
 from ucontrol.exceptions import SolverError
@@ -160,5 +159,7 @@ def _non_negative_solve(A: Vector, y: Vector) -> NDArray[np.floating]:
         pass
     x = np.linalg.lstsq(A, y, rcond=1e-12)[0]
     if (x < 0.0).any():
+        import scipy.optimize  # rare: loaded only when needed
+
         x = scipy.optimize.nnls(A, y)[0]
     return x

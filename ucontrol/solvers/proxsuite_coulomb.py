@@ -54,7 +54,6 @@ import time
 
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
@@ -429,6 +428,8 @@ def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector 
         # where non-negative ones exist: bounded least squares on the normal unknowns.
         normal = np.concatenate((stick_rows < m, np.ones(slide.size, dtype=bool)))
         lower = np.where(normal, 0.0, -np.inf)
+        import scipy.optimize  # rare: loaded only when needed
+
         y = scipy.optimize.lsq_linear(A, rhs, bounds=(lower, np.inf), method="bvls").x
         candidate = _impulses(y, stick_rows, E_slide, size)
     if np.any(candidate[:m] < -1e-12 * (1.0 + np.abs(candidate[:m]).max())):
