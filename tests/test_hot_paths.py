@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from conftest import ROBOTS
 
-from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.exceptions import SimulationError
 from ucontrol.integrators.moreau_jean import _cholesky_solve, _upper_cholesky
 from ucontrol.log import Log
+from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import simulate
 

@@ -10,6 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from ucontrol.control.controller import ContactState
 from ucontrol.model.compiled_function import (
     CACHE_ENV,
     NO_COMPILE_ENV,
@@ -17,7 +18,6 @@ from ucontrol.model.compiled_function import (
     cache_dir,
     compilation_disabled,
 )
-from ucontrol.control.controller import ContactState
 from ucontrol.scene import Scene
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
