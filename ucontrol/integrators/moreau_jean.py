@@ -312,6 +312,7 @@ class MoreauJean:
                     "solver", self.solver.name, "'proxsuite' with bilateral constraints"
                 )
         self._friction = constraints.has_friction
+        self._plastic = not constraints.restitution.any()  # no restitution terms to compute
         self.persistence_tolerance = as_float("persistence_tolerance", persistence_tolerance)
         if self.persistence_tolerance < 0.0:
             raise InvalidParameterError("persistence_tolerance", persistence_tolerance, ">= 0")
@@ -508,26 +509,30 @@ class MoreauJean:
             and the closure :math:`g_a / h` of the held constraints with a positive gap (which
             get no restitution), or None when there is none; each of shape (m,).
         """
-        h, u_minus = self.dt, state.normal_velocity[indices]
-        closing = (
-            u_minus < -self.restitution_threshold
-            if self.newton_law == "closing"
-            else np.ones(u_minus.size, dtype=bool)  # Siconos: every active constraint
-        )
-        gap = state.gap[indices]
+        h, gap = self.dt, state.gap[indices]
         if indices.size == 1:  # the common single contact, without array temporaries
             i = indices[0]
             if self._activation[i] > 0.0 and gap[0] > 0.0:
                 return np.zeros(1), gap / h
-            return (
-                self.constraints.restitution[indices] * u_minus if closing[0] else np.zeros(1)
-            ), None
-        rebound = np.where(closing, self.constraints.restitution[indices] * u_minus, 0.0)
+            return self._rebound(indices, state), None
+        rebound = self._rebound(indices, state)
         held_open = (self._activation[indices] > 0.0) & (gap > 0.0)
         if not held_open.any():
             return rebound, None
         rebound[held_open] = 0.0
         return rebound, np.where(held_open, gap / h, 0.0)
+
+    def _rebound(self, indices: NDArray[np.intp], state: PlantEvaluation) -> Vector:
+        """:math:`e_a u_a^-` of the closing constraints among ``indices``, 0 elsewhere, (m,)."""
+        if self._plastic:  # every restitution 0: no array arithmetic
+            return np.zeros(indices.size)
+        u_minus = state.normal_velocity[indices]
+        if self.newton_law != "closing":  # Siconos: every active constraint
+            return self.constraints.restitution[indices] * u_minus
+        closing = u_minus < -self.restitution_threshold
+        if indices.size == 1:
+            return self.constraints.restitution[indices] * u_minus if closing[0] else np.zeros(1)
+        return np.where(closing, self.constraints.restitution[indices] * u_minus, 0.0)
 
     def _mixed_step(
         self,
