@@ -17,7 +17,7 @@ from ucontrol.campaign import load
 CAMPAIGN = """
 [campaign]
 scene = "ball.toml"
-duration = 0.6
+duration = 2.0  # [s] per run: the signal lands long before the 8 runs are done
 dt = 2e-4
 seed = 4
 runs = 8
