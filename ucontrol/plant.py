@@ -72,7 +72,10 @@ def evaluate_plant(
     compiled call instead of the frame placements.
     """
     model = constraints.robot.model
-    q1, v1 = (q, v) if flexible is None else flexible.split(q, v)[:2]
+    if flexible is None:
+        q1, v1 = q, v
+    else:  # the links' state, and the motors'
+        q1, v1, q2, v2 = flexible.split(q, v)
     pin.computeAllTerms(model, data, q1, v1)
     normal_rows = None
     if rows is not None:
@@ -82,10 +85,9 @@ def evaluate_plant(
             pin.updateFramePlacements(model, data)
         gap, normal_velocity = constraints.evaluate(data, q1, v1, t)
     kinetic, potential = data.kinetic_energy, data.potential_energy
-    if flexible is not None:
-        motors, springs = flexible.energies(q, v)
-        kinetic += motors
-        potential += springs
+    if flexible is not None:  # the motors' kinetic and the springs' elastic energy
+        kinetic += flexible.motor_kinetic_energy(v2)
+        potential += flexible.spring_energy(q1, q2)
     return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
 
 

@@ -195,11 +195,6 @@ class FlexibleJoints:
         forces[self.nv :] = transmission
         return forces
 
-    def energies(self, q: Vector, v: Vector) -> tuple[float, float]:
-        """Motors' kinetic and springs' elastic energy in [J] at the extended (q, v)."""
-        q1, _, q2, v2 = self.split(q, v)
-        return self.motor_kinetic_energy(v2), self.spring_energy(q1, q2)
-
     def spring_energy(self, q1: Vector, q2: Vector) -> float:
         """Elastic energy of the springs in [J]."""
         deflection = self.deflection(q1, q2)
