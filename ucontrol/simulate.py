@@ -200,11 +200,6 @@ class _ClosedLoop:
         self.q, self.v = scene.initial_state()  # motors after the links with flexible joints
         self.u = np.zeros(robot.nu)
         self.u_sum = 0.0
-        self.ones_q, self.ones_v, self.ones_u = (
-            np.ones(self.q.size),
-            np.ones(self.v.size),
-            np.ones(robot.nu),
-        )
         self.tau = np.zeros(self.v.size)
         # The input is tau itself when it acts on every velocity coordinate, in order.
         self.tau_is_u = bool(np.array_equal(self.actuated, np.arange(self.v.size)))
@@ -271,7 +266,8 @@ class _ClosedLoop:
             raise ShapeError("controller output u", (self.nu,), output.shape)
         self.commanded_u = output
         self.u = output if self.actuators is None else self.actuators.apply(output)
-        self.u_sum = float(self.u.dot(self.ones_u))  # the input's part of the finiteness check
+        # The input's part of the finiteness check (a sum of Python floats: fewer calls).
+        self.u_sum = sum(self.u.tolist())
         if self.tau_is_u:
             self.tau = self.u
         else:
@@ -298,8 +294,8 @@ class _ClosedLoop:
             self.period_steps += 1
         self.n_events += outcome.events
         self.n_plastic += outcome.plastic
-        # One finiteness check per step: a non-finite entry makes its dot with ones non-finite.
-        if not math.isfinite(self.q.dot(self.ones_q) + self.v.dot(self.ones_v) + self.u_sum):
+        # One finiteness check per step: a non-finite entry makes the sum non-finite.
+        if not math.isfinite(sum(self.q.tolist()) + sum(self.v.tolist()) + self.u_sum):
             as_vector("controller output u", self.u)  # names the culprit if it is the controller
             t = float(log.t[len(log) - 1]) + self.integrator.dt
             raise _NonFiniteState(f"the state became non-finite at t = {t:.6g} s")

@@ -186,6 +186,8 @@ BILATERAL_PROJECTION_TOLERANCE = 1e-12
 BILATERAL_PROJECTION_ITERATIONS = 5
 #: Gap in [m] (or [rad]) up to which a constraint counts as closed at the first step of a run.
 START_GAP_TOLERANCE = 1e-9
+#: Largest state (nv, motors included) whose position update runs on Python floats.
+SCALAR_UPDATE_SIZE = 4
 #: Whom Newton's law applies to: the closing constraints of the active set (the project's
 #: rule, with the energy guard), or every active constraint, separating ones included, with no
 #: guard (Siconos' MoreauJeanOSI, to reproduce its runs).
@@ -319,7 +321,18 @@ class MoreauJean:
         # Largest predicted gap of each constraint in the active set: the persistence
         # tolerance for those held in the last step (positive only for them), else 0.
         self._activation = np.zeros(constraints.size)
+        self._holding = False  # whether some entry of _activation may be positive
         self._first_step = True  # contacts closed at the start are held (module docstring)
+        # The outcome of a step without impulses: shared, read-only zeros.
+        self._no_impulse = _read_only(np.zeros(constraints.size))
+        self._no_friction_impulse = (
+            _read_only(np.zeros((constraints.size, 3))) if constraints.has_friction else None
+        )
+        # q ⊕ dq on Python floats for the few coordinates where that beats numpy's calls.
+        self._scalar_update = (
+            self._vector_space
+            and robot.nv + (0 if flexible is None else flexible.nf) <= SCALAR_UPDATE_SIZE
+        )
         if flexible is not None:
             ht = self.dt * self.theta
             self._stiffness = flexible.coupling_matrix(flexible.stiffness)  # K_q
@@ -360,6 +373,7 @@ class MoreauJean:
     def reset(self) -> None:
         """Forget which constraints carried an impulse in the last step (a new run)."""
         self._activation[:] = 0.0
+        self._holding = False
         self._first_step = True
 
     def _compiled_free_step(self) -> CompiledFreeStep | None:
@@ -441,62 +455,80 @@ class MoreauJean:
             self._first_step = False
             closed = (state.gap <= START_GAP_TOLERANCE) & (predicted > self._activation)
             self._activation[closed] = max(self.persistence_tolerance, START_GAP_TOLERANCE)
+            self._holding = True
         active = predicted <= self._activation
-        indices = active.nonzero()[0]
         if self._bilateral is not None:
-            return self._mixed_step(state, v_free, inverse_inertia, active, indices)
+            return self._mixed_step(state, v_free, inverse_inertia, active, active.nonzero()[0])
+        if self._coulomb_rows is None and not active.any():  # no contact problem
+            return self._free_outcome(state, v_free, active, q_free)
+        indices = active.nonzero()[0]
         impulse = np.zeros(self.constraints.size)
         friction_impulse = np.zeros((self.constraints.size, 3)) if self._friction else None
-        solution = None
         plastic = False
-        if indices.size or self._coulomb_rows is not None:
-            J = (
-                self.constraints.jacobian(data, indices)
-                if state.normal_rows is None
-                else state.normal_rows[indices]
-            )
-            tangents = self.constraints.tangent_count[indices] if self._friction else None
-            if tangents is not None and tangents.any():
-                T, directions = self.constraints.tangent_rows(data, indices)
-                J = np.vstack((J, T))
-            else:
-                tangents = None
-            if self.flexible is not None:  # contacts act on the links only
-                J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
-            if self._coulomb_rows is not None:  # Coulomb joints' rows last
-                J = np.vstack((J, self._coulomb_rows))
-            if free_step is not None:
-                Minv_Jt, D = free_step.contact_terms(indices)
-            else:
-                Minv_Jt = inverse_inertia(J)
-                D = J.dot(Minv_Jt)
-            u_free = J.dot(v_free)
-            rate_now = None
-            if self.constraints.time_dependent:  # velocities relative to moving surfaces
-                rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
-                rate_now = _pad(rate_now, u_free.size)
-                u_free = u_free + _pad(rate_next, u_free.size)
-            rebound, closure = self._offsets(indices, state)
-            b = u_free if closure is None else u_free + _pad(closure, u_free.size)
-            rebound = _pad(rebound, u_free.size)  # none on tangential and joint rows
-            solution = self._solve(D, b + rebound, indices, tangents)
-            if np.count_nonzero(rebound) and self.newton_law == "closing":
-                # Energy the impulses add to T + V over the step [J] (module docstring).
-                u_plus = solution.velocity - rebound - (b - u_free)
-                u_k = J.dot(state.v) if rate_now is None else J.dot(state.v) + rate_now
-                gain = solution.impulses.dot(0.5 * (u_free + u_plus) - self.theta * (u_free - u_k))
-                if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
-                    solution = self._solve(D, b, indices, tangents)
-                    plastic = True
-            impulse[indices] = solution.impulses[: indices.size]
-            if tangents is not None and friction_impulse is not None:
-                _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
-            v_next = v_free + Minv_Jt.dot(solution.impulses)
-            q_free = None  # the impulses move q too
+        J = (
+            self.constraints.jacobian(data, indices)
+            if state.normal_rows is None
+            else state.normal_rows[indices]
+        )
+        tangents = self.constraints.tangent_count[indices] if self._friction else None
+        if tangents is not None and tangents.any():
+            T, directions = self.constraints.tangent_rows(data, indices)
+            J = np.vstack((J, T))
         else:
-            v_next = v_free
-        return self._outcome(
-            state, v_next, impulse, active, solution, plastic, friction_impulse, q_next=q_free
+            tangents = None
+        if self.flexible is not None:  # contacts act on the links only
+            J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
+        if self._coulomb_rows is not None:  # Coulomb joints' rows last
+            J = np.vstack((J, self._coulomb_rows))
+        if free_step is not None:
+            Minv_Jt, D = free_step.contact_terms(indices)
+        else:
+            Minv_Jt = inverse_inertia(J)
+            D = J.dot(Minv_Jt)
+        u_free = J.dot(v_free)
+        rate_now = None
+        if self.constraints.time_dependent:  # velocities relative to moving surfaces
+            rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
+            rate_now = _pad(rate_now, u_free.size)
+            u_free = u_free + _pad(rate_next, u_free.size)
+        rebound, closure = self._offsets(indices, state)
+        b = u_free if closure is None else u_free + _pad(closure, u_free.size)
+        rebound = _pad(rebound, u_free.size)  # none on tangential and joint rows
+        solution = self._solve(D, b + rebound, indices, tangents)
+        if np.count_nonzero(rebound) and self.newton_law == "closing":
+            # Energy the impulses add to T + V over the step [J] (module docstring).
+            u_plus = solution.velocity - rebound - (b - u_free)
+            u_k = J.dot(state.v) if rate_now is None else J.dot(state.v) + rate_now
+            gain = solution.impulses.dot(0.5 * (u_free + u_plus) - self.theta * (u_free - u_k))
+            if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
+                solution = self._solve(D, b, indices, tangents)
+                plastic = True
+        impulse[indices] = solution.impulses[: indices.size]
+        if tangents is not None and friction_impulse is not None:
+            _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
+        v_next = v_free + Minv_Jt.dot(solution.impulses)
+        return self._outcome(state, v_next, impulse, active, solution, plastic, friction_impulse)
+
+    def _free_outcome(
+        self,
+        state: PlantEvaluation,
+        v_free: Vector,
+        active: NDArray[np.bool_],
+        q_free: Vector | None,
+    ) -> StepOutcome:
+        """The outcome of a step without a contact problem: no impulse, nothing held next."""
+        if self._holding:
+            self._activation.fill(0.0)
+            self._holding = False
+        if q_free is None:
+            q_free = self._advance_theta(state, v_free)
+        return StepOutcome(
+            q_free,
+            v_free,
+            self._no_impulse,
+            active,
+            None,
+            friction_impulse=self._no_friction_impulse,
         )
 
     def _offsets(
@@ -679,12 +711,11 @@ class MoreauJean:
         kept (shape (k, nv) or None).
         """
         if q_next is None:
-            q_next = self._advance(
-                state.q, self.dt * ((1.0 - self.theta) * state.v + self.theta * v_next)
-            )
+            q_next = self._advance_theta(state, v_next)
         if self._bilateral is not None:
             q_next = self._project(q_next, held if held is not None and held.size else None)
         np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
+        self._holding = True
         return StepOutcome(
             q_next,
             v_next,
@@ -694,6 +725,18 @@ class MoreauJean:
             plastic=plastic,
             friction_impulse=friction_impulse,
         )
+
+    def _advance_theta(self, state: PlantEvaluation, v_next: Vector) -> Vector:
+        r""":math:`q_k \oplus \mathrm{h}\big((1 - \theta) v_k + \theta v_{k+1}\big)` (step 4).
+
+        On a few vector-space coordinates, the same IEEE operations on Python floats (numpy's
+        five calls on tiny arrays cost twice as much).
+        """
+        h, theta = self.dt, self.theta
+        if self._scalar_update:
+            a, rows = 1.0 - theta, zip(state.q.tolist(), state.v.tolist(), v_next.tolist())
+            return np.array([q + h * (a * v + theta * w) for q, v, w in rows])
+        return self._advance(state.q, h * ((1.0 - theta) * state.v + theta * v_next))
 
     def _project(self, q: Vector, held: Vector | None = None) -> Vector:
         r"""``q`` moved onto h(q) = 0 by Gauss–Newton steps of least norm (links only).
@@ -972,6 +1015,12 @@ def _add_friction_impulses(
     owners = np.repeat(indices, tangents)
     tangential = solution.impulses[indices.size : indices.size + owners.size, None]
     np.add.at(friction_impulse, owners, tangential * directions)
+
+
+def _read_only(array: Vector) -> Vector:
+    """``array``, made read-only (an outcome shared between steps)."""
+    array.flags.writeable = False
+    return array
 
 
 def _pad(rows: Vector, size: int) -> Vector:
