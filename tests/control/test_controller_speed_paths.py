@@ -3,7 +3,10 @@
 The measurement of the contact forces and flags, the flexible law's force input and the
 impedance law's pseudo-inverse are written on Python scalars or as bare numpy operations for
 speed; each is checked here against the array formula it replaces, bitwise (same IEEE
-operations in the same order), on random inputs.
+operations in the same order), on random inputs. So are the laws' inputs written by shortcut
+(the stacked target in one copy, the reference from the target where nothing is clipped, the
+force term reset only after a held contact) against the column-by-column copies, and the log
+rows written from cached values against the values they stand for.
 """
 
 from __future__ import annotations
@@ -119,3 +122,130 @@ def test_torque_is_not_overwritten_by_the_next_call(scene: str) -> None:
     kept = first.copy()
     law(0.5, q + 0.1, np.ones(nq), contacts)
     assert np.array_equal(first, kept)
+
+
+def _desired_variants(rng: np.random.Generator, law, t: float):  # type: ignore[no-untyped-def]
+    """The machine's desired state at ``t`` with random forces and clipping, and its plain twin.
+
+    The twin has separate target arrays (no ``stacked``), reference arrays that are not the
+    target's, and a fresh ``constrained`` array: the law's general copies.
+    """
+    base = law.machine.desired(t)
+    n = len(law.machine.contacts)
+    constrained = rng.random(n) < 0.5
+    if not constrained.any() and rng.random() < 0.5:
+        constrained = law.machine.none_constrained
+    force = np.where(constrained, rng.uniform(0.0, 5.0, n), 0.0)  # [N]
+    derivatives = tuple(np.where(constrained, rng.uniform(-5.0, 5.0, n), 0.0) for _ in base[4])
+    reference = base.reference
+    if rng.random() < 0.3:  # a clipped reference: arrays of their own
+        reference = (base.reference[0].copy(), base.reference[1].copy())
+        reference[0][0] = reference[1][0] = 0.0
+    fast = base._replace(
+        reference=reference, force=force, constrained=constrained, force_derivatives=derivatives
+    )
+    plain = fast._replace(
+        target=tuple(row.copy() for row in base.target),
+        reference=(reference[0].copy(), reference[1].copy()),
+        constrained=np.array(constrained),
+        stacked=None,
+    )
+    return fast, plain
+
+
+@pytest.mark.parametrize("scene", ["two_link_two_constraints", "panda_table"])
+def test_rigid_law_inputs_by_shortcut_match_the_plain_copies(
+    rng: np.random.Generator, scene: str
+) -> None:
+    """Stacked target, reference from the target, skipped force reset: same law outputs."""
+    law = _controller(scene)
+    if law._compiled_law is None:
+        pytest.skip("no C compiler: the compiled law's inputs are not used")
+    names = list(law.machine.contacts)
+    n, nq = len(names), law.robot.nq
+    contacts = ContactState(names, np.ones(n), np.zeros(n), np.zeros(n), np.zeros(n, bool), 1e-3)
+    q = law.robot.neutral() if scene == "panda_table" else np.array([1.5, -0.9])
+    law(0.0, q + 0.1 * rng.standard_normal(nq), rng.standard_normal(nq), contacts)
+    for t in rng.uniform(0.0, 12.0, 60):
+        law.contact_force[...] = rng.uniform(0.0, 5.0, n)
+        law._persistent[...] = rng.random(n) < 0.5
+        fast, plain = _desired_variants(rng, law, float(t))
+        expected = law._compiled_values(plain).copy()
+        for i in (8, 9):  # the target and reference inputs: nothing left from the plain call
+            law._compiled_law.input_buffer(i).fill(np.nan)
+        assert np.array_equal(law._compiled_values(fast), expected)
+        # After a held contact, a free state resets the force term: as the plain path does.
+        free = fast._replace(constrained=law.machine.none_constrained)
+        expected = law._compiled_values(free._replace(constrained=np.zeros(n, bool))).copy()
+        law._compiled_values(fast)
+        assert np.array_equal(law._compiled_values(free), expected)
+
+
+def test_flexible_law_inputs_by_shortcut_match_the_plain_copies(rng: np.random.Generator) -> None:
+    law = _controller("two_link_flexible_two_constraints")
+    n = len(law.machine.contacts)
+    q = np.array([1.5, -0.9])
+    law._state_input[0][...] = q
+    for t in rng.uniform(0.0, 0.5, 60):  # targets Newton reaches from q
+        law.contact_force[...] = rng.uniform(0.0, 5.0, n)
+        law._persistent[...] = rng.random(n) < 0.5
+        fast, plain = _desired_variants(rng, law, float(t))
+        law._reference_time = None  # Newton from q for both
+        V1 = law._evaluate(float(t), q, plain)
+        expected = (law._law_output.copy(), law._law.input_buffer(0).copy())
+        law._reference_time = None
+        law._reference_input.fill(np.nan)  # nothing left from the plain call
+        assert law._evaluate(float(t), q, fast) == V1
+        assert np.array_equal(law._law_output, expected[0])
+        assert np.array_equal(law._law.input_buffer(0), expected[1])
+
+
+class _RecordChecker:
+    """The scene's controller, each of its log rows checked against the plain values."""
+
+    def __init__(self, law) -> None:  # type: ignore[no-untyped-def]
+        self.law, self.rows, self.events = law, 0, 0
+
+    def __call__(self, t, q, v, contacts):  # type: ignore[no-untyped-def]
+        return self.law(t, q, v, contacts)
+
+    def prepare_log(self, log) -> None:  # type: ignore[no-untyped-def]
+        self.law.prepare_log(log)
+
+    def record(self, log) -> None:  # type: ignore[no-untyped-def]
+        law = self.law
+        machine, desired = law.machine, law.desired
+        expected = {
+            "phase": machine.phase.value,
+            "contact_phase": np.array(machine.phases),
+            "events": machine.events.copy(),
+            "V": law.V,
+            "V1": law.V1,
+            "virtual_depth": machine.depth.copy(),
+            "task_position": law.X.copy(),
+            "task_desired": desired.reference[0].copy(),
+            "task_target": desired.target[0].copy(),
+            "lambda_d": desired.force.copy(),
+            "contact_force": law.contact_force.copy(),
+        }
+        if hasattr(law, "flexible"):
+            expected["motor_desired"] = law.motor_desired[0]
+            expected["link_desired"] = law.link_desired[0]
+        law.record(log)
+        k = len(log)
+        for name, value in expected.items():
+            assert np.array_equal(log.extra_fields([name])[0][k], value), name
+        assert not machine.events.any()  # logged once
+        self.rows += 1
+        self.events += int(expected["events"].any())
+
+
+@pytest.mark.parametrize("scene", ["two_link_two_constraints", "two_link_flexible_one_constraint"])
+def test_recorded_fields_are_the_plain_values(scene: str) -> None:
+    import ucontrol
+
+    checker = _RecordChecker(_controller(scene))
+    ucontrol.simulate(
+        load_scene(ROBOTS / f"{scene}.toml"), controller=checker, duration=6.0, progress=False
+    )
+    assert checker.rows == 6001 and checker.events >= 3  # τ0, first impact, t_f at least

@@ -4,7 +4,10 @@ The circle's samples as one product of a constant table with (cos φ, sin φ), t
 of ``update`` before its next due time, the values shared between calls (forces on their
 plateau, the reference where nothing is clipped) and the segments' precomputed tables, each
 against an independent reference: the analytic derivatives, the path seen only through its
-``derivatives``, a machine that runs every check at every call, finite differences.
+``derivatives``, a machine that runs every check at every call, finite differences. The rigid
+law's unrolled quintic blend and desired forces on Python floats are checked bitwise against
+the general formulas, the cached phase values, constraint flags and event flag against what
+they cache.
 """
 
 from __future__ import annotations
@@ -20,9 +23,12 @@ from numpy.polynomial import Polynomial
 
 from ucontrol.control import CirclePath, Phase, PhaseMachine
 from ucontrol.control.trajectory_segment import (
+    BlendToNominal,
+    Parabola,
     RestCubic,
     _derivative_table,
     _polynomial_sample,
+    smooth_step,
 )
 from ucontrol.scene import load_scene
 
@@ -207,3 +213,108 @@ def test_rest_cubic_jerk_is_the_derivative_of_its_acceleration(rng: np.random.Ge
         # (measured 1.0e-12 relative).
         assert segment(t, (0.0,) * 4)[3] == pytest.approx(central, rel=1e-11)
     assert segment(2.0, (0.0,) * 4) == (-0.01, 0.0, 0.0, 0.0)
+
+
+def _general_blend(segment: BlendToNominal, t: float, nominal: tuple[float, ...]) -> tuple:
+    """Leibniz's rule of BlendToNominal written for any order (the plain reference)."""
+    T = segment.duration
+    sigma = (t - segment.t0) / T
+    if sigma >= 1.0:
+        return nominal
+    order = len(nominal) - 1
+    beta = smooth_step(sigma, order, segment.continuity)
+    rates = [beta[0]] + [beta[i] / math.prod([T] * i) for i in range(1, order + 1)]
+    base = segment.base(t, nominal)
+    error = [n - b for n, b in zip(nominal, base, strict=True)]
+    blended = []
+    for k in range(order + 1):
+        value = base[k]
+        for i in range(k + 1):
+            value += float(math.comb(k, i)) * rates[i] * error[k - i]
+        blended.append(value)
+    return tuple(blended)
+
+
+def test_quintic_blend_is_the_general_leibniz_rule(rng: np.random.Generator) -> None:
+    for _ in range(200):
+        t0, duration = float(rng.uniform(0.0, 10.0)), float(rng.uniform(0.1, 2.0))
+        base = (
+            RestCubic(t0, *rng.normal(size=3).tolist(), float(rng.uniform(0.1, 1.0)))
+            if rng.random() < 0.5
+            else Parabola(t0, float(rng.uniform(0.1, 5.0)))
+        )
+        segment = BlendToNominal(base, t0, duration)
+        nominal = tuple(rng.normal(size=3).tolist())
+        for t in (t0 - 0.1, t0, *rng.uniform(t0, t0 + duration, 5), t0 + duration):
+            assert segment(t, nominal) == _general_blend(segment, t, nominal)
+
+
+def test_smooth_step_value_alone_is_the_first_of_its_derivatives(
+    rng: np.random.Generator,
+) -> None:
+    for sigma in (-0.5, 0.0, *rng.uniform(0.0, 1.0, 200), 1.0, 1.5):
+        assert smooth_step(sigma, 0) == smooth_step(sigma, 5)[:1]
+
+
+def _run_machine(rng: np.random.Generator, machine: PhaseMachine, duration: float):  # type: ignore[no-untyped-def]
+    """Yield the machine after each update of a run with random closures."""
+    for t in np.arange(0.0, duration, 2e-3):
+        closed = _closures(rng, machine, float(t))
+        machine.update(float(t), closed, float(rng.uniform(0.0, 1e-3)), machine.desired(float(t)))
+        yield float(t)
+
+
+@pytest.mark.parametrize("scene", ["two_link_one_constraint", "two_link_two_constraints"])
+def test_rigid_forces_are_the_cycle_desired_forces(rng: np.random.Generator, scene: str) -> None:
+    machine = _scene_machine(scene)
+    checked = 0
+    for t in _run_machine(rng, machine, 11.0):
+        if not machine._held:
+            continue
+        force, derivatives = machine._forces(t)
+        expected = np.zeros(len(machine.contacts))
+        for i, phase, t_d in machine._held:
+            expected[i] = machine.cycle.desired_force_derivatives(phase, t, t_d, 0)[0]
+        assert np.array_equal(force, expected) and derivatives == ()
+        checked += 1
+    assert checked > 100
+
+
+@pytest.mark.parametrize("order", [2, 4])
+def test_cached_phase_values_constraint_flags_and_events(
+    rng: np.random.Generator, order: int
+) -> None:
+    machine = _scene_machine("two_link_two_constraints", order)
+    pending_seen = 0
+    for t in _run_machine(rng, machine, 12.0):
+        assert machine.phase_value == machine.phase.value
+        assert machine.phase_values.tolist() == [int(phase) for phase in machine.phases]
+        desired = machine.desired(t)
+        held = [phase is Phase.CONSTRAINED for phase in machine.phases]
+        assert desired.constrained.tolist() == held
+        assert (desired.constrained is machine.none_constrained) == (not any(held))
+        assert not machine.none_constrained.any()
+        assert machine.events_pending == bool(machine.events.any())
+        if machine.events_pending and rng.random() < 0.5:
+            pending_seen += 1
+            machine.take_events()
+            assert not machine.events_pending
+    assert pending_seen > 0
+
+
+@pytest.mark.parametrize("order", [2, 4])
+def test_stacked_target_and_circle_angle(rng: np.random.Generator, order: int) -> None:
+    machine = _scene_machine("two_link_one_constraint", order)
+    path, table, offset = machine._plane
+    m = machine.task.m
+    for t in _run_machine(rng, machine, 11.0):
+        desired = machine.desired(t)
+        stacked = desired.stacked
+        assert stacked is not None and stacked.shape == ((order + 1) * m,)
+        for k, row in enumerate(desired.target):  # views of the stacked samples
+            assert np.shares_memory(row, stacked)
+            assert np.array_equal(row, stacked[k * m : (k + 1) * m])
+        angle = path.angle(t)  # the nominal samples with the path's own angle
+        expected = np.dot(table, np.array([math.cos(angle), math.sin(angle)]))
+        expected[:m] += offset
+        assert np.array_equal(machine._nominal(t), expected)

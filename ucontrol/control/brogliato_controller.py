@@ -177,11 +177,18 @@ class BrogliatoController:
                 self._law_inputs = [law.input_view(i) for i in range(11)]
                 target, reference = law.input_view(8), law.input_view(9)
                 self._law_columns = (*target.T, *reference.T)
+                # The target at once from the machine's stacked samples, and the reference
+                # from the target's first two columns where nothing is clipped.
+                self._target_buffer = law.input_buffer(8)
+                self._reference_buffer = law.input_buffer(9)
+                self._target_head = self._target_buffer[: 2 * task.m]
                 self._coordinates = self.machine.coordinates.tolist()  # task rows of contacts
         nv, m = robot.nv, task.m
         # Outputs of the compiled law: tau (nv,), V1, V, X (m,).
         self._V1_index, self._X_outputs = nv, slice(nv + 2, nv + 2 + m)
         self._tau_outputs = slice(0, nv) if self._all_actuated else robot.actuated
+        # Views of the compiled law's output buffer, taken at its first call.
+        self._out_views: tuple[Vector, Vector, Vector] | None = None
         self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
         self.reset()
 
@@ -196,6 +203,7 @@ class BrogliatoController:
         self.desired = DesiredState.zeros(m, n, self._order)
         # Measurements of the last call, written in place by _measure.
         self.contact_force = np.zeros(n)
+        self._force_written = True  # the compiled law's force input may be non-zero
         self._closed = np.zeros(n, dtype=bool)
         self._settled = np.zeros(n, dtype=bool)
         self._persistent = np.zeros(n, dtype=bool)
@@ -241,7 +249,7 @@ class BrogliatoController:
         machine, desired = self.machine, self.desired
         if self._log_fields is None or self._log_fields[0] is not log:
             self._log_fields = (log, log.extra_fields(list(LOG_FIELDS)))
-        k = len(log)
+        k = log.size  # len(log)
         (
             phase,
             contact_phase,
@@ -255,9 +263,14 @@ class BrogliatoController:
             lambda_d,
             contact_force,
         ) = self._log_fields[1]  # in the order of LOG_FIELDS
-        phase[k] = machine.phase.value
-        contact_phase[k] = machine.phases
-        events[k] = machine.events
+        phase[k] = machine.phase_value
+        contact_phase[k] = machine.phase_values
+        if machine.events_pending:
+            events[k] = machine.events
+            machine.events.fill(0)  # events are logged once
+            machine.events_pending = False
+        else:  # machine.events is 0
+            events[k] = 0
         V[k] = self.V
         V1[k] = self.V1
         virtual_depth[k] = machine.depth
@@ -266,7 +279,6 @@ class BrogliatoController:
         task_target[k] = desired.target[0]
         lambda_d[k] = desired.force
         contact_force[k] = self.contact_force
-        machine.events.fill(0)  # events are logged once
 
     def _measure(self, t: float, contacts: ContactState) -> NDArray[np.bool_]:
         """Check the time, read the contact forces; return which declared contacts closed.
@@ -360,10 +372,14 @@ class BrogliatoController:
     def _compiled_call(self, t: float, q: Vector, v: Vector, closed: NDArray[np.bool_]) -> Vector:
         """The law through its compiled form (same terms as :meth:`_torque`)."""
         inputs = self._law_inputs
-        self._pinocchio_pass(q, v)  # M, C, h, the joint Jacobians, ...: bound inputs
+        model, data = self._model, self._data  # the pass of _pinocchio_pass, inlined
+        pin.computeCoriolisMatrix(model, data, q, v)  # M, C, h, the joint Jacobians, ...:
+        pin.crba(model, data, q)  # bound inputs
+        pin.nonLinearEffects(model, data, q, v)
+        pin.updateFramePlacement(model, data, self.task.frame_id)
         inputs[6][...] = v
         if self._redundant:
-            inputs[7][...] = pin.difference(self._model, self.posture, q)
+            inputs[7][...] = pin.difference(model, self.posture, q)
         machine = self.machine
         desired = machine.desired(t)
         out = self._compiled_values(desired)
@@ -372,8 +388,11 @@ class BrogliatoController:
             out = self._compiled_values(desired)
         self.desired = desired
         self.V1, self.V = out.item(self._V1_index), out.item(self._V1_index + 1)
-        self.X[...] = out[self._X_outputs]
-        return out[self._tau_outputs].copy()
+        views = self._out_views
+        if views is None or views[0] is not out:  # the law's output buffer stays put
+            views = self._out_views = (out, out[self._X_outputs], out[self._tau_outputs])
+        self.X[...] = views[1]
+        return views[2].copy()
 
     def _compiled_values(self, desired: DesiredState) -> Vector:
         """Outputs (tau, V1, V, X) of the compiled law for ``desired``.
@@ -383,20 +402,33 @@ class BrogliatoController:
         """
         law = self._compiled_law
         assert law is not None
-        force = self._law_inputs[10]
-        force.fill(0.0)
-        if np.count_nonzero(desired.constrained):
+        held = desired.constrained
+        if held is not self.machine.none_constrained and np.count_nonzero(held):
+            force = self._law_inputs[10]
+            force.fill(0.0)
+            self._force_written = True
             force_gain, coordinates = self.gains.force_gain, self._coordinates
             measured, persistent = self.contact_force.tolist(), self._persistent.tolist()
-            for i, (held, lambda_d) in enumerate(
-                zip(desired.constrained.tolist(), desired.force.tolist(), strict=True)
+            for i, (is_held, lambda_d) in enumerate(
+                zip(held.tolist(), desired.force.tolist(), strict=True)
             ):
-                if held:  # the measured force where valid, else λ_d [N]
+                if is_held:  # the measured force where valid, else λ_d [N]
                     force_i = measured[i] if persistent[i] else lambda_d
                     force[coordinates[i]] = -lambda_d + force_gain * (force_i - lambda_d)
-        X_d, dX_d, ddX_d, X_ref, dX_ref = self._law_columns
-        X_d[...], dX_d[...], ddX_d[...] = desired.target
-        X_ref[...], dX_ref[...] = desired.reference
+        elif self._force_written:  # no contact held: no force term
+            self._law_inputs[10].fill(0.0)
+            self._force_written = False
+        target, reference, stacked = desired.target, desired.reference, desired.stacked
+        if stacked is not None and stacked.size == self._target_buffer.size:
+            self._target_buffer[...] = stacked  # the columns X_d, dX_d, ddX_d at once
+        else:
+            X_d, dX_d, ddX_d = self._law_columns[:3]
+            X_d[...], dX_d[...], ddX_d[...] = target
+        if reference[0] is target[0] and reference[1] is target[1]:  # nothing clipped
+            self._reference_buffer[...] = self._target_head
+        else:
+            X_ref, dX_ref = self._law_columns[3:]
+            X_ref[...], dX_ref[...] = reference
         return law()[0]
 
     def _sliding(self, state: TaskState, X_d: Vector, dX_d: Vector, dyn: _Dynamics) -> Vector:

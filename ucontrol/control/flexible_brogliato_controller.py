@@ -219,11 +219,22 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._target_input = tuple(x[size + k * nv : size + (k + 1) * nv] for k in range(1, 5))
         self._force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
         self._reference_derivatives.bind_input(0, self._reference_input)
+        # Views of the reference input: q1d, the targets' derivatives 1 to 4 (those of q1d
+        # once solved), all 5 as rows; of Newton's input and output.
+        self._reference_q = self._reference_input[:nv]
+        self._reference_tail = self._reference_input[nv:]
+        self._reference_rows = self._reference_input.reshape(5, nv)
         self._newton_input = self._newton_step.input_buffer(0)
         self._newton_q = self._newton_input[:nv]  # Newton's iterate, updated in place
+        self._newton_target = self._newton_input[nv:]
+        self._newton_out: tuple[Vector, Vector] | None = None  # (output buffer, its step)
         # Outputs of the law: u (nu,), X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
         self._nf = nf
         self._V1_index = 2 * nv + 1
+        self._X_slice, self._u_slice = slice(nv, 2 * nv), slice(0, nv)
+        self._q2d_slice = slice(2 * nv + 2, 2 * nv + 2 + nf)
+        self._split_shapes = ((robot.nq + nf,), (nv + nf,))
+        self._flexible_log_fields: tuple[Log, tuple[NDArray[np.float64], ...]] | None = None
 
     def reset(self) -> None:
         """Forget the run, including the last link reference (Newton's starting point)."""
@@ -231,26 +242,38 @@ class FlexibleBrogliatoController(BrogliatoController):
         nv, nf = self.robot.nv, self.flexible.nf
         self._reference_time: float | None = None
         self._link_rows = np.zeros((5, nv))  # q1d and its 4 derivatives, one per row
-        self.link_desired = tuple(self._link_rows)
-        self.motor_desired = tuple(np.zeros(nf) for _ in range(3))
+        # The law's outputs of the last call (u, X, V, V1, q2d, dq2d, ddq2d).
+        self._outputs = np.zeros(2 * nv + 2 + 3 * nf)
+
+    @property
+    def link_desired(self) -> tuple[Vector, ...]:
+        """:math:`q_{1d}` and its first 4 time derivatives at the last call, each (nv,)."""
+        return tuple(self._link_rows.copy())
+
+    @property
+    def motor_desired(self) -> tuple[Vector, ...]:
+        r""":math:`q_{2d}, \dot q_{2d}, \ddot q_{2d}` at the last call, each (nf,)."""
+        nv = self.robot.nv
+        return tuple(self._outputs[2 * nv + 2 :].reshape(3, self.flexible.nf).copy())
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Actuator torques, shape (nu,), in [N m] (or [N]): motor torques on flexible joints."""
-        q1, dq1, q2, dq2 = self.flexible.split(q, v)
+        q_shape, v_shape = self._split_shapes
+        if q.shape != q_shape or v.shape != v_shape:
+            self.flexible.split(q, v)  # raises the ShapeError
+        nq, nv = self.robot.nq, self.robot.nv  # FlexibleJoints.split without its checks
+        q1 = q[:nq]
         closed = self._measure(t, contacts)
         state = self._state_input  # the measured state: the same input for every evaluation
-        state[0][...], state[1][...], state[2][...], state[3][...] = q1, dq1, q2, dq2
+        state[0][...], state[1][...], state[2][...], state[3][...] = q1, v[:nv], q[nq:], v[nv:]
         self._advance(t, closed, lambda desired: self._evaluate(t, q1, desired))
         # The law's input and output hold the last evaluation (that after the phase update).
-        nv, nf = self.robot.nv, self._nf
-        out = self._law_output.copy()
+        out = self._outputs = self._law_output.copy()  # fresh: the torque returned is kept
         self.V, self.V1 = out.item(2 * nv), out.item(2 * nv + 1)
-        self.X = out[nv : 2 * nv]
-        self.motor_desired = tuple(out[2 * nv + 2 :].reshape(3, nf))
-        self._link_rows = self._reference_input.reshape(5, nv).copy()
-        self.link_desired = tuple(self._link_rows)
+        self.X = out[self._X_slice]
+        self._link_rows = self._reference_rows.copy()
         self._reference_time = t
-        return out[:nv]
+        return out[self._u_slice]
 
     def prepare_log(self, log: Log) -> None:
         """Declare the rigid controller's fields and :data:`FLEXIBLE_LOG_FIELDS`."""
@@ -263,8 +286,16 @@ class FlexibleBrogliatoController(BrogliatoController):
     def record(self, log: Log) -> None:
         """Write the values of the last call into the current row (events only once)."""
         super().record(log)
-        log.record_extra("motor_desired", self.motor_desired[0])
-        log.record_extra("link_desired", self.link_desired[0])
+        fields = self._flexible_log_fields
+        if fields is None or fields[0] is not log:
+            fields = self._flexible_log_fields = (
+                log,
+                log.extra_fields(list(FLEXIBLE_LOG_FIELDS)),
+            )
+        motor_desired, link_desired = fields[1]  # in the order of FLEXIBLE_LOG_FIELDS
+        k = log.size  # len(log)
+        motor_desired[k] = self._outputs[self._q2d_slice]
+        link_desired[k] = self._link_rows[0]
 
     def _evaluate(self, t: float, q1: Vector, desired: DesiredState) -> float:
         """Evaluate the law at time ``t`` [s] on ``desired``; return its V1 [J].
@@ -273,35 +304,42 @@ class FlexibleBrogliatoController(BrogliatoController):
         link configuration (nv,) (Newton's start on the first call). The law's input and
         output (``self._law_output``) hold this evaluation until the next one.
         """
-        nv = self.robot.nv
-        reference = self._reference_input  # q1d, then X_d derivatives 1 to 4
-        reference[:nv] = self._link_reference(t, desired.target[0], q1)
-        X_1, X_2, X_3, X_4 = self._target_input
-        X_1[...], X_2[...], X_3[...], X_4[...] = desired.target[1:]
-        (derivatives,) = self._reference_derivatives()  # reads ``reference`` in place
-        reference[nv:] = derivatives  # q1d derivatives 1 to 4
-        if np.count_nonzero(desired.constrained):
+        # The reference input: q1d, then X_d derivatives 1 to 4 (one copy from the machine's
+        # stacked samples), which the derivatives of q1d replace.
+        self._reference_q[...] = self._link_reference(t, desired.target[0], q1)
+        stacked, tail = desired.stacked, self._reference_tail
+        if stacked is not None and stacked.size == self._reference_input.size:
+            tail[...] = stacked[stacked.size - tail.size :]
+        else:
+            X_1, X_2, X_3, X_4 = self._target_input
+            X_1[...], X_2[...], X_3[...], X_4[...] = desired.target[1:]
+        (derivatives,) = self._reference_derivatives()  # reads the reference input in place
+        tail[...] = derivatives  # q1d derivatives 1 to 4
+        held = desired.constrained
+        if held is not self.machine.none_constrained and np.count_nonzero(held):
             # λ_d and its derivatives (3, n): 0 unless held; the force λ used and its
             # derivative (2, n): the measured value with the derivatives of λ_d, or λ_d where
             # there is no valid measurement. Force term -λ_d + K_f (λ - λ_d) (3, n), row by
-            # row, then λ: on Python scalars (n is a handful).
+            # row (λ - λ_d is λ_d' - λ_d' and λ_d'' - λ_d'' on the derivative rows), then λ:
+            # on Python scalars (n is a handful).
             force_gain = self.gains.force_gain
-            lambda_d = [desired.force.tolist(), *(d.tolist() for d in desired.force_derivatives)]
-            lambda_m = [lambda_d[0].copy(), lambda_d[1]]
+            lambda_d = desired.force.tolist()
+            rates = [d.tolist() for d in desired.force_derivatives]
+            lambda_m = lambda_d.copy()
             measured = self.contact_force.tolist()
-            for i, (held, persistent) in enumerate(
-                zip(desired.constrained.tolist(), self._persistent.tolist(), strict=True)
+            for i, (is_held, persistent) in enumerate(
+                zip(held.tolist(), self._persistent.tolist(), strict=True)
             ):
-                if held and persistent:
-                    lambda_m[0][i] = measured[i]  # [N]
-            values = [
-                -d + force_gain * (m - d)
-                for row_d, row_m in zip(lambda_d, [*lambda_m, lambda_d[2]], strict=True)
-                for d, m in zip(row_d, row_m, strict=True)
-            ]
-            self._force_input[...] = values + lambda_m[0] + lambda_m[1]
-        else:
-            self._force_input.fill(0.0)  # no contact held: no force in the model
+                if is_held and persistent:
+                    lambda_m[i] = measured[i]  # [N]
+            values = [-d + force_gain * (m - d) for d, m in zip(lambda_d, lambda_m, strict=True)]
+            for row in rates:
+                values += [-d + force_gain * (d - d) for d in row]
+            self._force_input[...] = values + lambda_m + rates[0]
+            self._force_written = True
+        elif self._force_written:  # no contact held: no force in the model
+            self._force_input.fill(0.0)
+            self._force_written = False
         (self._law_output,) = self._law()
         return self._law_output.item(self._V1_index)
 
@@ -316,7 +354,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             SolverError: Newton's method does not converge (target out of reach, singular
                 task Jacobian).
         """
-        q, x = self._newton_q, self._newton_input  # q: a view of the input's first nv
+        q = self._newton_q  # a view of the input's first nv
         if self._reference_time is None:
             q[...] = q1
         else:
@@ -324,10 +362,14 @@ class FlexibleBrogliatoController(BrogliatoController):
             taylor = (1.0, dt, dt * dt / 2, dt**3 / 6, dt**4 / 24)  # [s^k / k!]
             q[...] = np.dot(taylor, self._link_rows)
         nv = q.size
-        x[nv:] = X_d
+        self._newton_target[...] = X_d
+        newton_step = self._newton_step
         for _ in range(NEWTON_ITERATIONS):
-            (out,) = self._newton_step()
-            step = out[:nv]
+            (out,) = newton_step()
+            views = self._newton_out
+            if views is None or views[0] is not out:  # the output buffer stays put
+                views = self._newton_out = (out, out[:nv])
+            step = views[1]
             values = step.tolist()
             if not all(map(math.isfinite, values)):  # singular task Jacobian
                 break

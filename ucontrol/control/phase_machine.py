@@ -39,6 +39,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.control.circle_path import CirclePath
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.phase import TRANSITION_PHASES, Event, Phase, overall_phase
 from ucontrol.control.task_coordinates import TaskCoordinates
@@ -80,6 +81,9 @@ class DesiredState(NamedTuple):
             read-only, shared between the calls made in the same phases.
         force_derivatives: The first k - 2 time derivatives of ``force`` [N/s^i], each
             shape (n,): the law's force term has as many derivatives as its ``target[2]`` term.
+        stacked: The ``target`` arrays as the views of one flat array, ((k + 1) m,)
+            (derivative i at [i m, (i + 1) m)), so that a law copies them at once; None when
+            they are separate arrays.
     """
 
     target: tuple[Vector, ...]
@@ -87,6 +91,7 @@ class DesiredState(NamedTuple):
     force: Vector
     constrained: NDArray[np.bool_]
     force_derivatives: tuple[Vector, ...] = ()
+    stacked: Vector | None = None
 
     @classmethod
     def zeros(cls, m: int, n: int, order: int = 2) -> DesiredState:
@@ -143,6 +148,10 @@ class PhaseMachine:
             offset = path.centre @ self._A_t - task.b  # [m]
             self._plane = (path, np.ascontiguousarray(table.reshape(-1, 2)), offset)
             self._cos_sin = np.zeros(2)
+        # A circle's angle φ0 + ω t in the operations of CirclePath.angle, without the call.
+        self._circle_angle: tuple[float, float] | None = None
+        if type(path) is CirclePath:
+            self._circle_angle = (path.start_angle, 2.0 * math.pi / path.period)  # [rad], [rad/s]
         self.reset()
 
     def reset(self) -> None:
@@ -151,6 +160,11 @@ class PhaseMachine:
         # DesiredState's force and force derivatives when no contact is constrained.
         self._no_force = _read_only(np.zeros(n))
         self._no_force_derivatives = tuple(_read_only(np.zeros(n)) for _ in range(self.order - 2))
+        # DesiredState's ``constrained`` when no contact is constrained (one shared value, so
+        # that a law can tell it by identity).
+        self.none_constrained = _read_only(np.zeros(n, dtype=bool))
+        #: Whether ``events`` may hold a bit set since it was last cleared.
+        self.events_pending = False
         self.phases = [Phase.FREE] * n
         self.depth = np.zeros(n)
         self.events = np.zeros(n, dtype=np.int64)
@@ -175,11 +189,15 @@ class PhaseMachine:
             if type(segment) is not Nominal
         ]
         self._phase = overall_phase(self.phases)
+        self.phase_value = int(self._phase)  # what a log records, computed once per change
+        self.phase_values = _read_only(np.array(self.phases, dtype=np.int64))
         self._transiting_coordinates = [
             j for j, phase in zip(self._coordinate_list, self.phases) if phase in TRANSITION_PHASES
         ]
         held = [phase is Phase.CONSTRAINED for phase in self.phases]
-        self._constrained = _read_only(np.array(held, dtype=bool))
+        self._constrained = (
+            _read_only(np.array(held, dtype=bool)) if any(held) else self.none_constrained
+        )
         self._held = [  # each constrained contact, its phase and its takeoff time [s]
             (i, self.cycle.contact_phases[i], self.takeoff_time(i))
             for i, is_held in enumerate(held)
@@ -260,13 +278,18 @@ class PhaseMachine:
             reference = self._reference(target)
         if not self._held:  # no force: shared read-only zeros
             return DesiredState(
-                target, reference, self._no_force, self._constrained, self._no_force_derivatives
+                target,
+                reference,
+                self._no_force,
+                self._constrained,
+                self._no_force_derivatives,
+                samples,
             )
         if t < self._plateau_until:
             force, force_derivatives = self._plateau
         else:
             force, force_derivatives = self._forces(t)
-        return DesiredState(target, reference, force, self._constrained, force_derivatives)
+        return DesiredState(target, reference, force, self._constrained, force_derivatives, samples)
 
     def _nominal(self, t: float) -> NDArray[np.float64]:
         r"""The nominal path and its derivatives at ``t`` [s] in task coordinates, ((order + 1) m,).
@@ -276,7 +299,11 @@ class PhaseMachine:
         """
         if self._plane is not None:
             path, table, offset = self._plane
-            angle = path.angle(t)
+            if self._circle_angle is not None:
+                start_angle, omega = self._circle_angle
+                angle = start_angle + omega * t  # [rad]
+            else:
+                angle = path.angle(t)
             cos_sin = self._cos_sin
             cos_sin[0], cos_sin[1] = math.cos(angle), math.sin(angle)
             samples = np.dot(table, cos_sin)
@@ -301,6 +328,11 @@ class PhaseMachine:
     def _forces(self, t: float) -> tuple[Vector, tuple[Vector, ...]]:
         """Desired forces [N] and their derivatives [N/s^k] at ``t`` [s], some contact held."""
         order, cycle = self.order, self.cycle
+        if order == 2:  # λ_d alone, on Python floats (the values of the general branch)
+            values = [0.0] * len(self.phases)
+            for i, phase, t_d in self._held:
+                values[i] = cycle.desired_force(phase, t, t_d)
+            return np.array(values), ()
         rows = np.zeros((order - 1, len(self.phases)))  # λ_d and its k - 2 derivatives
         for i, phase, t_d in self._held:
             rows[:, i] = cycle.desired_force_derivatives(phase, t, t_d, order - 2)
@@ -380,13 +412,14 @@ class PhaseMachine:
                 self._freeze(t, now)
             if event:
                 self.events[i] |= event
-                happened = True
+                self.events_pending = happened = True
         return happened
 
     def take_events(self) -> NDArray[np.int64]:
         """Events flagged since the last call, one :class:`Event` bit set per contact, (n,)."""
         events = self.events.copy()
         self.events[:] = 0
+        self.events_pending = False
         return events
 
     def _take_off(self, i: int, t: float) -> None:

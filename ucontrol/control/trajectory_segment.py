@@ -59,6 +59,8 @@ def smooth_step(sigma: float, order: int = 2, continuity: int = 2) -> Sample:
         values = (1.0,)
     elif continuity != 2:
         values = _polynomial_sample(_smooth_step_table(continuity), sigma, order + 1)
+    elif order == 0:  # the quintic alone (a desired force)
+        return (sigma**3 * (10.0 - 15.0 * sigma + 6.0 * sigma**2),)
     else:  # the quintic in closed form; its derivatives 3 to 5 only when asked for
         values = (
             sigma**3 * (10.0 - 15.0 * sigma + 6.0 * sigma**2),
@@ -347,6 +349,8 @@ class BlendToNominal:
         sigma = (t - self.t0) / T
         if sigma >= 1.0:
             return nominal
+        if self.continuity == 2 and len(nominal) == 3:
+            return self._quintic_blend(t, sigma, nominal)
         order = len(nominal) - 1
         beta = smooth_step(sigma, order, self.continuity)
         rates = [beta[0]]  # the time derivatives of β [1/s^i]
@@ -363,6 +367,25 @@ class BlendToNominal:
                 value += weight * rates[i] * error[k - i]
             blended.append(value)
         return tuple(blended)
+
+    def _quintic_blend(self, t: float, sigma: float, nominal: Sample) -> Sample:
+        """The rigid law's blend (quintic step, 3 values): the general branch unrolled.
+
+        The same operations in the same order, on Python floats: the rates of the
+        :func:`smooth_step` (0 for ``sigma`` <= 0), then Leibniz's rule with the binomial
+        weights (1), (1, 1), (1, 2, 1), where a product by the weight 1 is exact.
+        """
+        T = self.duration
+        if sigma <= 0.0:
+            r0 = r1 = r2 = 0.0
+        else:
+            r0 = sigma**3 * (10.0 - 15.0 * sigma + 6.0 * sigma**2)
+            r1 = 30.0 * sigma**2 * (1.0 - sigma) ** 2 / T  # [1/s]
+            r2 = 60.0 * sigma * (1.0 - sigma) * (1.0 - 2.0 * sigma) / (T * T)  # [1/s²]
+        b0, b1, b2 = self.base(t, nominal)
+        n0, n1, n2 = nominal
+        e0, e1, e2 = n0 - b0, n1 - b1, n2 - b2
+        return (b0 + r0 * e0, b1 + r0 * e1 + r1 * e0, b2 + r0 * e2 + 2.0 * r1 * e1 + r2 * e0)
 
 
 @functools.cache
