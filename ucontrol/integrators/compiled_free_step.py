@@ -24,11 +24,25 @@ the viscous friction on the links; all zero on a rigid robot without joint frict
 normal rows of every constraint (:class:`~ucontrol.contact.compiled_rows.ConstraintRows`), zero
 on the motors. W is factored by a Cholesky decomposition written out in the expression; the
 results equal the numpy and Pinocchio path to round-off.
+
+With ``single_rows``, the call also solves, for each constraint i in parallel, the step in
+which i alone is active, as the closed form of the one-row LCP
+(:func:`~ucontrol.solvers.lcp_refinement.single_constraint_solution`) with the rules of
+:class:`~ucontrol.integrators.moreau_jean.MoreauJean` (Newton's law on closing constraints,
+the closure :math:`g_i / \mathrm{h}` of a held constraint still open, the energy guard):
+
+.. math::
+
+    d_i = J_i W^{-1} J_i^T, \quad \beta_i = J_i v^{free} + c_i + e_i u_i^-, \quad
+    P_i = \max(0, -\beta_i / d_i), \quad
+    v_{k+1} = v^{free} + W^{-1} J_i^T P_i,
+
+so that a step with one active row (the common contact step) needs no further array work.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,6 +81,7 @@ class CompiledFreeStep:
         horizon: float,
         flexible: FlexibleJoints | None,
         viscous: Vector | None,
+        single_rows: SingleRowRules | None = None,
     ) -> None:
         import casadi as ca  # imported only for the steps that use it
 
@@ -88,15 +103,26 @@ class CompiledFreeStep:
         factor = _cholesky(W)
         v_free = v + _cholesky_solve(factor, h * force)
         Winv_Jt = _cholesky_solve(factor, J.T)
-        outputs = ca.vertcat(
+        delassus = J @ Winv_Jt
+        parts = [
             v_free,
             q + h * ((1.0 - th) * v + th * v_free),
             gap + gh * velocity,
             ca.vec(Winv_Jt),
-            ca.vec(J @ Winv_Jt),
-        )
+            ca.vec(delassus),
+        ]
+        activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
         inputs = [q, v, tau, M_upper, nle, rows, gap, velocity, W0_s, Kq_s, F_s, scalars]
-        self.function = CompiledFunction(ca.Function("free_step", inputs, [outputs]))
+        if single_rows is not None:
+            inputs += [activation, kinetic]
+            for i in range(n):
+                parts.append(
+                    _single_row_step(
+                        i, single_rows, q, v, J, v_free, Winv_Jt, delassus, gap, velocity,
+                        activation, kinetic, h, th,
+                    )
+                )  # fmt: skip
+        self.function = CompiledFunction(ca.Function("free_step", inputs, [ca.vertcat(*parts)]))
         self.compiled = self.function.compiled
         if self.compiled:
             self.function.bind_input(3, data_M)
@@ -104,8 +130,10 @@ class CompiledFreeStep:
         for i, value in ((8, W0), (9, Kq), (10, F)):
             self.function.input_view(i)[...] = value
         self.function.input_buffer(11)[:] = (dt, theta, horizon)
+        self.single_rows = single_rows is not None
+        self._one_column = nv == 1
         self._sizes = (size, n)
-        self._split = np.cumsum([size, size, n, size * n])
+        self._split = np.cumsum([size, size, n, size * n, n * n])
         self._last: Vector | None = None  # the last call's outputs
 
     def __call__(self, state: PlantEvaluation, tau: Vector) -> tuple[Vector, Vector, Vector]:
@@ -114,11 +142,15 @@ class CompiledFreeStep:
         ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`). The
         returned arrays are fresh; :meth:`contact_terms` reads the same call's Delassus terms.
         """
-        (out,) = self.function(
-            state.q, state.v, tau, None, None, state.normal_rows, state.gap, state.normal_velocity
-        )
+        function = self.function
+        if self.single_rows:
+            function.input_buffer(13)[0] = state.kinetic_energy
+        rows = state.normal_rows
+        if self._one_column:  # a column input is a vector
+            rows = rows.reshape(-1)
+        (out,) = function(state.q, state.v, tau, None, None, rows, state.gap, state.normal_velocity)
         out = self._last = out.copy()
-        a, b, c, _ = self._split
+        a, b, c = self._split[:3]
         return out[:a], out[a:b], out[b:c]
 
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
@@ -128,10 +160,110 @@ class CompiledFreeStep:
         """
         assert self._last is not None
         size, n = self._sizes
-        _, _, c, d = self._split
+        c, d, e = self._split[2:]
         Winv_Jt = self._last[c:d].reshape((size, n), order="F")
-        delassus = self._last[d:].reshape((n, n), order="F")
+        delassus = self._last[d:e].reshape((n, n), order="F")
         return Winv_Jt[:, indices], delassus[indices[:, None], indices]
+
+    def bind_activation(self, activation: Vector) -> None:
+        """Read the persistence memory (n,) of the integrator from ``activation`` at every call.
+
+        Its values at the call are those of the step's active set (the single-row steps read
+        which constraints are held).
+        """
+        self.function.bind_input(12, activation)
+
+    def single_row(self, i: int) -> tuple[float, float, float, bool, bool, Vector, Vector]:
+        """The last call's step with constraint ``i`` alone active.
+
+        Returns:
+            The impulse P [N s], the velocity ``d P + β`` of the LCP [m/s], its natural-map
+            residual [m/s], whether it is solved (d > 0 or β >= 0), whether the energy guard
+            made it plastic, and fresh :math:`v_{k+1}` and :math:`q_{k+1}`, each (N,).
+        """
+        assert self._last is not None and self.single_rows
+        size = self._sizes[0]
+        start = self._split[-1] + i * (5 + 2 * size)
+        block = self._last[start : start + 5 + 2 * size]
+        impulse, velocity, residual, solved, plastic = block[:5].tolist()
+        return (
+            impulse,
+            velocity,
+            residual,
+            solved > 0.0,
+            plastic > 0.0,
+            block[5 : 5 + size],
+            block[5 + size :],
+        )
+
+
+class SingleRowRules(NamedTuple):
+    """What :class:`~ucontrol.integrators.moreau_jean.MoreauJean` applies to one active row.
+
+    Attributes:
+        restitution: Newton's restitution of each constraint, shape (n,).
+        threshold: Closing speed below which no restitution applies, in [m/s] (or [rad/s]).
+        energy_tolerance: Relative energy gain, of 1 + T, above which the step is made plastic.
+    """
+
+    restitution: Vector
+    threshold: float
+    energy_tolerance: float
+
+
+def _single_row_step(
+    i: int,
+    rules: SingleRowRules,
+    q: Any,
+    v: Any,
+    J: Any,
+    v_free: Any,
+    Winv_Jt: Any,
+    delassus: Any,
+    gap: Any,
+    velocity: Any,
+    activation: Any,
+    kinetic: Any,
+    h: Any,
+    theta: Any,
+) -> Any:
+    """(P, w, residual, solved, plastic, v_{k+1}, q_{k+1}) of row i alone active (5 + 2N,)."""
+    import casadi as ca
+
+    d, u_free, u_minus = delassus[i, i], J[i, :] @ v_free, velocity[i]
+    held_open = ca.logic_and(activation[i] > 0.0, gap[i] > 0.0)
+    closure = ca.if_else(held_open, gap[i] / h, 0.0)
+    e = float(rules.restitution[i])
+    rebound = (
+        ca.if_else(ca.logic_or(held_open, u_minus >= -rules.threshold), 0.0, e * u_minus)
+        if e != 0.0
+        else ca.SX(0.0)
+    )
+    b = u_free + closure
+
+    def closed_form(beta: Any) -> tuple[Any, Any, Any]:
+        impulse = ca.if_else(ca.logic_and(beta < 0.0, d > 0.0), -beta / d, 0.0)
+        w = d * impulse + beta
+        residual = ca.fabs(ca.fmin(ca.if_else(d > 0.0, d * impulse, impulse), w))
+        return impulse, w, residual
+
+    impulse, w, residual = closed_form(b + rebound)
+    plastic = ca.SX(0.0)
+    if e != 0.0:  # the energy guard, only where a rebound can be nonzero
+        u_plus = w - rebound - (b - u_free)
+        u_k = J[i, :] @ v
+        gain = impulse * (0.5 * (u_free + u_plus) - theta * (u_free - u_k))
+        plastic = ca.logic_and(rebound != 0.0, gain > rules.energy_tolerance * (1.0 + kinetic))
+        impulse_0, w_0, residual_0 = closed_form(b)
+        impulse = ca.if_else(plastic, impulse_0, impulse)
+        w = ca.if_else(plastic, w_0, w)
+        residual = ca.if_else(plastic, residual_0, residual)
+    solved = ca.logic_or(d > 0.0, b + rebound >= 0.0)
+    if e != 0.0:
+        solved = ca.if_else(plastic, ca.logic_or(d > 0.0, b >= 0.0), solved)
+    v_next = v_free + Winv_Jt[:, i] * impulse
+    q_next = q + h * ((1.0 - theta) * v + theta * v_next)
+    return ca.vertcat(impulse, w, residual, solved, plastic, v_next, q_next)
 
 
 def _constant_terms(

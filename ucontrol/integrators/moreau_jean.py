@@ -377,24 +377,24 @@ class MoreauJean:
         self._first_step = True
 
     def _compiled_free_step(self) -> CompiledFreeStep | None:
-        """The free part of the step as one compiled call, where the step allows it and gains.
+        """The free part of the step as one compiled call, where the step allows it.
 
-        With flexible joints or viscous joint friction (a rigid step's numpy path is a
-        Cholesky factorization in Pinocchio and two solves, as fast), the compiled constraint
-        rows (plane contacts and stops of a robot whose joints are vector spaces), without
-        midpoint Coriolis forces, Coulomb joints or bilateral constraints, and where a C
-        compiler is present.
+        With the compiled constraint rows (plane contacts and stops of a robot whose joints are
+        vector spaces), without midpoint Coriolis forces, Coulomb joints or bilateral
+        constraints, and where a C compiler is present. The same call solves the steps with
+        one active row when Newton's law is the project's and the solver's one-row solve is
+        the closed form.
         """
         if (
-            (self.flexible is None and self._viscous is None)
-            or self._rows is None
+            self._rows is None
             or self.midpoint
             or self._coulomb_rows is not None
             or self._bilateral is not None
         ):
             return None
-        from ucontrol.integrators.compiled_free_step import CompiledFreeStep
+        from ucontrol.integrators.compiled_free_step import CompiledFreeStep, SingleRowRules
 
+        closed_form = getattr(self.solver, "exact_single", False) is True
         step = CompiledFreeStep(
             self._data.M,
             self._data.nle,
@@ -404,8 +404,17 @@ class MoreauJean:
             horizon=self.gamma * self.dt,
             flexible=self.flexible,
             viscous=self._viscous,
+            single_rows=SingleRowRules(
+                self.constraints.restitution, self.restitution_threshold, ENERGY_GAIN_TOLERANCE
+            )
+            if closed_form and self.newton_law == "closing"
+            else None,
         )
-        return step if step.compiled else None
+        if not step.compiled:
+            return None
+        if step.single_rows:
+            step.bind_activation(self._activation)
+        return step
 
     def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
         """Dynamics, kinematics and constraint gaps at (q, v) and time t; prepares :meth:`step`.
@@ -439,7 +448,7 @@ class MoreauJean:
         """
         model, data, h = self._model, self._data, self.dt
         inverse_inertia: Callable[[Vector], Vector]
-        free_step, q_free = self._free_step, None
+        free_step, q_free, first = self._free_step, None, self._first_step
         if free_step is not None:  # the same terms in one compiled call
             v_free, q_free, predicted = free_step(state, tau)
         else:
@@ -462,6 +471,8 @@ class MoreauJean:
         if self._coulomb_rows is None and not active.any():  # no contact problem
             return self._free_outcome(state, v_free, active, q_free)
         indices = active.nonzero()[0]
+        if indices.size == 1 and free_step is not None and free_step.single_rows and not first:
+            return self._single_row_outcome(state, free_step, active, int(indices[0]))
         impulse = np.zeros(self.constraints.size)
         friction_impulse = np.zeros((self.constraints.size, 3)) if self._friction else None
         plastic = False
@@ -508,6 +519,32 @@ class MoreauJean:
             _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
         v_next = v_free + Minv_Jt.dot(solution.impulses)
         return self._outcome(state, v_next, impulse, active, solution, plastic, friction_impulse)
+
+    def _single_row_outcome(
+        self,
+        state: PlantEvaluation,
+        free_step: CompiledFreeStep,
+        active: NDArray[np.bool_],
+        i: int,
+    ) -> StepOutcome:
+        """The outcome of a step with constraint ``i`` alone active, from the compiled call.
+
+        The one-row LCP's closed form is part of the compiled step: its solve time is not
+        measured apart (0 s in the solution).
+        """
+        impulse_i, velocity, residual, solved, plastic, v_next, q_next = free_step.single_row(i)
+        solution = ContactSolution(
+            np.array([impulse_i]),
+            np.array([velocity]),
+            "solved" if solved else "infeasible",
+            0,
+            residual,
+            0.0,
+        )
+        self._checked(self.solver, solution)
+        impulse = np.zeros(self.constraints.size)
+        impulse[i] = impulse_i
+        return self._outcome(state, v_next, impulse, active, solution, plastic, None, q_next=q_next)
 
     def _free_outcome(
         self,
