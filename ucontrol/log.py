@@ -222,11 +222,15 @@ class Log:
         arrays["u"][k] = u
         arrays["impulse"][k] = impulse
         arrays["active"][k] = active
-        arrays["solver_iterations"][k] = iterations
         arrays["complementarity_residual"][k] = residual
-        arrays["solver_time"][k] = solve_time
         arrays["solver_status"][k] = status
-        arrays["solver_outer_iterations"][k] = outer_iterations
+        # Rows are allocated as zeros and written once, in order: zeros need no write.
+        if iterations:
+            arrays["solver_iterations"][k] = iterations
+        if solve_time:
+            arrays["solver_time"][k] = solve_time
+        if outer_iterations:
+            arrays["solver_outer_iterations"][k] = outer_iterations
         self.size = k + 1
 
     def record_step_without_solve(

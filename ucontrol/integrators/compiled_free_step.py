@@ -133,7 +133,9 @@ class CompiledFreeStep:
         self.single_rows = single_rows is not None
         self._one_column = nv == 1
         self._sizes = (size, n)
-        self._split = np.cumsum([size, size, n, size * n, n * n])
+        # Ends of the outputs v_free, q_free, predicted gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ (Python ints).
+        self._split = tuple(np.cumsum([size, size, n, size * n, n * n]).tolist())
+        self._kinetic = self.function.input_buffer(13) if self.single_rows else None
         self._last: Vector | None = None  # the last call's outputs
 
     def __call__(self, state: PlantEvaluation, tau: Vector) -> tuple[Vector, Vector, Vector]:
@@ -143,8 +145,8 @@ class CompiledFreeStep:
         returned arrays are fresh; :meth:`contact_terms` reads the same call's Delassus terms.
         """
         function = self.function
-        if self.single_rows:
-            function.input_buffer(13)[0] = state.kinetic_energy
+        if self._kinetic is not None:
+            self._kinetic[0] = state.kinetic_energy
         rows = state.normal_rows
         if self._one_column:  # a column input is a vector
             rows = rows.reshape(-1)

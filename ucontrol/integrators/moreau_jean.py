@@ -468,11 +468,12 @@ class MoreauJean:
         active = predicted <= self._activation
         if self._bilateral is not None:
             return self._mixed_step(state, v_free, inverse_inertia, active, active.nonzero()[0])
-        if self._coulomb_rows is None and not active.any():  # no contact problem
+        count = np.count_nonzero(active)
+        if not count and self._coulomb_rows is None:  # no contact problem
             return self._free_outcome(state, v_free, active, q_free)
+        if count == 1 and free_step is not None and free_step.single_rows and not first:
+            return self._single_row_outcome(state, free_step, active, int(active.argmax()))
         indices = active.nonzero()[0]
-        if indices.size == 1 and free_step is not None and free_step.single_rows and not first:
-            return self._single_row_outcome(state, free_step, active, int(indices[0]))
         impulse = np.zeros(self.constraints.size)
         friction_impulse = np.zeros((self.constraints.size, 3)) if self._friction else None
         plastic = False
@@ -544,7 +545,12 @@ class MoreauJean:
         self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
         impulse[i] = impulse_i
-        return self._outcome(state, v_next, impulse, active, solution, plastic, None, q_next=q_next)
+        # The persistence memory of the next step, as _outcome writes it (no bilateral rows).
+        self._activation.fill(0.0)
+        if impulse_i > 0.0:
+            self._activation[i] = self.persistence_tolerance
+        self._holding = True
+        return StepOutcome(q_next, v_next, impulse, active, solution, plastic=plastic)
 
     def _free_outcome(
         self,
