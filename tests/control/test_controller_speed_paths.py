@@ -249,3 +249,69 @@ def test_recorded_fields_are_the_plain_values(scene: str) -> None:
         load_scene(ROBOTS / f"{scene}.toml"), controller=checker, duration=6.0, progress=False
     )
     assert checker.rows == 6001 and checker.events >= 3  # τ0, first impact, t_f at least
+
+
+def test_taylor_start_is_the_product_with_the_coefficients_tuple(
+    rng: np.random.Generator,
+) -> None:
+    law = _controller("two_link_flexible_one_constraint")
+    for _ in range(200):
+        law._link_rows = rng.standard_normal((5, law.robot.nv)) * 10.0 ** rng.integers(-3, 3)
+        dt = float(rng.choice([0.0, 1e-3, 2e-3, rng.uniform(0.0, 0.1)]))  # [s]
+        law._taylor_start(dt)
+        expected = np.dot((1.0, dt, dt * dt / 2, dt**3 / 6, dt**4 / 24), law._link_rows)
+        assert np.array_equal(law._newton_q, expected)
+
+
+def test_posture_error_by_subtraction_is_pinocchios_difference(
+    rng: np.random.Generator,
+) -> None:
+    import pinocchio as pin
+
+    law = _controller("panda_table")
+    assert law._posture_by_subtraction
+    model = law.robot.model
+    for _ in range(200):
+        q = pin.randomConfiguration(model) * rng.uniform(0.5, 2.0)
+        assert np.array_equal(q - law.posture, pin.difference(model, law.posture, q))
+    assert not _controller("two_link_one_constraint")._posture_by_subtraction  # square task
+
+
+def test_flexible_force_rates_reused_only_for_the_shared_plateau(
+    rng: np.random.Generator,
+) -> None:
+    """The cached force-term rows of λ_d's derivatives: same input as computing them anew."""
+    law = _controller("two_link_flexible_two_constraints")
+    n, q = len(law.machine.contacts), np.array([1.5, -0.9])
+    law._state_input[0][...] = q
+    base = law.machine.desired(0.0)
+    plateau = tuple(_read_only(rng.uniform(-5.0, 5.0, n)) for _ in range(2))
+    for _ in range(60):
+        writable = tuple(rng.uniform(-5.0, 5.0, n) for _ in range(2))
+        rates = plateau if rng.random() < 0.6 else writable
+        desired = base._replace(
+            force=rng.uniform(0.0, 5.0, n),
+            constrained=np.ones(n, bool),
+            force_derivatives=rates,
+        )
+        law.contact_force[...] = rng.uniform(0.0, 5.0, n)
+        law._persistent[...] = rng.random(n) < 0.5
+        law._reference_time = None
+        law._evaluate(0.0, q, desired)
+        fast = law._force_input.copy()
+        law._force_rates = None  # computed anew
+        law._reference_time = None
+        law._evaluate(0.0, q, desired)
+        assert np.array_equal(fast, law._force_input)
+        if rates is writable:  # never kept: its values may change
+            writable[0][...] = rng.uniform(-5.0, 5.0, n)
+            law._evaluate(0.0, q, desired)
+            fast = law._force_input.copy()
+            law._force_rates = None
+            law._evaluate(0.0, q, desired)
+            assert np.array_equal(fast, law._force_input)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array

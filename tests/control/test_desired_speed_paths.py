@@ -303,11 +303,13 @@ def test_cached_phase_values_constraint_flags_and_events(
 
 
 @pytest.mark.parametrize("order", [2, 4])
-def test_stacked_target_and_circle_angle(rng: np.random.Generator, order: int) -> None:
-    machine = _scene_machine("two_link_one_constraint", order)
+@pytest.mark.parametrize("scene", ["two_link_one_constraint", "panda_table"])
+def test_stacked_target_and_circle_angle(rng: np.random.Generator, scene: str, order: int) -> None:
+    machine = _scene_machine(scene, order)
+    free = _scene_machine(scene, order)
     path, table, offset = machine._plane
     m = machine.task.m
-    for t in _run_machine(rng, machine, 11.0):
+    for t in _run_machine(rng, machine, 11.0 if scene.startswith("two_link") else 4.5):
         desired = machine.desired(t)
         stacked = desired.stacked
         assert stacked is not None and stacked.shape == ((order + 1) * m,)
@@ -318,3 +320,23 @@ def test_stacked_target_and_circle_angle(rng: np.random.Generator, order: int) -
         expected = np.dot(table, np.array([math.cos(angle), math.sin(angle)]))
         expected[:m] += offset
         assert np.array_equal(machine._nominal(t), expected)
+        # A machine that stays free samples the nominal path itself: the inlined circle.
+        nominal = free.desired(t).stacked
+        assert nominal is not None
+        assert np.array_equal(nominal.view(np.uint64), expected.view(np.uint64))  # signed zeros
+
+
+@pytest.mark.parametrize("order", [2, 4])
+def test_constant_segment_samples_computed_once(rng: np.random.Generator, order: int) -> None:
+    machine = _scene_machine("two_link_two_constraints", order)
+    constant_seen = 0
+    for t in _run_machine(rng, machine, 12.0):
+        desired = machine.desired(t)
+        nominal = machine._nominal(t)
+        m = machine.task.m
+        for j, segment in enumerate(machine._segments):
+            column = nominal[j::m]
+            expected = segment(t, tuple(column.tolist()))
+            assert desired.stacked[j::m].tolist() == list(expected)
+            constant_seen += type(segment).__name__ == "Constant"
+    assert constant_seen > 100

@@ -84,6 +84,15 @@ class BrogliatoGains:
         object.__setattr__(self, "force_gain", force_gain)
 
 
+#: Pinocchio joints whose configuration space is a vector space (q ⊖ q0 = q - q0).
+_VECTOR_SPACE_JOINTS = frozenset(
+    f"JointModel{name}"
+    for name in (
+        *("RX", "RY", "RZ", "RevoluteUnaligned", "PX", "PY", "PZ", "PrismaticUnaligned"),
+        "Translation",
+    )
+)
+
 #: A contact closing faster than this at the start of a step is impacting, in [m/s]: the
 #: impulse of that step is not used as a force measurement.
 IMPACT_SPEED = 1e-6
@@ -152,6 +161,11 @@ class BrogliatoController:
         self._model = robot.model
         self._data = robot.model.createData()
         self._redundant = task.m < robot.nv
+        # With only vector-space joints, q ⊖ q_p is q - q_p: Pinocchio's difference is that
+        # subtraction there (its VectorSpaceOperation), without the call.
+        self._posture_by_subtraction = self._redundant and all(
+            joint.shortname() in _VECTOR_SPACE_JOINTS for joint in robot.model.joints[1:]
+        )
         self._lower = np.tril_indices(robot.nv, -1)
         self._M = np.zeros((robot.nv, robot.nv))
         self._all_actuated = bool(np.array_equal(robot.actuated, np.arange(robot.nv)))
@@ -378,7 +392,9 @@ class BrogliatoController:
         pin.nonLinearEffects(model, data, q, v)
         pin.updateFramePlacement(model, data, self.task.frame_id)
         inputs[6][...] = v
-        if self._redundant:
+        if self._posture_by_subtraction:  # pin.difference on vector-space joints
+            np.subtract(q, self.posture, out=inputs[7])
+        elif self._redundant:
             inputs[7][...] = pin.difference(model, self.posture, q)
         machine = self.machine
         desired = machine.desired(t)

@@ -227,6 +227,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._newton_input = self._newton_step.input_buffer(0)
         self._newton_q = self._newton_input[:nv]  # Newton's iterate, updated in place
         self._newton_target = self._newton_input[nv:]
+        self._taylor = np.ones(5)  # the coefficients of Newton's start (see _taylor_start)
         self._newton_out: tuple[Vector, Vector] | None = None  # (output buffer, its step)
         # Outputs of the law: u (nu,), X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
         self._nf = nf
@@ -242,6 +243,9 @@ class FlexibleBrogliatoController(BrogliatoController):
         nv, nf = self.robot.nv, self.flexible.nf
         self._reference_time: float | None = None
         self._link_rows = np.zeros((5, nv))  # q1d and its 4 derivatives, one per row
+        # Read-only force derivatives of a held call (kept alive, so that the same object is
+        # the same values: the plateau), their force-term rows and the first of them.
+        self._force_rates: tuple[tuple[Vector, ...], list[float], list[float]] | None = None
         # The law's outputs of the last call (u, X, V, V1, q2d, dq2d, ddq2d).
         self._outputs = np.zeros(2 * nv + 2 + 3 * nf)
 
@@ -266,7 +270,13 @@ class FlexibleBrogliatoController(BrogliatoController):
         closed = self._measure(t, contacts)
         state = self._state_input  # the measured state: the same input for every evaluation
         state[0][...], state[1][...], state[2][...], state[3][...] = q1, v[:nv], q[nq:], v[nv:]
-        self._advance(t, closed, lambda desired: self._evaluate(t, q1, desired))
+        machine = self.machine  # _advance with the law's evaluation, inlined
+        desired = machine.desired(t)
+        V1 = self._evaluate(t, q1, desired)
+        if machine.update(t, closed, V1, desired):
+            desired = machine.desired(t)
+            self._evaluate(t, q1, desired)
+        self.desired = desired
         # The law's input and output hold the last evaluation (that after the phase update).
         out = self._outputs = self._law_output.copy()  # fresh: the torque returned is kept
         self.V, self.V1 = out.item(2 * nv), out.item(2 * nv + 1)
@@ -324,7 +334,6 @@ class FlexibleBrogliatoController(BrogliatoController):
             # on Python scalars (n is a handful).
             force_gain = self.gains.force_gain
             lambda_d = desired.force.tolist()
-            rates = [d.tolist() for d in desired.force_derivatives]
             lambda_m = lambda_d.copy()
             measured = self.contact_force.tolist()
             for i, (is_held, persistent) in enumerate(
@@ -333,15 +342,32 @@ class FlexibleBrogliatoController(BrogliatoController):
                 if is_held and persistent:
                     lambda_m[i] = measured[i]  # [N]
             values = [-d + force_gain * (m - d) for d, m in zip(lambda_d, lambda_m, strict=True)]
-            for row in rates:
-                values += [-d + force_gain * (d - d) for d in row]
-            self._force_input[...] = values + lambda_m + rates[0]
+            rates = desired.force_derivatives
+            cached = self._force_rates
+            if cached is None or cached[0] is not rates:  # else read-only values seen last call
+                rows = [d.tolist() for d in rates]
+                rate_terms = [-d + force_gain * (d - d) for row in rows for d in row]
+                cached = (rates, rate_terms, rows[0])
+                # Kept only for read-only values (the machine's plateau, shared between calls).
+                frozen = not any(d.flags.writeable for d in rates)
+                self._force_rates = cached if frozen else None
+            self._force_input[...] = values + cached[1] + lambda_m + cached[2]
             self._force_written = True
         elif self._force_written:  # no contact held: no force in the model
             self._force_input.fill(0.0)
             self._force_written = False
         (self._law_output,) = self._law()
         return self._law_output.item(self._V1_index)
+
+    def _taylor_start(self, dt: float) -> None:
+        r"""Newton's start: the last call's q1d expanded to ``dt`` [s] later, written in place.
+
+        :math:`\sum_k q_{1d}^{(k)} dt^k / k!` as one product of the coefficients' buffer
+        (written in place rather than converted from a tuple) with the rows of the last call.
+        """
+        taylor = self._taylor  # [s^k / k!]
+        taylor[1], taylor[2], taylor[3], taylor[4] = dt, dt * dt / 2, dt**3 / 6, dt**4 / 24
+        np.dot(taylor, self._link_rows, out=self._newton_q)
 
     def _link_reference(self, t: float, X_d: Vector, q1: Vector) -> Vector:
         r""":math:`q_{1d} = \phi^{-1}(X_d)` at ``t`` [s] by Newton's method, shape (nv,).
@@ -358,9 +384,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         if self._reference_time is None:
             q[...] = q1
         else:
-            dt = t - self._reference_time  # [s]
-            taylor = (1.0, dt, dt * dt / 2, dt**3 / 6, dt**4 / 24)  # [s^k / k!]
-            q[...] = np.dot(taylor, self._link_rows)
+            self._taylor_start(t - self._reference_time)
         nv = q.size
         self._newton_target[...] = X_d
         newton_step = self._newton_step

@@ -148,10 +148,16 @@ class PhaseMachine:
             offset = path.centre @ self._A_t - task.b  # [m]
             self._plane = (path, np.ascontiguousarray(table.reshape(-1, 2)), offset)
             self._cos_sin = np.zeros(2)
-        # A circle's angle φ0 + ω t in the operations of CirclePath.angle, without the call.
-        self._circle_angle: tuple[float, float] | None = None
-        if type(path) is CirclePath:
-            self._circle_angle = (path.start_angle, 2.0 * math.pi / path.period)  # [rad], [rad/s]
+        # For a circle, what desired() reads to sample it without calls: the table, the offset
+        # on the positions padded with -0.0 (x + (-0.0) is x for every float, -0.0 included,
+        # so one addition on the whole array adds it to the positions alone), the angle
+        # φ0 + ω t in the operations of CirclePath.angle and the buffer of (cos φ, sin φ).
+        self._circle: tuple[Any, ...] | None = None
+        if type(path) is CirclePath and self._plane is not None:
+            offset_padded = np.full((order + 1) * m, -0.0)
+            offset_padded[:m] = self._plane[2]
+            omega = 2.0 * math.pi / path.period  # [rad/s]
+            self._circle = (self._plane[1], offset_padded, path.start_angle, omega, self._cos_sin)
         self.reset()
 
     def reset(self) -> None:
@@ -183,8 +189,13 @@ class PhaseMachine:
         clipped, the constrained ones, and the time before which :meth:`update` has nothing to
         do while the contacts stay as they are (see :meth:`_due_time`).
         """
-        self._off_nominal = [
-            (self._columns[j], segment)
+        size = self.order + 1
+        self._off_nominal = [  # with the samples of a constant segment, computed once
+            (
+                self._columns[j],
+                segment,
+                segment(0.0, (0.0,) * size) if type(segment) is Constant else None,
+            )
             for j, segment in enumerate(self._segments)
             if type(segment) is not Nominal
         ]
@@ -268,10 +279,21 @@ class PhaseMachine:
 
     def desired(self, t: float) -> DesiredState:
         """The desired trajectory at time ``t`` [s] in the current phases."""
-        samples = self._nominal(t)
-        for column, segment in self._off_nominal:  # the others keep their nominal samples
-            values = samples[column]
-            values[:] = segment(t, tuple(values.tolist()))
+        circle = self._circle
+        if circle is not None:  # _nominal for a circle, inlined
+            table, offset_padded, start_angle, omega, cos_sin = circle
+            angle = start_angle + omega * t  # [rad]
+            cos_sin[0], cos_sin[1] = math.cos(angle), math.sin(angle)
+            samples = np.dot(table, cos_sin)
+            samples += offset_padded
+        else:
+            samples = self._nominal(t)
+        for column, segment, fixed in self._off_nominal:  # the others keep their nominal samples
+            if fixed is not None:
+                samples[column] = fixed
+            else:
+                values = samples[column]
+                values[:] = segment(t, tuple(values.tolist()))
         target = self._split_rows(samples)
         reference = (target[0], target[1])
         if self._transiting_coordinates:  # gaps below the surface are clipped
@@ -299,11 +321,7 @@ class PhaseMachine:
         """
         if self._plane is not None:
             path, table, offset = self._plane
-            if self._circle_angle is not None:
-                start_angle, omega = self._circle_angle
-                angle = start_angle + omega * t  # [rad]
-            else:
-                angle = path.angle(t)
+            angle = path.angle(t)
             cos_sin = self._cos_sin
             cos_sin[0], cos_sin[1] = math.cos(angle), math.sin(angle)
             samples = np.dot(table, cos_sin)
