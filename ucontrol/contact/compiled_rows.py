@@ -86,7 +86,7 @@ class ConstraintRows:
             row[index_v] = sign
             rows.append(row)
         J = ca.vertcat(*rows)
-        outputs = ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J))
+        outputs = ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J.T))  # J row by row
         self.function = CompiledFunction(
             ca.Function("constraint_rows", [q, v, planes, stops], [outputs])
         )
@@ -94,6 +94,7 @@ class ConstraintRows:
         self.function.input_buffer(2)[:] = constraints.plane_terms.ravel()
         self.function.input_buffer(3)[:] = constraints.stop_terms.ravel()
         self._n, self._nv = n, nv
+        self._parts = (slice(0, n), slice(n, 2 * n), slice(2 * n, None))
 
     @property
     def compiled(self) -> bool:
@@ -104,8 +105,8 @@ class ConstraintRows:
         """Gaps, normal velocities and rows at (q (nq,), v (nv,)), in new arrays."""
         (out,) = self.function(q, v)
         out = out.copy()
-        n = self._n
-        return RowValues(out[:n], out[n : 2 * n], out[2 * n :].reshape((n, self._nv), order="F"))
+        gaps, velocities, rows = self._parts
+        return RowValues(out[gaps], out[velocities], out[rows].reshape(self._n, self._nv))
 
 
 def compiled_rows(constraints: ConstraintSet) -> ConstraintRows | None:
