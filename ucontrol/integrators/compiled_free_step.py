@@ -165,6 +165,8 @@ class CompiledFreeStep:
         c, d, e = self._split[2:]
         Winv_Jt = self._last[c:d].reshape((size, n), order="F")
         delassus = self._last[d:e].reshape((n, n), order="F")
+        if indices.size == n:  # every row: the indexing's values in its memory orders
+            return Winv_Jt, np.ascontiguousarray(delassus)
         return Winv_Jt[:, indices], delassus[indices[:, None], indices]
 
     def bind_activation(self, activation: Vector) -> None:

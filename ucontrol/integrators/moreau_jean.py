@@ -592,7 +592,7 @@ class MoreauJean:
             return self._rebound(indices, state), None
         rebound = self._rebound(indices, state)
         held_open = (self._activation[indices] > 0.0) & (gap > 0.0)
-        if not held_open.any():
+        if not np.count_nonzero(held_open):
             return rebound, None
         rebound[held_open] = 0.0
         return rebound, np.where(held_open, gap / h, 0.0)
