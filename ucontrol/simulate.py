@@ -276,9 +276,16 @@ class _ClosedLoop:
     def advance(self, state: PlantEvaluation) -> None:
         """One plant step from ``state`` under the held input; closes the log row."""
         log = self.log
-        self._record_controller_fields()
+        if self.sensors is None and self.actuators is None:
+            if self.recorder is not None:  # the controller's own fields
+                self.recorder.record(log)
+        else:
+            self._record_controller_fields()
         outcome = self.integrator.step(state, self.tau)
-        _record_step(log, self.u, outcome)
+        if outcome.solution is None and outcome.friction_impulse is None:
+            log.record_step_without_solve(self.u, outcome.impulse, outcome.active)
+        else:
+            _record_step(log, self.u, outcome)
         self.row_open = False
         if self.observer is not None:
             self.observer(log)
