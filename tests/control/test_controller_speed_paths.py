@@ -124,17 +124,23 @@ def test_torque_is_not_overwritten_by_the_next_call(scene: str) -> None:
     assert np.array_equal(first, kept)
 
 
-def _desired_variants(rng: np.random.Generator, law, t: float):  # type: ignore[no-untyped-def]
+def _desired_variants(  # type: ignore[no-untyped-def]
+    rng: np.random.Generator, law, t: float, shared: dict
+):
     """The machine's desired state at ``t`` with random forces and clipping, and its plain twin.
 
     The twin has separate target arrays (no ``stacked``), reference arrays that are not the
-    target's, and a fresh ``constrained`` array: the law's general copies.
+    target's, and a fresh ``constrained`` array: the law's general copies. ``shared`` holds
+    the read-only flags reused between calls.
     """
     base = law.machine.desired(t)
     n = len(law.machine.contacts)
     constrained = rng.random(n) < 0.5
     if not constrained.any() and rng.random() < 0.5:
         constrained = law.machine.none_constrained
+    elif rng.random() < 0.5:  # read-only flags shared between calls, as the machine's
+        constrained = shared.setdefault(tuple(constrained.tolist()), constrained)
+        constrained.flags.writeable = False
     force = np.where(constrained, rng.uniform(0.0, 5.0, n), 0.0)  # [N]
     derivatives = tuple(np.where(constrained, rng.uniform(-5.0, 5.0, n), 0.0) for _ in base[4])
     reference = base.reference
@@ -166,10 +172,11 @@ def test_rigid_law_inputs_by_shortcut_match_the_plain_copies(
     contacts = ContactState(names, np.ones(n), np.zeros(n), np.zeros(n), np.zeros(n, bool), 1e-3)
     q = law.robot.neutral() if scene == "panda_table" else np.array([1.5, -0.9])
     law(0.0, q + 0.1 * rng.standard_normal(nq), rng.standard_normal(nq), contacts)
+    shared: dict[tuple[bool, ...], np.ndarray] = {}
     for t in rng.uniform(0.0, 12.0, 60):
         law.contact_force[...] = rng.uniform(0.0, 5.0, n)
         law._persistent[...] = rng.random(n) < 0.5
-        fast, plain = _desired_variants(rng, law, float(t))
+        fast, plain = _desired_variants(rng, law, float(t), shared)
         expected = law._compiled_values(plain).copy()
         for i in (8, 9):  # the target and reference inputs: nothing left from the plain call
             law._compiled_law.input_buffer(i).fill(np.nan)
@@ -186,10 +193,11 @@ def test_flexible_law_inputs_by_shortcut_match_the_plain_copies(rng: np.random.G
     n = len(law.machine.contacts)
     q = np.array([1.5, -0.9])
     law._state_input[0][...] = q
+    shared: dict[tuple[bool, ...], np.ndarray] = {}
     for t in rng.uniform(0.0, 0.5, 60):  # targets Newton reaches from q
         law.contact_force[...] = rng.uniform(0.0, 5.0, n)
         law._persistent[...] = rng.random(n) < 0.5
-        fast, plain = _desired_variants(rng, law, float(t))
+        fast, plain = _desired_variants(rng, law, float(t), shared)
         law._reference_time = None  # Newton from q for both
         V1 = law._evaluate(float(t), q, plain)
         expected = (law._law_output.copy(), law._law.input_buffer(0).copy())

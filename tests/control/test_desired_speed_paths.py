@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -256,7 +257,9 @@ def test_smooth_step_value_alone_is_the_first_of_its_derivatives(
         assert smooth_step(sigma, 0) == smooth_step(sigma, 5)[:1]
 
 
-def _run_machine(rng: np.random.Generator, machine: PhaseMachine, duration: float):  # type: ignore[no-untyped-def]
+def _run_machine(
+    rng: np.random.Generator, machine: PhaseMachine, duration: float
+) -> Iterator[float]:
     """Yield the machine after each update of a run with random closures."""
     for t in np.arange(0.0, duration, 2e-3):
         closed = _closures(rng, machine, float(t))
@@ -340,3 +343,11 @@ def test_constant_segment_samples_computed_once(rng: np.random.Generator, order:
             assert desired.stacked[j::m].tolist() == list(expected)
             constant_seen += type(segment).__name__ == "Constant"
     assert constant_seen > 100
+
+
+def test_rest_cubic_rigid_sample_is_the_padded_one(rng: np.random.Generator) -> None:
+    for _ in range(100):
+        p0, v0, p1 = rng.normal(size=3).tolist()
+        segment = RestCubic(t0=1.0, p0=p0, v0=v0, p1=p1, duration=float(rng.uniform(0.1, 1.0)))
+        for t in (0.5, *rng.uniform(1.0, 2.2, 5)):
+            assert segment(t, (0.0,) * 3) == segment(t, (0.0,) * 5)[:3]

@@ -218,6 +218,9 @@ class BrogliatoController:
         # Measurements of the last call, written in place by _measure.
         self.contact_force = np.zeros(n)
         self._force_written = True  # the compiled law's force input may be non-zero
+        # A read-only ``constrained`` of the machine (kept alive, so that the same object is
+        # the same flags) and the (contact, task row) of its held contacts.
+        self._held_rows: tuple[NDArray[np.bool_], list[tuple[int, int]]] | None = None
         self._closed = np.zeros(n, dtype=bool)
         self._settled = np.zeros(n, dtype=bool)
         self._persistent = np.zeros(n, dtype=bool)
@@ -419,18 +422,27 @@ class BrogliatoController:
         law = self._compiled_law
         assert law is not None
         held = desired.constrained
-        if held is not self.machine.none_constrained and np.count_nonzero(held):
+        rows: list[tuple[int, int]] = []  # (contact, task row) of each held contact
+        if held is not self.machine.none_constrained:
+            cached = self._held_rows
+            if cached is not None and cached[0] is held:
+                rows = cached[1]
+            else:
+                coordinates = self._coordinates
+                rows = [(i, coordinates[i]) for i, is_held in enumerate(held.tolist()) if is_held]
+                # Kept for a read-only value (the machine's, shared while the phases hold).
+                self._held_rows = None if held.flags.writeable else (held, rows)
+        if rows:
             force = self._law_inputs[10]
             force.fill(0.0)
             self._force_written = True
-            force_gain, coordinates = self.gains.force_gain, self._coordinates
+            force_gain = self.gains.force_gain
             measured, persistent = self.contact_force.tolist(), self._persistent.tolist()
-            for i, (is_held, lambda_d) in enumerate(
-                zip(held.tolist(), desired.force.tolist(), strict=True)
-            ):
-                if is_held:  # the measured force where valid, else λ_d [N]
-                    force_i = measured[i] if persistent[i] else lambda_d
-                    force[coordinates[i]] = -lambda_d + force_gain * (force_i - lambda_d)
+            lambda_ds = desired.force.tolist()
+            for i, j in rows:  # the measured force where valid, else λ_d [N]
+                lambda_d = lambda_ds[i]
+                force_i = measured[i] if persistent[i] else lambda_d
+                force[j] = -lambda_d + force_gain * (force_i - lambda_d)
         elif self._force_written:  # no contact held: no force term
             self._law_inputs[10].fill(0.0)
             self._force_written = False

@@ -214,6 +214,8 @@ class RestCubic:
         )
         velocity = (6 * s2 - 6 * sigma) * drop / T + (3 * s2 - 4 * sigma + 1) * v0
         acceleration = (12 * sigma - 6) * drop / T**2 + (6 * sigma - 4) * v0 / T
+        if len(nominal) == 3:  # the rigid law's sample: _padded, without the call
+            return (position, velocity, acceleration)
         return _padded((position, velocity, acceleration, self._jerk), len(nominal))
 
 
