@@ -213,8 +213,10 @@ class FlexibleBrogliatoController(BrogliatoController):
         # read (q1d, X_d', ..., X_d'''') in place from the law's input.
         nv, nf = robot.nv, flexible.nf
         x = self._law.input_buffer(0)
-        size = 2 * nv + 2 * nf  # q1, dq1 (nv,), q2, dq2 (nf,)
-        self._state_input = (x[:nv], x[nv : 2 * nv], x[2 * nv : size - nf], x[size - nf : size])
+        size = 2 * nv + 2 * nf  # the plant's q = (q1, q2) and v = (dq1, dq2), each (nv + nf,)
+        self._q_input, self._v_input = x[: nv + nf], x[nv + nf : size]
+        # Views of q1, dq1 (nv,), q2, dq2 (nf,).
+        self._state_input = (x[:nv], x[nv + nf : 2 * nv + nf], x[nv : nv + nf], x[size - nf : size])
         self._reference_input = x[size : size + 5 * nv]  # then q1d and its 4 derivatives
         self._target_input = tuple(x[size + k * nv : size + (k + 1) * nv] for k in range(1, 5))
         self._force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
@@ -265,11 +267,11 @@ class FlexibleBrogliatoController(BrogliatoController):
         q_shape, v_shape = self._split_shapes
         if q.shape != q_shape or v.shape != v_shape:
             self.flexible.split(q, v)  # raises the ShapeError
-        nq, nv = self.robot.nq, self.robot.nv  # FlexibleJoints.split without its checks
-        q1 = q[:nq]
+        q1 = q[: self.robot.nq]  # FlexibleJoints.split without its checks
         closed = self._measure(t, contacts)
-        state = self._state_input  # the measured state: the same input for every evaluation
-        state[0][...], state[1][...], state[2][...], state[3][...] = q1, v[:nv], q[nq:], v[nv:]
+        # The measured state: the same input for every evaluation, (q1, q2) and (dq1, dq2) as
+        # the plant orders them.
+        self._q_input[...], self._v_input[...] = q, v
         machine = self.machine  # _advance with the law's evaluation, inlined
         desired = machine.desired(t)
         V1 = self._evaluate(t, q1, desired)
@@ -279,6 +281,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         self.desired = desired
         # The law's input and output hold the last evaluation (that after the phase update).
         out = self._outputs = self._law_output.copy()  # fresh: the torque returned is kept
+        nv = self.robot.nv
         self.V, self.V1 = out.item(2 * nv), out.item(2 * nv + 1)
         self.X = out[self._X_slice]
         self._link_rows = self._reference_rows.copy()
@@ -444,7 +447,8 @@ def _law_function(
     r"""The law as one casadi Function of one input vector (see :meth:`_evaluate`).
 
     ``X`` is the task map of the symbol ``q``; ``coordinates`` are the task rows of the declared
-    contacts. Input: q1, dq1 (nv,), q2, dq2 (nf,), q1d and its 4 derivatives (nv,), the force term
+    contacts. Input: q1, q2, dq1, dq2 (the plant's order: q1 and dq1 (nv,), q2 and dq2 (nf,)),
+    q1d and its 4 derivatives (nv,), the force term
     :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and its 2 derivatives, the model's contact
     force and its derivative (each (n,), n declared contacts); second input, the parameters
     γ1, γ2, K (nf,), B (nf,), so that one compiled library serves every gain and stiffness
@@ -494,6 +498,6 @@ def _law_function(
         + gamma1 * gamma2 * (ca.dot(q1_error, q1_error) + ca.dot(q2_error, q2_error))
         + 0.5 * ca.dot(deflection_error, K * deflection_error)
     )
-    inputs = ca.vertcat(q1, dq1, q2, dq2, *r, *f, *lam)
+    inputs = ca.vertcat(q1, q2, dq1, dq2, *r, *f, *lam)
     outputs = ca.vertcat(u, link_X, V, V1, q2d, dq2d, ddq2d)
     return ca.Function("flexible_brogliato_law", [inputs, parameters], [outputs])
