@@ -351,3 +351,43 @@ def test_rest_cubic_rigid_sample_is_the_padded_one(rng: np.random.Generator) -> 
         segment = RestCubic(t0=1.0, p0=p0, v0=v0, p1=p1, duration=float(rng.uniform(0.1, 1.0)))
         for t in (0.5, *rng.uniform(1.0, 2.2, 5)):
             assert segment(t, (0.0,) * 3) == segment(t, (0.0,) * 5)[:3]
+
+
+def test_blind_segments_read_only_the_sample_length(rng: np.random.Generator) -> None:
+    """The machine hands these segments zeros instead of the nominal sample."""
+    from ucontrol.control.phase_machine import _BLIND_SEGMENTS
+    from ucontrol.control.trajectory_segment import Constant, RestHermite, SmoothParabola
+
+    for _ in range(50):
+        t0, duration = float(rng.uniform(0.0, 5.0)), float(rng.uniform(0.1, 1.0))
+        for size in (3, 5):
+            segments = [
+                RestCubic(t0, *rng.normal(size=3).tolist(), duration),
+                RestHermite(t0, tuple(rng.normal(size=size).tolist()), 0.1, duration),
+                Parabola(t0, float(rng.uniform(0.1, 2.0))),
+                SmoothParabola(t0, float(rng.uniform(0.1, 2.0)), duration, size - 3),
+                Constant(float(rng.normal())),
+            ]
+            assert {type(segment) for segment in segments} == _BLIND_SEGMENTS
+            for segment in segments:
+                for t in rng.uniform(t0 - 0.5, t0 + 1.5, 4):
+                    nominal = tuple(rng.normal(size=size).tolist())
+                    assert segment(t, nominal) == segment(t, (0.0,) * size)
+
+
+def test_rest_cubic_is_the_plain_hermite_cubic(rng: np.random.Generator) -> None:
+    for _ in range(100):
+        p0, v0, p1 = rng.normal(size=3).tolist()
+        T = float(rng.uniform(0.1, 1.0))
+        segment = RestCubic(t0=1.0, p0=p0, v0=v0, p1=p1, duration=T)
+        for t in (0.5, 1.0, *rng.uniform(1.0, 1.0 + T, 5)):
+            sigma = max((t - 1.0) / T, 0.0)
+            s2, s3, drop = sigma * sigma, sigma * sigma * sigma, p0 - p1
+            expected = (
+                (2 * s3 - 3 * s2 + 1) * p0
+                + (s3 - 2 * s2 + sigma) * T * v0
+                + (3 * s2 - 2 * s3) * p1,
+                (6 * s2 - 6 * sigma) * drop / T + (3 * s2 - 4 * sigma + 1) * v0,
+                (12 * sigma - 6) * drop / T**2 + (6 * sigma - 4) * v0 / T,
+            )
+            assert segment(t, (0.0,) * 3) == expected

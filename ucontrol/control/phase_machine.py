@@ -60,6 +60,9 @@ Vector = NDArray[np.float64]
 #: Times closer than this are equal, in [s] (sample times are sums of steps).
 TIME_TOLERANCE = 1e-9
 
+#: Segments whose sample depends on the nominal sample's length only, not on its values.
+_BLIND_SEGMENTS = frozenset({RestCubic, RestHermite, Parabola, SmoothParabola, Constant})
+
 
 class DesiredState(NamedTuple):
     r"""The desired trajectory at one time, in task coordinates (an immutable record).
@@ -195,10 +198,12 @@ class PhaseMachine:
                 self._columns[j],
                 segment,
                 segment(0.0, (0.0,) * size) if type(segment) is Constant else None,
+                type(segment) not in _BLIND_SEGMENTS,
             )
             for j, segment in enumerate(self._segments)
             if type(segment) is not Nominal
         ]
+        self._blind_nominal = (0.0,) * size  # what a segment blind to the nominal sample gets
         self._phase = overall_phase(self.phases)
         self.phase_value = int(self._phase)  # what a log records, computed once per change
         self.phase_values = _read_only(np.array(self.phases, dtype=np.int64))
@@ -288,12 +293,14 @@ class PhaseMachine:
             samples += offset_padded
         else:
             samples = self._nominal(t)
-        for column, segment, fixed in self._off_nominal:  # the others keep their nominal samples
+        for column, segment, fixed, reads_nominal in self._off_nominal:  # others stay nominal
             if fixed is not None:
                 samples[column] = fixed
-            else:
+            elif reads_nominal:
                 values = samples[column]
                 values[:] = segment(t, tuple(values.tolist()))
+            else:  # it reads only the sample's length
+                samples[column] = segment(t, self._blind_nominal)
         target = self._split_rows(samples)
         reference = (target[0], target[1])
         if self._transiting_coordinates:  # gaps below the surface are clipped

@@ -194,11 +194,13 @@ class RestCubic:
     duration: float
     _drop: float = field(init=False, repr=False, compare=False)  # p0 - p1
     _jerk: float = field(init=False, repr=False, compare=False)  # the constant third derivative
+    _T2: float = field(init=False, repr=False, compare=False)  # T**2 [s²]
 
     def __post_init__(self) -> None:
         T, drop = self.duration, self.p0 - self.p1
         object.__setattr__(self, "_drop", drop)
         object.__setattr__(self, "_jerk", 12 * drop / T**3 + 6 * self.v0 / T**2)
+        object.__setattr__(self, "_T2", T**2)
 
     def __call__(self, t: float, nominal: Sample) -> Sample:
         """Hermite cubic sample at ``t``; ``(p1, 0, 0, ...)`` once it has ended."""
@@ -206,14 +208,15 @@ class RestCubic:
         sigma = (t - self.t0) / T
         if sigma >= 1.0:
             return _padded((self.p1,), len(nominal))
-        sigma = max(sigma, 0.0)
+        if sigma < 0.0:  # max(sigma, 0.0) without the call (the same for -0.0 and NaN)
+            sigma = 0.0
         s2, s3 = sigma * sigma, sigma * sigma * sigma
         p0, v0, p1, drop = self.p0, self.v0, self.p1, self._drop
         position = (
             (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + sigma) * T * v0 + (3 * s2 - 2 * s3) * p1
         )
         velocity = (6 * s2 - 6 * sigma) * drop / T + (3 * s2 - 4 * sigma + 1) * v0
-        acceleration = (12 * sigma - 6) * drop / T**2 + (6 * sigma - 4) * v0 / T
+        acceleration = (12 * sigma - 6) * drop / self._T2 + (6 * sigma - 4) * v0 / T
         if len(nominal) == 3:  # the rigid law's sample: _padded, without the call
             return (position, velocity, acceleration)
         return _padded((position, velocity, acceleration, self._jerk), len(nominal))
