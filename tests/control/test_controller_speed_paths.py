@@ -18,6 +18,7 @@ import pytest
 
 from ucontrol.control.brogliato_controller import IMPACT_SPEED
 from ucontrol.control.controller import ContactState
+from ucontrol.control.flexible_brogliato_controller import TAYLOR_CACHE_SIZE
 from ucontrol.control.impedance_controller import _pseudo_inverse
 from ucontrol.control.phase_machine import DesiredState
 from ucontrol.scene import load_scene
@@ -263,12 +264,13 @@ def test_taylor_start_is_the_product_with_the_coefficients_tuple(
     rng: np.random.Generator,
 ) -> None:
     law = _controller("two_link_flexible_one_constraint")
-    for _ in range(200):
+    for _ in range(400):  # steps seen again (kept coefficients) and new ones (> the cache)
         law._link_rows = rng.standard_normal((5, law.robot.nv)) * 10.0 ** rng.integers(-3, 3)
         dt = float(rng.choice([0.0, 1e-3, 2e-3, rng.uniform(0.0, 0.1)]))  # [s]
         law._taylor_start(dt)
         expected = np.dot((1.0, dt, dt * dt / 2, dt**3 / 6, dt**4 / 24), law._link_rows)
         assert np.array_equal(law._newton_q, expected)
+        assert len(law._taylor) <= TAYLOR_CACHE_SIZE
 
 
 def test_posture_error_by_subtraction_is_pinocchios_difference(

@@ -311,7 +311,7 @@ class BrogliatoController:
         self._last_t = t
         if self._plant_index is None:
             self._plant_index = self._find_contacts(contacts.names)
-        impulse, speed = contacts.impulse.tolist(), contacts.normal_velocity.tolist()
+        impulse, speed = contacts.impulse.tolist(), None  # speeds read once a contact closed
         dt = contacts.dt  # [s]
         force, closed, settled, persistent = (
             self.contact_force,
@@ -327,7 +327,12 @@ class BrogliatoController:
             closed_i = force_i > 0.0
             force[i], closed[i] = force_i, closed_i
             persistent[i] = closed_i and settled[i]
-            settled[i] = closed_i and speed[j] >= -IMPACT_SPEED
+            if not closed_i:
+                settled[i] = False
+                continue
+            if speed is None:
+                speed = contacts.normal_velocity.tolist()
+            settled[i] = speed[j] >= -IMPACT_SPEED
         return closed
 
     def _advance(

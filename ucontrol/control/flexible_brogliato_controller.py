@@ -118,6 +118,8 @@ if TYPE_CHECKING:
 NEWTON_TOLERANCE = 1e-10
 #: ... or fails after this many iterations.
 NEWTON_ITERATIONS = 30
+#: Distinct steps whose Taylor coefficients of Newton's start are kept.
+TAYLOR_CACHE_SIZE = 64
 
 #: Per-sample fields written to the log besides those of the rigid controller
 #: (:data:`ucontrol.control.brogliato_controller.LOG_FIELDS`), with nv links and nf motors.
@@ -229,7 +231,8 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._newton_input = self._newton_step.input_buffer(0)
         self._newton_q = self._newton_input[:nv]  # Newton's iterate, updated in place
         self._newton_target = self._newton_input[nv:]
-        self._taylor = np.ones(5)  # the coefficients of Newton's start (see _taylor_start)
+        # The coefficients [s^k / k!] of Newton's start by step dt [s] (see _taylor_start).
+        self._taylor: dict[float, Vector] = {}
         self._newton_out: tuple[Vector, Vector] | None = None  # (output buffer, its step)
         # Outputs of the law: u (nu,), X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
         self._nf = nf
@@ -365,11 +368,16 @@ class FlexibleBrogliatoController(BrogliatoController):
     def _taylor_start(self, dt: float) -> None:
         r"""Newton's start: the last call's q1d expanded to ``dt`` [s] later, written in place.
 
-        :math:`\sum_k q_{1d}^{(k)} dt^k / k!` as one product of the coefficients' buffer
-        (written in place rather than converted from a tuple) with the rows of the last call.
+        :math:`\sum_k q_{1d}^{(k)} dt^k / k!` as one product of the coefficients with the rows
+        of the last call. The coefficients of each ``dt`` are kept (a run has a handful of
+        distinct steps: the sample times' differences round to a few values).
         """
-        taylor = self._taylor  # [s^k / k!]
-        taylor[1], taylor[2], taylor[3], taylor[4] = dt, dt * dt / 2, dt**3 / 6, dt**4 / 24
+        cache = self._taylor
+        taylor = cache.get(dt)
+        if taylor is None:
+            if len(cache) >= TAYLOR_CACHE_SIZE:  # a run with ever new steps: start again
+                cache.clear()
+            taylor = cache[dt] = np.array((1.0, dt, dt * dt / 2, dt**3 / 6, dt**4 / 24))
         np.dot(taylor, self._link_rows, out=self._newton_q)
 
     def _link_reference(self, t: float, X_d: Vector, q1: Vector) -> Vector:
