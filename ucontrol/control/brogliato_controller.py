@@ -196,7 +196,6 @@ class BrogliatoController:
                 self._target_buffer = law.input_buffer(8)
                 self._reference_buffer = law.input_buffer(9)
                 self._target_head = self._target_buffer[: 2 * task.m]
-                self._coordinates = self.machine.coordinates.tolist()  # task rows of contacts
         nv, m = robot.nv, task.m
         # Outputs of the compiled law: tau (nv,), V1, V, X (m,).
         self._V1_index, self._X_outputs = nv, slice(nv + 2, nv + 2 + m)
@@ -426,17 +425,7 @@ class BrogliatoController:
         """
         law = self._compiled_law
         assert law is not None
-        held = desired.constrained
-        rows: list[tuple[int, int]] = []  # (contact, task row) of each held contact
-        if held is not self.machine.none_constrained:
-            cached = self._held_rows
-            if cached is not None and cached[0] is held:
-                rows = cached[1]
-            else:
-                coordinates = self._coordinates
-                rows = [(i, coordinates[i]) for i, is_held in enumerate(held.tolist()) if is_held]
-                # Kept for a read-only value (the machine's, shared while the phases hold).
-                self._held_rows = None if held.flags.writeable else (held, rows)
+        rows = self._held_contacts(desired.constrained)
         if rows:
             force = self._law_inputs[10]
             force.fill(0.0)
@@ -463,6 +452,22 @@ class BrogliatoController:
             X_ref, dX_ref = self._law_columns[3:]
             X_ref[...], dX_ref[...] = reference
         return law()[0]
+
+    def _held_contacts(self, held: NDArray[np.bool_]) -> list[tuple[int, int]]:
+        """(contact, task row) of each declared contact that ``held`` flags; [] for none.
+
+        Kept while ``held`` is the same read-only object (the machine's flags, shared while
+        the phases hold).
+        """
+        if held is self.machine.none_constrained:
+            return []
+        cached = self._held_rows
+        if cached is not None and cached[0] is held:
+            return cached[1]
+        coordinates = self.machine.coordinates.tolist()
+        rows = [(i, coordinates[i]) for i, is_held in enumerate(held.tolist()) if is_held]
+        self._held_rows = None if held.flags.writeable else (held, rows)
+        return rows
 
     def _sliding(self, state: TaskState, X_d: Vector, dX_d: Vector, dyn: _Dynamics) -> Vector:
         r""":math:`s_q = v - \dot q_r` for the desired (X_d, dX_d), shape (nv,), in [rad/s]."""

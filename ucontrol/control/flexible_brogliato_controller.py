@@ -331,8 +331,8 @@ class FlexibleBrogliatoController(BrogliatoController):
             X_1[...], X_2[...], X_3[...], X_4[...] = desired.target[1:]
         (derivatives,) = self._reference_derivatives()  # reads the reference input in place
         tail[...] = derivatives  # q1d derivatives 1 to 4
-        held = desired.constrained
-        if held is not self.machine.none_constrained and np.count_nonzero(held):
+        held = self._held_contacts(desired.constrained)
+        if held:
             # λ_d and its derivatives (3, n): 0 unless held; the force λ used and its
             # derivative (2, n): the measured value with the derivatives of λ_d, or λ_d where
             # there is no valid measurement. Force term -λ_d + K_f (λ - λ_d) (3, n), row by
@@ -341,11 +341,9 @@ class FlexibleBrogliatoController(BrogliatoController):
             force_gain = self.gains.force_gain
             lambda_d = desired.force.tolist()
             lambda_m = lambda_d.copy()
-            measured = self.contact_force.tolist()
-            for i, (is_held, persistent) in enumerate(
-                zip(held.tolist(), self._persistent.tolist(), strict=True)
-            ):
-                if is_held and persistent:
+            measured, persistent = self.contact_force.tolist(), self._persistent.tolist()
+            for i, _ in held:
+                if persistent[i]:
                     lambda_m[i] = measured[i]  # [N]
             values = [-d + force_gain * (m - d) for d, m in zip(lambda_d, lambda_m, strict=True)]
             rates = desired.force_derivatives
