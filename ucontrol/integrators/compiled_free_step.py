@@ -148,7 +148,7 @@ class CompiledFreeStep:
         if self._kinetic is not None:
             self._kinetic[0] = state.kinetic_energy
         rows = state.normal_rows
-        if self._one_column:  # a column input is a vector
+        if self._one_column and rows is not None:  # a column input is a vector
             rows = rows.reshape(-1)
         (out,) = function(state.q, state.v, tau, None, None, rows, state.gap, state.normal_velocity)
         out = self._last = out.copy()
