@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
@@ -118,6 +119,7 @@ def simulate(
     start = last_checkpoint = time.perf_counter()
     k = 0
     try:
+        loop.share_plant_data()
         for k in range(n_steps + 1):
             state = loop.sample(k * h)
             if k == n_steps:
@@ -152,6 +154,7 @@ def simulate(
             failure.log_path = str(log.save(out_dir / "log.npz"))
         raise failure from error
     finally:
+        loop.release()
         if bar is not None:
             bar.close()
         if lock is not None:
@@ -226,6 +229,32 @@ class _ClosedLoop:
 
             self.actuators = Actuators(scene.actuators, robot, period)
         self.measured_q, self.measured_v, self.commanded_u = self.q, self.v, self.u
+        self.plant_model = robot.model
+        self.shares_plant_data = False
+
+    def share_plant_data(self) -> None:
+        """Let the controller read M and h from the plant's evaluation, where that is exact.
+
+        When it sees the plant's own state (no sensors, rigid joints) and has a model equal to
+        the plant's (not, e.g., a perturbed plant in a campaign or a controller's believed
+        masses): each controller call follows the plant's evaluation at that state
+        (:meth:`sample`). :meth:`release` undoes it.
+        """
+        use = getattr(self.controller, "use_plant_data", None)
+        data = getattr(self.integrator, "evaluation_data", None)
+        own = getattr(getattr(self.controller, "robot", None), "model", None)
+        if use is None or data is None or not isinstance(own, pin.Model):
+            return
+        if own is not self.plant_model and own != self.plant_model:  # Pinocchio's equality
+            return
+        if self.sensors is None and self.flexible is None:
+            self.shares_plant_data = bool(use(data))
+
+    def release(self) -> None:
+        """Give the controller back its own Pinocchio data (the end of the run)."""
+        if self.shares_plant_data:
+            self.controller.use_plant_data(None)  # type: ignore[attr-defined]
+            self.shares_plant_data = False
 
     def sample(self, t: float) -> PlantEvaluation:
         """Evaluate the plant at t [s] and open the log row of that sample."""

@@ -166,6 +166,8 @@ class BrogliatoController:
         self._posture_by_subtraction = self._redundant and all(
             joint.shortname() in _VECTOR_SPACE_JOINTS for joint in robot.model.joints[1:]
         )
+        self._pass_data = self._data  # the data the compiled law reads (use_plant_data)
+        self._plant_terms = False  # whether M and h come from the plant's evaluation
         self._lower = np.tril_indices(robot.nv, -1)
         self._M = np.zeros((robot.nv, robot.nv))
         self._all_actuated = bool(np.array_equal(robot.actuated, np.arange(robot.nv)))
@@ -179,12 +181,9 @@ class BrogliatoController:
             ]
             law = CompiledFunction(_rigid_law_function(robot.nv, task.m, self._redundant, support))
             if law.compiled:  # the kinematics and dynamics read in place from the data
-                for i, name in enumerate(("M", "C", "nle", "J", "dJ")):
-                    law.bind_input(i, getattr(self._data, name))
-                law.bind_input(5, self._data.oMf[task.frame_id].translation)  # views
-                law.bind_input(12, self._data.ov[joint].vector)
-                law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
                 self._compiled_law = law
+                self._bind_data(self._data)
+                law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
                 # The other inputs are written in place at each call (see _rigid_law_function):
                 # v, q ⊖ q_p, the force term, and the columns of the target (X_d, dX_d,
                 # ddX_d) and of the reference (X_d, dX_d), each (m,).
@@ -204,6 +203,38 @@ class BrogliatoController:
         self._out_views: tuple[Vector, Vector, Vector] | None = None
         self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
         self.reset()
+
+    def use_plant_data(self, data: pin.Data | None) -> bool:
+        """Read M(q) and h(q, v) from the plant's evaluation instead of computing them.
+
+        For the closed loop (:func:`ucontrol.simulate`), when the controller sees the plant's
+        own state and model: ``data`` is the plant's Pinocchio data of this controller's
+        model, filled by ``pin.computeAllTerms`` at the very (q, v) of each following call.
+        The law then runs only its Coriolis pass (C, the joint Jacobians and their time
+        variation, which leaves M, h and the energies as they are) and the frame placement
+        on it: two Pinocchio calls fewer, the same law to round-off (M and h from
+        ``computeAllTerms`` rather than ``crba`` and ``nonLinearEffects``). None goes back to
+        the controller's own data.
+
+        Returns:
+            Whether the plant's data is used (only by the compiled law).
+        """
+        if self._compiled_law is None:
+            return False
+        self._bind_data(self._data if data is None else data)
+        self._plant_terms = data is not None
+        return self._plant_terms
+
+    def _bind_data(self, data: pin.Data) -> None:
+        """Bind the compiled law's kinematic and dynamic inputs to ``data``'s buffers."""
+        law, task = self._compiled_law, self.task
+        assert law is not None
+        joint = self._model.frames[task.frame_id].parentJoint
+        for i, name in enumerate(("M", "C", "nle", "J", "dJ")):
+            law.bind_input(i, getattr(data, name))
+        law.bind_input(5, data.oMf[task.frame_id].translation)  # views
+        law.bind_input(12, data.ov[joint].vector)
+        self._pass_data = data
 
     def reset(self) -> None:
         """Forget the run: phases back to free, events and measurements cleared."""
@@ -393,10 +424,11 @@ class BrogliatoController:
     def _compiled_call(self, t: float, q: Vector, v: Vector, closed: NDArray[np.bool_]) -> Vector:
         """The law through its compiled form (same terms as :meth:`_torque`)."""
         inputs = self._law_inputs
-        model, data = self._model, self._data  # the pass of _pinocchio_pass, inlined
+        model, data = self._model, self._pass_data  # the pass of _pinocchio_pass, inlined
         pin.computeCoriolisMatrix(model, data, q, v)  # M, C, h, the joint Jacobians, ...:
-        pin.crba(model, data, q)  # bound inputs
-        pin.nonLinearEffects(model, data, q, v)
+        if not self._plant_terms:  # bound inputs (M and h: the plant's evaluation's)
+            pin.crba(model, data, q)
+            pin.nonLinearEffects(model, data, q, v)
         pin.updateFramePlacement(model, data, self.task.frame_id)
         inputs[6][...] = v
         if self._posture_by_subtraction:  # pin.difference on vector-space joints

@@ -416,6 +416,17 @@ class MoreauJean:
             step.bind_activation(self._activation)
         return step
 
+    @property
+    def evaluation_data(self) -> pin.Data:
+        """The Pinocchio data of the last :meth:`evaluate`: ``pin.computeAllTerms`` at its (q, v).
+
+        The links' (q, v) with flexible joints. A controller of the same model may read it
+        between :meth:`evaluate` and :meth:`step`, and run further Pinocchio passes on it at
+        that state (e.g. ``computeCoriolisMatrix``) as long as they leave M, h and the
+        energies as they are.
+        """
+        return self._data
+
     def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
         """Dynamics, kinematics and constraint gaps at (q, v) and time t; prepares :meth:`step`.
 
