@@ -6,6 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from ucontrol.contact import compiled_rows as compiled_rows_module
 from ucontrol.contact.compiled_rows import compiled_rows, qualifies
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.scene import load_scene
@@ -80,3 +81,22 @@ def test_closed_loop_without_compiler_equals_compiled_to_round_off(
     np.testing.assert_array_equal(compiled.active, interpreted.active)
     np.testing.assert_allclose(compiled.q, interpreted.q, rtol=0, atol=1e-13)
     np.testing.assert_allclose(compiled.impulse, interpreted.impulse, rtol=0, atol=4e-10)
+
+
+@pytest.mark.parametrize("setting", ["no_compile", "no_compiler"])
+def test_rows_are_not_built_where_they_cannot_compile(
+    setting: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Built, they would run in casadi's virtual machine, slower than Pinocchio's path: the
+    # symbolic rows are not even built (nor casadi imported for them).
+    constraints = load_scene("two_link_one_constraint").constraints
+    if setting == "no_compile":
+        monkeypatch.setenv("UCONTROL_NO_COMPILE", "1")
+    else:
+        monkeypatch.setenv("CC", "no-such-compiler-ucontrol")
+    monkeypatch.setattr(compiled_rows_module, "ConstraintRows", _never_built)
+    assert compiled_rows(constraints) is None
+
+
+def _never_built(constraints: ConstraintSet) -> None:
+    raise AssertionError("the rows were built although they cannot compile")

@@ -118,8 +118,10 @@ def compiled_rows(constraints: ConstraintSet) -> ConstraintRows | None:
     ``UCONTROL_NO_COMPILE`` is not set). Elsewhere the Pinocchio path of
     :class:`ConstraintSet` is faster than casadi's virtual machine, and is used.
     """
-    if not qualifies(constraints):
-        return None
+    from ucontrol.model.compiled_function import compilation_possible
+
+    if not qualifies(constraints) or not compilation_possible():
+        return None  # (casadi not even imported)
     try:
         rows = ConstraintRows(constraints)
     except InvalidParameterError:  # a free-flyer base, a spherical or a continuous joint

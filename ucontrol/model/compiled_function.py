@@ -35,11 +35,13 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:  # casadi is imported by the functions that build (compilation_possible: not)
+    import casadi as ca
 
 Vector = NDArray[np.float64]
 
@@ -68,6 +70,21 @@ def cache_dir() -> Path:
 def compilation_disabled() -> bool:
     """Whether ``UCONTROL_NO_COMPILE`` asks for the casadi fallback."""
     return os.environ.get(NO_COMPILE_ENV, "").strip() not in ("", "0")
+
+
+def compilation_possible() -> bool:
+    """Whether a :class:`CompiledFunction` built now can compile: a C compiler, not disabled.
+
+    For callers whose only gain is the compiled call, so that they skip building the casadi
+    Function at all where it would run in casadi's virtual machine.
+    """
+    if compilation_disabled():
+        return False
+    try:
+        _compiler()
+    except OSError:
+        return False
+    return True
 
 
 class CompiledFunction:
@@ -192,6 +209,8 @@ class CompiledFunction:
 
 def _densified(function: ca.Function) -> ca.Function:
     """``function`` with dense outputs (SX or MX Functions)."""
+    import casadi as ca
+
     if all(function.sparsity_out(i).is_dense() for i in range(function.n_out())):
         return function
     symbols: Any = function.sx_in() if function.is_a("SXFunction") else function.mx_in()
@@ -208,6 +227,8 @@ def _compiler() -> list[str]:
 
 def _build(function: ca.Function) -> Path:
     """Path of the compiled library of ``function``, built (once) if absent."""
+    import casadi as ca
+
     compiler = _compiler()
     key = hashlib.sha256()
     key.update(function.serialize().encode())
