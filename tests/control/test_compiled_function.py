@@ -35,6 +35,21 @@ def _reference(x: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([[math.sin(x[0]) * x[1]], A @ x]), np.array([x[2] ** 2])
 
 
+def test_runner_writes_the_outputs_of_the_inputs_in_place(tmp_path, monkeypatch):
+    """``runner()`` on inputs written through ``input_view``: the values of ``__call__``."""
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    rng = np.random.default_rng(1)
+    for function in (CompiledFunction(_function()), CompiledFunction(_function(), compile=False)):
+        run, outputs = function.runner(), (function.output_buffer(0), function.output_buffer(1))
+        for _ in range(10):
+            x, A = rng.standard_normal(3), rng.standard_normal((2, 3))
+            function.input_view(0)[...], function.input_view(1)[...] = x, A
+            assert run() is None
+            for out, ref in zip(outputs, _reference(x, A), strict=True):
+                np.testing.assert_allclose(out, ref, rtol=0.0, atol=_TOLERANCE)
+
+
 def test_compiled_function_matches_analytic_values(tmp_path, monkeypatch):
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)

@@ -95,6 +95,8 @@ class ConstraintRows:
         self.function.input_buffer(3)[:] = constraints.stop_terms.ravel()
         self._n, self._nv = n, nv
         self._parts = (slice(0, n), slice(n, 2 * n), slice(2 * n, None))
+        self._q, self._v = self.function.input_view(0), self.function.input_view(1)
+        self._run, self._out = self.function.runner(), self.function.output_buffer(0)
 
     @property
     def compiled(self) -> bool:
@@ -103,8 +105,9 @@ class ConstraintRows:
 
     def __call__(self, q: Vector, v: Vector) -> RowValues:
         """Gaps, normal velocities and rows at (q (nq,), v (nv,)), in new arrays."""
-        (out,) = self.function(q, v)
-        out = out.copy()
+        self._q[...], self._v[...] = q, v
+        self._run()
+        out = self._out.copy()
         gaps, velocities, rows = self._parts
         return RowValues(out[gaps], out[velocities], out[rows].reshape(self._n, self._nv))
 

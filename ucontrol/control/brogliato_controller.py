@@ -182,6 +182,7 @@ class BrogliatoController:
             law = CompiledFunction(_rigid_law_function(robot.nv, task.m, self._redundant, support))
             if law.compiled:  # the kinematics and dynamics read in place from the data
                 self._compiled_law = law
+                self._run_law, self._rigid_law_output = law.runner(), law.output_buffer(0)
                 self._bind_data(self._data)
                 law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
                 # The other inputs are written in place at each call (see _rigid_law_function):
@@ -483,7 +484,8 @@ class BrogliatoController:
         else:
             X_ref, dX_ref = self._law_columns[3:]
             X_ref[...], dX_ref[...] = reference
-        return law()[0]
+        self._run_law()
+        return self._rigid_law_output
 
     def _held_contacts(self, held: NDArray[np.bool_]) -> list[tuple[int, int]]:
         """(contact, task row) of each declared contact that ``held`` flags; [] for none.

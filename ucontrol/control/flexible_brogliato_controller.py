@@ -228,6 +228,13 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._reference_q = self._reference_input[:nv]
         self._reference_tail = self._reference_input[nv:]
         self._reference_rows = self._reference_input.reshape(5, nv)
+        # The three compiled calls on their inputs as written, and their output buffers.
+        self._run_newton = self._newton_step.runner()
+        self._newton_output = self._newton_step.output_buffer(0)
+        self._run_derivatives = self._reference_derivatives.runner()
+        self._derivatives_output = self._reference_derivatives.output_buffer(0)
+        self._run_flexible_law = self._law.runner()
+        self._flexible_law_output = self._law.output_buffer(0)
         self._newton_input = self._newton_step.input_buffer(0)
         self._newton_q = self._newton_input[:nv]  # Newton's iterate, updated in place
         self._newton_target = self._newton_input[nv:]
@@ -329,7 +336,8 @@ class FlexibleBrogliatoController(BrogliatoController):
         else:
             X_1, X_2, X_3, X_4 = self._target_input
             X_1[...], X_2[...], X_3[...], X_4[...] = desired.target[1:]
-        (derivatives,) = self._reference_derivatives()  # reads the reference input in place
+        self._run_derivatives()  # reads the reference input in place
+        derivatives = self._derivatives_output
         tail[...] = derivatives  # q1d derivatives 1 to 4
         held = self._held_contacts(desired.constrained)
         if held:
@@ -360,7 +368,8 @@ class FlexibleBrogliatoController(BrogliatoController):
         elif self._force_written:  # no contact held: no force in the model
             self._force_input.fill(0.0)
             self._force_written = False
-        (self._law_output,) = self._law()
+        self._run_flexible_law()
+        self._law_output = self._flexible_law_output
         return self._law_output.item(self._V1_index)
 
     def _taylor_start(self, dt: float) -> None:
@@ -396,9 +405,9 @@ class FlexibleBrogliatoController(BrogliatoController):
             self._taylor_start(t - self._reference_time)
         nv = q.size
         self._newton_target[...] = X_d
-        newton_step = self._newton_step
+        run_newton, out = self._run_newton, self._newton_output
         for _ in range(NEWTON_ITERATIONS):
-            (out,) = newton_step()
+            run_newton()
             views = self._newton_out
             if views is None or views[0] is not out:  # the output buffer stays put
                 views = self._newton_out = (out, out[:nv])

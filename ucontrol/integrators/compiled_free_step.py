@@ -136,6 +136,9 @@ class CompiledFreeStep:
         # Ends of the outputs v_free, q_free, predicted gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ (Python ints).
         self._split = tuple(np.cumsum([size, size, n, size * n, n * n]).tolist())
         self._kinetic = self.function.input_buffer(13) if self.single_rows else None
+        # The per-step inputs, written in place: q, v, tau, J, gaps, normal velocities.
+        self._inputs = tuple(self.function.input_view(i) for i in (0, 1, 2, 5, 6, 7))
+        self._run, self._out = self.function.runner(), self.function.output_buffer(0)
         self._last: Vector | None = None  # the last call's outputs
 
     def __call__(self, state: PlantEvaluation, tau: Vector) -> tuple[Vector, Vector, Vector]:
@@ -144,14 +147,16 @@ class CompiledFreeStep:
         ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`). The
         returned arrays are fresh; :meth:`contact_terms` reads the same call's Delassus terms.
         """
-        function = self.function
         if self._kinetic is not None:
             self._kinetic[0] = state.kinetic_energy
         rows = state.normal_rows
         if self._one_column and rows is not None:  # a column input is a vector
             rows = rows.reshape(-1)
-        (out,) = function(state.q, state.v, tau, None, None, rows, state.gap, state.normal_velocity)
-        out = self._last = out.copy()
+        q, v, tau_in, J, gap, velocity = self._inputs
+        q[...], v[...], tau_in[...] = state.q, state.v, tau
+        J[...], gap[...], velocity[...] = rows, state.gap, state.normal_velocity
+        self._run()
+        out = self._last = self._out.copy()
         a, b, c = self._split[:3]
         return out[:a], out[a:b], out[b:c]
 
