@@ -182,28 +182,44 @@ class CompiledFreeStep:
         """
         self.function.bind_input(12, activation)
 
-    def single_row(self, i: int) -> tuple[float, float, float, bool, bool, Vector, Vector]:
-        """The last call's step with constraint ``i`` alone active.
-
-        Returns:
-            The impulse P [N s], the velocity ``d P + β`` of the LCP [m/s], its natural-map
-            residual [m/s], whether it is solved (d > 0 or β >= 0), whether the energy guard
-            made it plastic, and fresh :math:`v_{k+1}` and :math:`q_{k+1}`, each (N,).
-        """
+    def single_row(self, i: int) -> SingleRowStep:
+        """The last call's step with constraint ``i`` alone active (views of its outputs)."""
         assert self._last is not None and self.single_rows
         size = self._sizes[0]
         start = self._split[-1] + i * (5 + 2 * size)
         block = self._last[start : start + 5 + 2 * size]
-        impulse, velocity, residual, solved, plastic = block[:5].tolist()
-        return (
-            impulse,
-            velocity,
+        _, _, residual, solved, plastic = block[:5].tolist()
+        return SingleRowStep(
+            block[0:1],
+            block[1:2],
             residual,
             solved > 0.0,
             plastic > 0.0,
             block[5 : 5 + size],
             block[5 + size :],
         )
+
+
+class SingleRowStep(NamedTuple):
+    """The step with one constraint alone active, from :meth:`CompiledFreeStep.single_row`.
+
+    Attributes:
+        impulse: Its impulse P in [N s], shape (1,).
+        velocity: The LCP's velocity ``d P + β`` in [m/s], shape (1,).
+        residual: The natural-map residual in [m/s].
+        solved: Whether the closed form solves it (d > 0 or β >= 0).
+        plastic: Whether the energy guard made it plastic.
+        v: :math:`v_{k+1}`, shape (N,).
+        q: :math:`q_{k+1}`, shape (N,).
+    """
+
+    impulse: Vector
+    velocity: Vector
+    residual: float
+    solved: bool
+    plastic: bool
+    v: Vector
+    q: Vector
 
 
 class SingleRowRules(NamedTuple):

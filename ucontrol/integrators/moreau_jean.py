@@ -544,24 +544,24 @@ class MoreauJean:
         The one-row LCP's closed form is part of the compiled step: its solve time is not
         measured apart (0 s in the solution).
         """
-        impulse_i, velocity, residual, solved, plastic, v_next, q_next = free_step.single_row(i)
+        row = free_step.single_row(i)
         solution = ContactSolution(
-            np.array([impulse_i]),
-            np.array([velocity]),
-            "solved" if solved else "infeasible",
+            row.impulse,
+            row.velocity,
+            "solved" if row.solved else "infeasible",
             0,
-            residual,
+            row.residual,
             0.0,
         )
         self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
-        impulse[i] = impulse_i
+        impulse[i] = impulse_i = row.impulse.item()
         # The persistence memory of the next step, as _outcome writes it (no bilateral rows).
         self._activation.fill(0.0)
         if impulse_i > 0.0:
             self._activation[i] = self.persistence_tolerance
         self._holding = True
-        return StepOutcome(q_next, v_next, impulse, active, solution, plastic=plastic)
+        return StepOutcome(row.q, row.v, impulse, active, solution, plastic=row.plastic)
 
     def _free_outcome(
         self,
