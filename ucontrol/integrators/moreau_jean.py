@@ -756,16 +756,13 @@ class MoreauJean:
         friction_impulse: Vector | None,
         *,
         held: Vector | None = None,
-        q_next: Vector | None = None,
     ) -> StepOutcome:
         """The step's outcome from :math:`v_{k+1}`, and the persistence memory of the next step.
 
-        :math:`q_{k+1}` is step 4's (or ``q_next`` when it is already known), projected onto
-        the bilateral constraints on a closed chain with the ``held`` contacts' normal rows
-        kept (shape (k, nv) or None).
+        :math:`q_{k+1}` is step 4's, projected onto the bilateral constraints on a closed chain
+        with the ``held`` contacts' normal rows kept (shape (k, nv) or None).
         """
-        if q_next is None:
-            q_next = self._advance_theta(state, v_next)
+        q_next = self._advance_theta(state, v_next)
         if self._bilateral is not None:
             q_next = self._project(q_next, held if held is not None and held.size else None)
         np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
