@@ -118,7 +118,7 @@ def broad_phase(repeats: int) -> None:
     costs = []
     for pairs in (near, near + far):
         constraints = ConstraintSet(robot, collision_pairs=pairs)
-        data = robot.model.createData()
+        data = pin.Data(robot.model)
         pin.computeAllTerms(robot.model, data, q, v)
         pin.updateFramePlacements(robot.model, data)
         constraints.evaluate(data, q, v)
@@ -159,7 +159,7 @@ def four_bar_event_driven(duration: float) -> None:
     assert bilateral is not None
     energy, impulse = np.asarray(log.energy), np.asarray(log.impulse)[:, 0]
     model = scene.robot.model
-    data = model.createData()
+    data = pin.Data(model)
     q_stop = scene.q0.copy()
     q_stop[0] = stop
     for _ in range(20):  # the assembly at the stop: Gauss-Newton on the closure, crank fixed

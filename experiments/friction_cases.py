@@ -205,7 +205,7 @@ def acceleration_problem(scene: Scene) -> tuple[float, float]:
         centripetal term included).
     """
     robot, constraints = scene.robot, scene.constraints
-    model, data = robot.model, robot.model.createData()
+    model, data = robot.model, pin.Data(robot.model)
     q, v = scene.q0, scene.v0
     pin.computeAllTerms(model, data, q, v)
     pin.updateFramePlacements(model, data)

@@ -126,7 +126,7 @@ def run(task: str, name: str, cycles: int, dt: float) -> Run:
 def _frame_positions(log: Log, scene: Scene, frame: str) -> np.ndarray:
     """World position of ``frame`` at every row, (N, 3) in [m]."""
     model = scene.robot.model
-    data = model.createData()
+    data = pin.Data(model)
     frame_id = model.getFrameId(frame)
     positions = np.empty((len(log), 3))
     for row, q in enumerate(log.q[:, : model.nq]):

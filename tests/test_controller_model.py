@@ -34,7 +34,7 @@ def test_per_link_mass_scale_and_com_offset_change_only_those_bodies() -> None:
     assert model.inertias[1].mass == plant.inertias[1].mass
     # Gravity torque of the shoulder against an independent sum over the bodies: m g x_com.
     q = np.array([0.3, -0.8])
-    data = model.createData()
+    data = pin.Data(model)
     pin.forwardKinematics(model, data, q)
     expected = sum(
         model.inertias[j].mass * 9.81 * (data.oMi[j].act(model.inertias[j].lever))[0]

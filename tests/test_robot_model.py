@@ -77,7 +77,7 @@ def test_constraint_gaps_velocities_and_jacobians_agree(robot_factory) -> None:
     rng = np.random.default_rng(5)
     q = pin.randomConfiguration(robot.model, -np.ones(robot.nq), np.ones(robot.nq))
     v = rng.standard_normal(robot.nv)
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.computeAllTerms(robot.model, data, q, v)
     pin.updateFramePlacements(robot.model, data)
     gap, velocity = constraints.evaluate(data, q, v)

@@ -40,7 +40,7 @@ def _state_near(
 
 def _task(controller: BrogliatoController, q: np.ndarray, v: np.ndarray):
     model = controller.robot.model
-    data = model.createData()
+    data = pin.Data(model)
     pin.computeAllTerms(model, data, q, v)
     pin.computeJointJacobiansTimeVariation(model, data, q, v)
     pin.updateFramePlacements(model, data)

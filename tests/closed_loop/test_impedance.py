@@ -108,7 +108,7 @@ def test_free_rest_reaches_the_desired_point() -> None:
 
 
 def _finite_difference_jacobian(model, q: np.ndarray, frame: int) -> np.ndarray:
-    data = model.createData()
+    data = pin.Data(model)
 
     def position(q_: np.ndarray) -> np.ndarray:
         pin.framesForwardKinematics(model, data, q_)
@@ -167,7 +167,7 @@ def test_panda_torque_matches_an_independent_assembly() -> None:
         v = rng.normal(0.0, 0.5, model.nv)
         tau = controller(t, q, v, state)
         J = _finite_difference_jacobian(model, q, frame)
-        data = model.createData()
+        data = pin.Data(model)
         pin.framesForwardKinematics(model, data, q)
         x = data.oMf[frame].translation
         g = pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv))
@@ -285,7 +285,7 @@ def test_comparison_experiment_measures_both_controllers() -> None:
         row = int(np.flatnonzero(r.log.impulse[:, i] > 0.0)[0])
         contact = r.scene.contacts[0]
         model = r.scene.robot.model
-        data = model.createData()
+        data = pin.Data(model)
         q = r.log.q[row, : model.nq]
         M = pin.crba(model, data, q)
         M = np.triu(M) + np.triu(M, 1).T

@@ -41,7 +41,7 @@ def test_law_on_the_plants_terms_equals_its_own_pass(name: str, rng: np.random.G
     own, shared = scene.build_controller(), scene.build_controller()
     assert isinstance(own, BrogliatoController) and isinstance(shared, BrogliatoController)
     model = scene.robot.model
-    plant = model.createData()
+    plant = pin.Data(model)
     assert shared.use_plant_data(plant)
     names = list(scene.build_integrator().constraints.names)
     n = len(names)

@@ -32,7 +32,7 @@ _R1, _R2 = 0.1, 0.15  # radii of the spheres of _SHAPES [m]
 
 def _normal_velocity(constraints: ConstraintSet, q: np.ndarray, v: np.ndarray, t: float):
     robot = constraints.robot
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.forwardKinematics(robot.model, data, q, v)
     pin.updateFramePlacements(robot.model, data)
     return constraints.evaluate(data, q, v, t)[1]
@@ -48,7 +48,7 @@ def _flow_derivative(constraints: ConstraintSet, q: np.ndarray, v: np.ndarray, s
 
 def _drift(constraints: ConstraintSet, q: np.ndarray, v: np.ndarray) -> np.ndarray:
     robot = constraints.robot
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.forwardKinematics(robot.model, data, q, v, np.zeros(robot.nv))
     pin.updateFramePlacements(robot.model, data)
     indices = np.arange(constraints.size)
@@ -143,7 +143,7 @@ def test_witness_drift_of_spheres_equals_the_closed_form(
         q[7:10] = q[:3] + distance * np.array([0.6, 0.0, 0.8])
         v = rng.standard_normal(robot.nv)
         drift = _drift(constraints, q, v)
-        data = model.createData()
+        data = pin.Data(model)
         pin.forwardKinematics(model, data, q, v, np.zeros(robot.nv))
         centre, velocity, acceleration = [], [], []
         for joint in (first, second):
@@ -167,7 +167,7 @@ def test_drift_of_collision_rows_needs_the_state(tmp_path: Path) -> None:
     robot = _robot(tmp_path)
     constraints = ConstraintSet(robot, collision_pairs=_pairs())
     with pytest.raises(InvalidParameterError, match="q, v"):
-        constraints.normal_drift(robot.model.createData(), [0])
+        constraints.normal_drift(pin.Data(robot.model), [0])
 
 
 @pytest.mark.parametrize(

@@ -78,7 +78,7 @@ def _configuration(robot: RobotModel, rng: np.random.Generator) -> np.ndarray:
 
 
 def _kinematics(robot: RobotModel, q: np.ndarray, v: np.ndarray) -> pin.Data:
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.computeAllTerms(robot.model, data, q, v)
     pin.updateFramePlacements(robot.model, data)
     return data
@@ -151,7 +151,7 @@ def test_tangent_rows_are_velocities_of_the_contact_points(
 
         # Relative velocity of the contact points by finite differences of their motion.
         def relative_position(q_: np.ndarray, j: int = j) -> np.ndarray:
-            d = robot.model.createData()
+            d = pin.Data(robot.model)
             pin.forwardKinematics(robot.model, d, q_)
             first = d.oMi[int(points.joint[j])].act(
                 data.oMi[int(points.joint[j])].actInv(points.point[j])

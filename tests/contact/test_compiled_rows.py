@@ -24,7 +24,7 @@ def test_rows_equal_pinocchio_and_finite_differences(name: str, rng: np.random.G
     constraints = scene.constraints
     rows = compiled_rows(constraints)
     assert rows is not None
-    model, data = scene.robot.model, scene.robot.model.createData()
+    model, data = scene.robot.model, pin.Data(scene.robot.model)
     for _ in range(5):
         q, v = _random_state(scene.robot, rng)
         pin.computeAllTerms(model, data, q, v)

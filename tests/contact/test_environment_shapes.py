@@ -101,7 +101,7 @@ def test_mesh_box_rows_equal_the_box_shape(
         q[3:7] = quaternion / np.linalg.norm(quaternion)
         q[:3] = np.array(_POSE["position"]) + rng.uniform(-0.5, 0.5, 3)
         v = rng.standard_normal(robot.nv)
-        data = robot.model.createData()
+        data = pin.Data(robot.model)
         pin.computeAllTerms(robot.model, data, q, v)
         gap, velocity = hull.evaluate(data, q, v)
         reference_gap, reference_velocity = analytic.evaluate(data, q, v)
@@ -181,7 +181,7 @@ def test_moving_shape_rows_use_the_relative_velocity(
     q[:3] = [0.5, 0.3, 0.62]
     v = rng.standard_normal(robot.nv)
     t, step = 0.4, 1e-6  # [s]
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.computeAllTerms(robot.model, data, q, v)
     velocity = constraints.evaluate(data, q, v, t)[1]
     rows = np.arange(constraints.size)
@@ -230,7 +230,7 @@ def test_bad_shapes_pairs_and_motions_raise_typed_errors(tmp_path: Path) -> None
         Scene.from_dict(_collision_table({"type": "mesh", "file": 3}), base_dir=ROBOTS)
     # The time is required once a shape moves.
     scene = Scene.from_toml(ROBOTS / "ball_vibrating_box.toml")
-    data = scene.robot.model.createData()
+    data = pin.Data(scene.robot.model)
     q, v = scene.q0, scene.v0
     pin.computeAllTerms(scene.robot.model, data, q, v)
     with pytest.raises(InvalidParameterError, match="move"):

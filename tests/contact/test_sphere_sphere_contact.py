@@ -53,7 +53,7 @@ def _state(robot: RobotModel, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _kinematics(robot: RobotModel, q: np.ndarray, v: np.ndarray) -> pin.Data:
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.computeAllTerms(robot.model, data, q, v)
     pin.updateFramePlacements(robot.model, data)
     return data
@@ -93,7 +93,7 @@ def test_tangent_rows_are_contact_point_velocities() -> None:
     local = [(frame, frame.rotation.T @ offset, sign) for frame, offset, sign in points]
 
     def positions(q_: np.ndarray) -> list[np.ndarray]:
-        data_ = robot.model.createData()
+        data_ = pin.Data(robot.model)
         pin.framesForwardKinematics(robot.model, data_, q_)
         frames = {id(first): "first", id(second): "second"}
         return [
@@ -114,7 +114,7 @@ def test_normal_drift() -> None:
     """J̇v: the derivative of J(q(t)) v along the motion at constant v."""
     robot, constraints = _spheres()
     q, v = _state(robot, 2)
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.forwardKinematics(robot.model, data, q, v, np.zeros(robot.nv))
     pin.updateFramePlacements(robot.model, data)
     drift = constraints.normal_drift(data, [0, 1])

@@ -86,7 +86,7 @@ def plant(
     the end effector up with ``ground_force(t)`` [N] wherever it is (no impact, no constraint).
     """
     arm, flexible = law.robot, law.flexible
-    model, data = arm.model, arm.model.createData()
+    model, data = arm.model, pin.Data(arm.model)
     nq = arm.nq + flexible.nf
     rigid = np.setdiff1d(np.arange(arm.nv), flexible.v_index)
     normal = ground().surface.normal

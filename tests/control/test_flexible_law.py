@@ -53,7 +53,7 @@ def _rigid_law(law: FlexibleBrogliatoController, x: np.ndarray) -> np.ndarray:
     arm, nv = law.robot, law.robot.nv
     q1, dq1 = x[:nv], x[nv + law.flexible.nf : 2 * nv + law.flexible.nf]
     q1d, dq1d, ddq1d = law.link_desired[:3]
-    data = arm.model.createData()
+    data = pin.Data(arm.model)
     M = pin.crba(arm.model, data, q1)
     M = np.triu(M) + np.triu(M, 1).T
     C = pin.computeCoriolisMatrix(arm.model, data, q1, dq1)

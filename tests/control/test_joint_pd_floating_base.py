@@ -30,7 +30,7 @@ def test_torque_reads_the_joint_coordinates_after_the_base(quadruped):
     q = pin.randomConfiguration(robot.model, -np.ones(robot.nq), np.ones(robot.nq))
     v = rng.standard_normal(robot.nv)
     contacts = ContactState([], np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, bool), 1e-3)
-    gravity = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
+    gravity = pin.computeGeneralizedGravity(robot.model, pin.Data(robot.model), q)
     expected = 20.0 * (quadruped.q0[7:] - q[7:]) - 0.5 * v[6:] + gravity[6:]
     np.testing.assert_allclose(controller(0.0, q, v, contacts), expected, rtol=0, atol=1e-12)
 

@@ -281,7 +281,7 @@ def test_reach_check_solutions_reproduce_the_path() -> None:
     path = SplinePath(waypoints=[[0.7, 0.1, 0], [0.55, 0.05, 0], [0.6, -0.05, 0]], period=4.0)
     solutions = check_reach(path, scene.robot, "end_effector", scene.q0, samples=50)
     model = scene.robot.model
-    data = model.createData()
+    data = pin.Data(model)
     frame = model.getFrameId("end_effector")
     for q, t in zip(solutions, np.linspace(0, 4.0, 50, endpoint=False), strict=True):
         pin.framesForwardKinematics(model, data, q)

@@ -31,7 +31,7 @@ def designed():  # type: ignore[no-untyped-def]
 def _terms(task: DesignTask, q: np.ndarray, v: np.ndarray):  # type: ignore[no-untyped-def]
     """M, h, J_n and J̇_n v of the contact from Pinocchio (not the casadi model)."""
     robot, contact = task.scene.robot, task.contact
-    model, data = robot.model, robot.model.createData()
+    model, data = robot.model, pin.Data(robot.model)
     frame = robot.frame_id(contact.frame)
     M = pin.crba(model, data, q, pin.Convention.WORLD)
     M = np.triu(M) + np.triu(M, 1).T

@@ -22,7 +22,7 @@ from ucontrol.design.open_loop_replay import replay_open_loop
 
 def _normal_jacobian(task: DesignTask, q: np.ndarray) -> np.ndarray:
     robot, contact = task.scene.robot, task.contact
-    model, data = robot.model, robot.model.createData()
+    model, data = robot.model, pin.Data(robot.model)
     frame = robot.frame_id(contact.frame)
     pin.computeJointJacobians(model, data, q)
     pin.updateFramePlacements(model, data)

@@ -18,7 +18,7 @@ ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 def test_mass_matrix_and_nonlinear_effects_match_pinocchio(scene: str) -> None:
     robot = Scene.from_toml(ROBOTS / scene).robot
     dynamics = RecursiveDynamics(robot)
-    model, data = robot.model, robot.model.createData()
+    model, data = robot.model, pin.Data(robot.model)
     rng = np.random.default_rng(5)
     for _ in range(3):
         q = rng.uniform(model.lowerPositionLimit, model.upperPositionLimit)

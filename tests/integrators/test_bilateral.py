@@ -141,7 +141,7 @@ def test_redundant_closure_gives_the_same_motion() -> None:
     single = _four_bar()
     double = _four_bar(bilateral=[CLOSURE, {**CLOSURE, "name": "again"}])
     assert double.constraints.bilateral is not None
-    data = double.robot.model.createData()
+    data = pin.Data(double.robot.model)
     pin.computeAllTerms(double.robot.model, data, double.q0, double.v0)
     pin.updateFramePlacements(double.robot.model, data)
     J = double.constraints.bilateral.jacobian(data)
@@ -198,7 +198,7 @@ def test_jacobians_match_finite_differences(rng: np.random.Generator) -> None:
     step = 1e-7
     for _ in range(3):
         q = rng.uniform(-1.0, 1.0, 3)
-        data = robot.model.createData()
+        data = pin.Data(robot.model)
         pin.computeAllTerms(robot.model, data, q, np.zeros(3))
         pin.updateFramePlacements(robot.model, data)
         J = bilateral.jacobian(data)
@@ -213,7 +213,7 @@ def test_jacobians_match_finite_differences(rng: np.random.Generator) -> None:
         robot, [FrameClosure(frame="coupler", other_frame="coupler_end", kind="weld")]
     )
     q = rng.uniform(-1.0, 1.0, 3)
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.computeAllTerms(robot.model, data, q, np.zeros(3))
     pin.updateFramePlacements(robot.model, data)
     np.testing.assert_allclose(weld.jacobian(data), 0.0, atol=1e-12)  # rigidly attached

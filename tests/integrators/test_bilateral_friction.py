@@ -73,7 +73,7 @@ def test_welded_halves_move_as_the_whole_block(mu: float) -> None:
 
 def _energy(model: pin.Model, q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """T + V at each sample [J], from Pinocchio."""
-    data = model.createData()
+    data = pin.Data(model)
     energy = []
     for q_k, v_k in zip(q, v, strict=True):
         energy.append(pin.computeKineticEnergy(model, data, q_k, v_k))
@@ -92,7 +92,7 @@ def test_slider_crank_friction_work_equals_the_energy_loss() -> None:
     model = scene.robot.model
     mu = scene.contacts[0].friction
     foot = model.getFrameId("slider_foot")
-    data = model.createData()
+    data = pin.Data(model)
     imbalance = []
     for h in (1e-3, 1e-4):
         log = _run(scene, 0.4, h)

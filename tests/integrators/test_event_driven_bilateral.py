@@ -36,7 +36,7 @@ def _velocity_residuals(scene: Scene, q: np.ndarray, v: np.ndarray) -> np.ndarra
     bilateral = scene.constraints.bilateral
     assert bilateral is not None
     model = scene.robot.model
-    data = model.createData()
+    data = pin.Data(model)
     rows = []
     for q_k, v_k in zip(q, v, strict=True):
         pin.computeAllTerms(model, data, q_k, v_k)
@@ -84,7 +84,7 @@ def test_closed_chain_hitting_a_stop_keeps_newton_and_the_closure() -> None:
     q, v, energy = np.asarray(log.q), np.asarray(log.v), np.asarray(log.energy)
     impulse, gap = np.asarray(log.impulse)[:, 0], np.asarray(log.gap)[:, 0]
     model = scene.robot.model
-    data = model.createData()
+    data = pin.Data(model)
     pin.computeAllTerms(model, data, np.array(_q0(stop)), np.zeros(3))
     at_stop = data.potential_energy  # [J], the assembly at the stop
     impacts = np.flatnonzero(impulse > 0.0)
@@ -110,7 +110,7 @@ def test_drift_of_the_rows_matches_finite_differences(rng: np.random.Generator) 
         JointCoupling(joint="rocker_joint", other_joint="crank_joint", ratio=-0.5),
     ]
     bilateral = BilateralSet(robot, closures)
-    model, data = robot.model, robot.model.createData()
+    model, data = robot.model, pin.Data(robot.model)
     step = 1e-6  # [s]
     for _ in range(3):
         q, v = rng.uniform(-1.0, 1.0, 3), rng.standard_normal(3)

@@ -68,7 +68,7 @@ def test_flexible_chain_with_a_coupling_keeps_it_and_its_energy() -> None:
     # The coupling: measured 1.1e-16 rad.
     assert np.max(np.abs(q[:, 1] + 0.5 * q[:, 0])) <= 1e-14
     model = scene.robot.model
-    data = model.createData()
+    data = pin.Data(model)
     energy = []
     for q1, v1, q2, v2 in zip(q, v, motor_q, motor_v, strict=True):
         M = pin.crba(model, data, q1, pin.Convention.WORLD)

@@ -67,7 +67,7 @@ def _explicit_energy(scene: Scene, steps: int) -> np.ndarray:
     """Energy along the symplectic-Euler update of the same plant (springs explicit)."""
     flexible, model = scene.flexible, scene.robot.model
     assert flexible is not None
-    data = model.createData()
+    data = pin.Data(model)
     q, v = scene.initial_state()
     nq, nv, h = model.nq, model.nv, scene.integrator.dt
     inertia = np.zeros((nv + 2, nv + 2))

@@ -59,7 +59,7 @@ def _states(log) -> np.ndarray:
 def _spong(scene: Scene, times: np.ndarray) -> np.ndarray:
     """Spong's equations integrated directly (no integrator of ucontrol): states at ``times``."""
     model = scene.robot.model
-    data = model.createData()
+    data = pin.Data(model)
 
     def rate(t: float, y: np.ndarray) -> np.ndarray:
         q1, q2, v1, v2 = np.split(y, 4)

@@ -170,7 +170,7 @@ def test_rod_contact_and_joint_friction_solved_together(contact_friction: float)
     scene = _rod_scene({"coulomb": coulomb, "viscous": {"pitch": 0.2}}, contact_friction)
     robot, dt = scene.robot, scene.integrator.dt
     integrator = scene.build_integrator()
-    model, data = robot.model, robot.model.createData()
+    model, data = robot.model, pin.Data(robot.model)
     bound = dt * scene.joint_friction.coulomb  # [N s] or [N m s]
     D = scene.joint_friction.viscous
     ends = [model.getFrameId(name) for name in ("rod_end", "rod_other_end")]

@@ -74,7 +74,7 @@ class _StepProblem:
 
 def _step_problem(integrator: MoreauJean, state: PlantEvaluation, tau: np.ndarray) -> _StepProblem:
     robot, constraints, h = integrator.robot, integrator.constraints, integrator.dt
-    data = robot.model.createData()
+    data = pin.Data(robot.model)
     pin.computeAllTerms(robot.model, data, state.q, state.v)
     pin.updateFramePlacements(robot.model, data)
     M = robot.mass_matrix(state.q)
@@ -115,7 +115,7 @@ def _assert_same_step(
 
     reference = pinocchio_step(
         integrator.robot.model,
-        integrator.robot.model.createData(),
+        pin.Data(integrator.robot.model),
         q,
         v,
         tau,
@@ -159,7 +159,7 @@ def test_two_link_impact_matches_pinocchio(two_link_scene: Scene, method: str) -
     outcome = integrator.step(state, np.zeros(2))
     model = two_link_scene.robot.model
     reference = pinocchio_step(
-        model, model.createData(), q, v, np.zeros(2), integrator.dt, two_link_scene.contacts
+        model, pin.Data(model), q, v, np.zeros(2), integrator.dt, two_link_scene.contacts
     )
     ground = two_link_scene.contacts[0]
     J_n = ground.surface.normal @ two_link_scene.robot.frame_jacobian(q, ground.frame)[:3]
@@ -174,7 +174,7 @@ def test_two_link_free_flight_matches_pinocchio(two_link_scene: Scene, method: s
     outcome = integrator.step(integrator.evaluate(q, v), np.zeros(2))
     model = two_link_scene.robot.model
     reference = pinocchio_step(
-        model, model.createData(), q, v, np.zeros(2), integrator.dt, two_link_scene.contacts
+        model, pin.Data(model), q, v, np.zeros(2), integrator.dt, two_link_scene.contacts
     )
     assert not outcome.active.any() and not reference.active.any()
     assert reference.iterations == 0 and reference.converged
@@ -334,4 +334,4 @@ def test_backend_failures_become_solver_errors(
     q, v = _two_link_on_ground()
     model = two_link_scene.robot.model
     with pytest.raises(SolverError, match="pinocchio-admm"):
-        pinocchio_step(model, model.createData(), q, v, np.zeros(2), 1e-3, two_link_scene.contacts)
+        pinocchio_step(model, pin.Data(model), q, v, np.zeros(2), 1e-3, two_link_scene.contacts)

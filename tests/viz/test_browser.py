@@ -87,7 +87,7 @@ def test_panda_meshes_are_drawn_at_its_joints(tmp_path: Path) -> None:
     image = screenshot(page.as_uri(), tmp_path / "panda.png", offline=True)
     r, g, b = image[..., 0], image[..., 1], image[..., 2]
     grey = (np.abs(r - b) <= 4) & (np.abs(r - g) <= 4)  # the Panda's white and black meshes
-    model, data = scene.robot.model, scene.robot.model.createData()
+    model, data = scene.robot.model, pin.Data(scene.robot.model)
     pin.forwardKinematics(model, data, scene.q0)
     joints = np.array([data.oMi[j].translation for j in range(1, model.njoints)])
     assert grey.sum() > 10 * MIN_PIXELS

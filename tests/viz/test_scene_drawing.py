@@ -48,7 +48,7 @@ radius = 0.05
 
 
 def _frame_points(model: pin.Model, q: np.ndarray) -> np.ndarray:
-    data = model.createData()
+    data = pin.Data(model)
     pin.framesForwardKinematics(model, data, q)
     return np.array([data.oMf[f].translation for f in range(1, model.nframes)])
 

@@ -618,7 +618,7 @@ class CollisionGeometry:
         """Central difference of the witness rows' normal velocities along the flow, (k,)."""
         model = self.robot.model
         if not hasattr(self, "_drift_data"):
-            self._drift_data = model.createData()
+            self._drift_data = pin.Data(model)
         data = self._drift_data
         step = WITNESS_DRIFT_STEP / max(1.0, float(np.linalg.norm(v)))  # [s]
         velocities = {}

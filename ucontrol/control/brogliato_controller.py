@@ -159,7 +159,7 @@ class BrogliatoController:
         )
         self.machine = PhaseMachine(task, cycle, order=self._order)
         self._model = robot.model
-        self._data = robot.model.createData()
+        self._data = pin.Data(robot.model)
         self._redundant = task.m < robot.nv
         # With only vector-space joints, q ⊖ q_p is q - q_p: Pinocchio's difference is that
         # subtraction there (its VectorSpaceOperation), without the call.

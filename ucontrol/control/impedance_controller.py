@@ -233,7 +233,7 @@ class ImpedanceController:
         )
         _check_path(path, contacts, self.contact_phases)
         self._model = robot.model
-        self._data = robot.model.createData()
+        self._data = pin.Data(robot.model)
         self._position = self._data.oMf[self.frame_id].translation  # a view of the data
         self._identity = np.eye(robot.nv)
         self._actuated = (

@@ -53,7 +53,7 @@ class JointPD:
                 "(revolute or prismatic; a free-flyer base is allowed) for JointPD",
             )
         self._model = robot.model
-        self._data = robot.model.createData()
+        self._data = pin.Data(robot.model)
         self._actuated = robot.actuated
         self.q_ref = as_vector("q_ref", q_ref, robot.nq)
         self.kp = _gain("kp", kp, robot.nu)

@@ -325,7 +325,7 @@ class ArmJugglingController(JugglingController):
         import pinocchio as pin  # the arm's kinematics; pinocchio is the model layer's backend
 
         self._pin = pin
-        self._data = robot.model.createData()
+        self._data = pin.Data(robot.model)
         self._frame = robot.frame_id(frame)
         self.arm = np.array(
             [int(robot.model.joints[robot.joint_id(name)].idx_v) for name in arm_joints]

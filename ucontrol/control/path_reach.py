@@ -65,7 +65,7 @@ def check_reach(
         raise InvalidParameterError("tolerance", tolerance, "> 0")
     frame_id = robot.frame_id(frame)
     model = robot.model
-    data = model.createData()
+    data = pin.Data(model)
     low, high = model.lowerPositionLimit.copy(), model.upperPositionLimit.copy()
     bounded = np.isfinite(low) & np.isfinite(high) & (high > low)
     rng = np.random.default_rng(seed)

@@ -149,7 +149,7 @@ def _normal_velocity(robot, contact, q: Vector, v: Vector) -> float:  # type: ig
 def _impact_time(robot, contact, q0: Vector, v0: Vector, tau: Vector, t0: float, h: float) -> float:  # type: ignore[no-untyped-def]
     """Root of the gap of the free motion from (q0, v0) under ``tau``, within the step [s]."""
     nv = robot.nv
-    model, data = robot.model, robot.model.createData()
+    model, data = robot.model, pin.Data(robot.model)
 
     def rate(_: float, y: Vector) -> Vector:
         return np.concatenate((y[nv:], pin.aba(model, data, y[:nv], y[nv:], tau)))

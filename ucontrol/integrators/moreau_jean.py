@@ -259,7 +259,7 @@ class MoreauJean:
         self.flexible = flexible
         self.midpoint = bool(midpoint)
         # A second Pinocchio buffer for the midpoint's terms, only when asked for.
-        self._midpoint_data = robot.model.createData() if self.midpoint else None
+        self._midpoint_data = pin.Data(robot.model) if self.midpoint else None
         self._zero_acceleration = np.zeros(robot.nv)
         self.constraints = constraints
         self.dt = as_positive("dt", dt)
@@ -294,9 +294,9 @@ class MoreauJean:
         # unbounded revolute joints have nq > nv), so q ⊕ dq = q + dq, as pin.integrate
         # computes it, motors included.
         self._vector_space = robot.nq == robot.nv
-        self._data = robot.model.createData()
+        self._data = pin.Data(robot.model)
         self._bilateral = constraints.bilateral
-        self._projection_data = robot.model.createData() if self._bilateral is not None else None
+        self._projection_data = pin.Data(robot.model) if self._bilateral is not None else None
         self._has_contacts = constraints.n_contacts > 0 or self._bilateral is not None
         # Gaps, velocities and rows of plane contacts and stops in one compiled call, if possible.
         self._rows = compiled_rows(constraints)

@@ -185,7 +185,7 @@ class SmoothDynamics:
             if joint_friction.has_viscous:
                 self.viscous = joint_friction.viscous
         self.model = robot.model
-        self.data = robot.model.createData()
+        self.data = pin.Data(robot.model)
         self.nv = robot.nv + (0 if flexible is None else flexible.nf)
         self._link_nq = robot.nq
         self._link_nv = robot.nv

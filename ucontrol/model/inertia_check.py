@@ -57,7 +57,7 @@ def check_mass_matrix(robot: RobotModel, q: NDArray[np.float64]) -> None:
             mass (their diagonal entries vanish).
     """
     model = robot.model
-    M = pin.crba(model, model.createData(), q)
+    M = pin.crba(model, pin.Data(model), q)
     M = np.triu(M) + np.triu(M, 1).T
     try:
         np.linalg.cholesky(M)

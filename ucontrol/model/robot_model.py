@@ -66,7 +66,7 @@ class RobotModel:
         nv = 200): a run whose integrator and controller bring their own never builds this one.
         """
         if self._data is None:
-            self._data = self.model.createData()
+            self._data = pin.Data(self.model)
         return self._data
 
     @classmethod
@@ -206,7 +206,7 @@ class RobotModel:
             Shape (N, 3). Uses a data buffer of its own.
         """
         frame_id = self.frame_id(frame)
-        data = self.model.createData()
+        data = pin.Data(self.model)
         path = np.empty((len(configurations), 3))
         for k, q in enumerate(configurations):
             pin.framesForwardKinematics(self.model, data, q)

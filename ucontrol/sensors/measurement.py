@@ -65,7 +65,7 @@ class Sensors:
         self.settings = settings
         self.period = period
         self._robot, self._constraints = robot, constraints
-        self._data = robot.model.createData()
+        self._data = pin.Data(robot.model)
         self._nq, self._nv = robot.nq, robot.nv
         nf = 0 if flexible is None else flexible.nf
         self._rng = np.random.default_rng(settings.seed)

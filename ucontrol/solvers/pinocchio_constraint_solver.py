@@ -437,7 +437,7 @@ class PinocchioStepper:
         data: pin.Data | None = None,
     ) -> None:
         self.model = model
-        self.data = data if data is not None else model.createData()
+        self.data = data if data is not None else pin.Data(model)
         self.contacts = tuple(contacts)
         self.dt = as_positive("dt", dt)
         self.theta = as_in_interval("theta", theta, 0.5, 1.0)

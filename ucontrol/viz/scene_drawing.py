@@ -100,7 +100,7 @@ class SceneDrawing:
     ) -> None:
         robot = scene.robot
         self._model = robot.model
-        self._data = robot.model.createData()
+        self._data = pin.Data(robot.model)
         self._contacts = [
             (robot.frame_id(c.frame), c.surface.normal, c.radius) for c in scene.contacts
         ]

@@ -144,7 +144,7 @@ class SceneRenderer:
         self.dpi = as_positive("dpi", dpi)
         self.scene, self.log = scene, log
         self._model = robot.model
-        self._data = robot.model.createData()
+        self._data = pin.Data(robot.model)
         self._geometry = _visual_geometry(scene)
         self._geometry_data = pin.GeometryData(self._geometry)
         self._outlines = [_body_outline(obj.geometry) for obj in self._geometry.geometryObjects]
