@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import ctypes
+import gc
 import math
+import sysconfig
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -11,10 +14,12 @@ import numpy as np
 import pytest
 
 from ucontrol.control.controller import ContactState
+from ucontrol.model import native_call
 from ucontrol.model.compiled_function import (
     CACHE_ENV,
     NO_COMPILE_ENV,
     CompiledFunction,
+    build_library,
     cache_dir,
     compilation_disabled,
 )
@@ -50,6 +55,67 @@ def test_runner_writes_the_outputs_of_the_inputs_in_place(tmp_path, monkeypatch)
                 np.testing.assert_allclose(out, ref, rtol=0.0, atol=_TOLERANCE)
 
 
+def test_native_runner_equals_the_ctypes_call_and_keeps_its_buffers(tmp_path, monkeypatch):
+    """The builtin runner of native_call: the ctypes call's outputs, alive after its owner."""
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    if not (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file():
+        pytest.skip("no Python headers: compiled calls go through ctypes")
+    assert native_call._extension() is not None
+    rng = np.random.default_rng(2)
+    function = CompiledFunction(_function())
+    run = function.runner()
+    assert type(run).__name__ == "builtin_function_or_method"  # not the ctypes lambda
+    ctypes_call = function._call
+    view, outputs = function.input_view, (function.output_buffer(0), function.output_buffer(1))
+    del function  # the runner keeps the buffers it points to alive
+    gc.collect()
+    for _ in range(10):
+        x, A = rng.standard_normal(3), rng.standard_normal((2, 3))
+        view(0)[...], view(1)[...] = x, A
+        run()
+        native = [out.copy() for out in outputs]
+        assert ctypes_call() == 0
+        for out, value, ref in zip(outputs, native, _reference(x, A), strict=True):
+            np.testing.assert_array_equal(value, out)  # the same compiled code
+            np.testing.assert_allclose(value, ref, rtol=0.0, atol=_TOLERANCE)
+
+
+def test_native_runner_raises_on_a_nonzero_status(tmp_path, monkeypatch):
+    """A compiled entry returning a status other than 0 raises a RuntimeError naming it."""
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    if native_call._extension() is None:
+        pytest.skip("native call extension unavailable")
+    source = (
+        "int failing(const double **a, double **r, long long *iw, double *w, int m) {return 3;}"
+    )
+    library = ctypes.CDLL(str(build_library("failing", source, source)))
+    entry = ctypes.cast(library.failing, ctypes.c_void_p).value
+    pointers, work = (ctypes.c_void_p * 1)(), np.zeros(1)
+    address = ctypes.addressof(pointers)
+    run = native_call.native_runner(
+        entry, address, address, work.ctypes.data, work.ctypes.data, library, "failing"
+    )
+    assert run is not None
+    with pytest.raises(RuntimeError, match="failing returned 3"):
+        run()
+
+
+def test_runner_through_ctypes_without_the_extension(tmp_path, monkeypatch):
+    """Without the extension (no Python headers), runner() calls through ctypes: same values."""
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    monkeypatch.setattr(native_call, "native_runner", lambda *args: None)
+    function = CompiledFunction(_function())
+    run = function.runner()
+    assert function.compiled and type(run).__name__ == "function"
+    x, A = np.array([0.3, -1.2, 2.0]), np.arange(6.0).reshape(2, 3)
+    function.input_view(0)[...], function.input_view(1)[...] = x, A
+    run()
+    for out, ref in zip(function(None, None), _reference(x, A), strict=True):
+        np.testing.assert_allclose(out, ref, rtol=0.0, atol=_TOLERANCE)
+
+
 def test_compiled_function_matches_analytic_values(tmp_path, monkeypatch):
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
@@ -71,7 +137,7 @@ def test_cache_is_built_once_by_concurrent_builders(tmp_path, monkeypatch):
         functions = list(pool.map(lambda _: CompiledFunction(_function()), range(3)))
     assert all(f.compiled for f in functions)
     assert len({f.library_path for f in functions}) == 1
-    assert len(list(cache_dir().glob("*.so"))) == 1  # no partial or duplicate library
+    assert len(list(cache_dir().glob("probe_*.so"))) == 1  # no partial or duplicate library
     mtime = functions[0].library_path.stat().st_mtime_ns
     assert CompiledFunction(_function()).library_path.stat().st_mtime_ns == mtime  # reused
 
