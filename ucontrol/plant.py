@@ -72,6 +72,8 @@ def evaluate_plant(
     compiled call instead of the frame placements.
     """
     model = constraints.robot.model
+    if flexible is None and rows is not None:
+        return evaluate_rigid_rows(model, data, rows, q, v, t)
     if flexible is None:
         q1, v1 = q, v
     else:  # the links' state, and the motors'
@@ -88,6 +90,19 @@ def evaluate_plant(
     if flexible is not None:  # the motors' kinetic and the springs' elastic energy
         kinetic += flexible.motor_kinetic_energy(v2)
         potential += flexible.spring_energy(q1, q2)
+    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
+
+
+def evaluate_rigid_rows(
+    model: pin.Model, data: pin.Data, rows: ConstraintRows, q: Vector, v: Vector, t: float | None
+) -> PlantEvaluation:
+    """:func:`evaluate_plant` of a rigid robot whose constraints are compiled ``rows``.
+
+    Its shortest path, for the closed loop: ``pin.computeAllTerms`` and one compiled call.
+    """
+    pin.computeAllTerms(model, data, q, v)
+    gap, normal_velocity, normal_rows = rows(q, v)
+    kinetic, potential = data.kinetic_energy, data.potential_energy
     return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
 
 

@@ -164,7 +164,7 @@ from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidP
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
-from ucontrol.plant import PlantEvaluation, StepOutcome, evaluate_plant
+from ucontrol.plant import PlantEvaluation, StepOutcome, evaluate_plant, evaluate_rigid_rows
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
 from ucontrol.solvers.coulomb_problem import CoulombProblem
@@ -300,6 +300,7 @@ class MoreauJean:
         self._has_contacts = constraints.n_contacts > 0 or self._bilateral is not None
         # Gaps, velocities and rows of plane contacts and stops in one compiled call, if possible.
         self._rows = compiled_rows(constraints)
+        self._rigid_rows = self._rows if self.flexible is None else None
         if self._bilateral is not None:
             if self.friction_solver is not None and not getattr(
                 self.friction_solver, "bilateral_rows", False
@@ -438,6 +439,8 @@ class MoreauJean:
         Raises:
             InvalidParameterError: ``t`` is None and some surface moves.
         """
+        if self._rigid_rows is not None:
+            return evaluate_rigid_rows(self._model, self._data, self._rigid_rows, q, v, t)
         return evaluate_plant(
             self._data,
             self.constraints,
