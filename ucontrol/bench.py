@@ -409,8 +409,10 @@ class ClosedLoopResult:
     (the log's ``solver_time``, a wall time; with the CPU clock scaled by the integrator's ratio
     of CPU to wall time, measured alongside), and ``loop`` the rest (logging, sensors, the loop,
     the timers themselves): ``controller + plant + solver + loop = total`` by definition.
-    ``untimed`` is the same window in runs without the stage timers (one clock read per step,
-    the observer's): the cost a user's run has, of which the real-time factor is taken.
+    ``untimed`` is the cost per step of runs without the stage timers and without an
+    observer, as a user's run (which then takes the loop's fused step), from the difference
+    of a whole run and a two-step run (which cancels the set-up): the cost of which the
+    real-time factor is taken.
 
     Attributes:
         scene: Scene name.
@@ -426,7 +428,7 @@ class ClosedLoopResult:
         plant_us: Integrator time per step, contact solves excluded.
         solver_us: Contact-solve time per step.
         loop_us: The rest per step.
-        untimed_us: Time per step without the stage timers (median of as many runs).
+        untimed_us: Time per step of a run without timers or observer (median of as many).
     """
 
     scene: str
@@ -529,10 +531,15 @@ def bench_closed_loop(
     total, steps, timers, solver, h = runs[len(runs) // 2]
     per_step = 1e6 / max(steps, 1)  # [µs/s per step]
     untimed = []
-    for _ in range(repeats):  # the same window without the stage timers
-        window = _Timers(CLOCKS[clock])
-        simulate(scene, duration=duration, dt=dt, progress=False, observer=window.observe)
-        untimed.append(window.window * 1e6 / max(window.rows - 2, 1))
+    now = CLOCKS[clock]
+    for _ in range(repeats):  # runs as a user's, without timers or observer
+        costs = []
+        for span in (2.0 * h, duration):  # their difference cancels the set-up
+            start = now()
+            run = simulate(scene, duration=span, dt=dt, progress=False)
+            costs.append((now() - start, len(run.log) - 1))
+        (short, short_steps), (full, full_steps) = costs
+        untimed.append((full - short) * 1e6 / max(full_steps - short_steps, 1))
     return ClosedLoopResult(
         scene=scene.name,
         dt=h,
