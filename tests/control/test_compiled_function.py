@@ -214,6 +214,35 @@ def test_rigid_law_compiled_equals_numpy_law(name, tmp_path, monkeypatch):
         assert compiled.phase == numpy_law.phase
 
 
+def test_symbolic_kinematics_of_the_law_equal_pinocchios():
+    """C, the frame position, its Jacobian and dJ of a small robot's law against Pinocchio."""
+    import pinocchio as pin
+
+    from ucontrol.control.brogliato_controller import _symbolic_kinematics
+
+    scene = Scene.from_toml(ROBOTS / "two_link_one_constraint.toml")
+    controller = scene.build_controller()
+    robot, frame = controller.robot, controller.task.frame
+    kinematics = _symbolic_kinematics(robot, frame)
+    assert kinematics is not None and controller._configuration_input is not None
+    model, data, frame_id = robot.model, pin.Data(robot.model), robot.frame_id(frame)
+    lwa = pin.LOCAL_WORLD_ALIGNED
+    generator = np.random.default_rng(4)
+    for _ in range(20):
+        q, v = generator.uniform(-3.0, 3.0, robot.nq), generator.standard_normal(robot.nv)
+        C, p, J, dJ = (np.array(x) for x in kinematics(q, v))
+        np.testing.assert_allclose(C, pin.computeCoriolisMatrix(model, data, q, v), atol=1e-14)
+        pin.updateFramePlacement(model, data, frame_id)
+        np.testing.assert_allclose(p.ravel(), data.oMf[frame_id].translation, atol=1e-14)
+        J_pin = pin.getFrameJacobian(model, data, frame_id, lwa)[:3]
+        dJ_pin = pin.getFrameJacobianTimeVariation(model, data, frame_id, lwa)[:3]
+        np.testing.assert_allclose(J, J_pin, atol=1e-14)
+        np.testing.assert_allclose(dJ, dJ_pin, atol=1e-13)
+    panda = Scene.from_toml(ROBOTS / "panda_table.toml").build_controller()
+    assert _symbolic_kinematics(panda.robot, panda.task.frame) is None  # nv = 7: Pinocchio's
+    assert panda._configuration_input is None
+
+
 def test_gains_and_stiffness_are_parameters_of_one_library(tmp_path, monkeypatch):
     """Sweeping gains (rigid) or gains and stiffness (flexible) reuses the compiled law."""
     from dataclasses import replace
