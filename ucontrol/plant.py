@@ -98,8 +98,15 @@ def evaluate_rigid_rows(
 ) -> PlantEvaluation:
     """:func:`evaluate_plant` of a rigid robot whose constraints are compiled ``rows``.
 
-    Its shortest path, for the closed loop: ``pin.computeAllTerms`` and one compiled call.
+    Its shortest path, for the closed loop: ``pin.computeAllTerms`` and one compiled call, or
+    the compiled call alone when the rows carry the dynamics
+    (:meth:`~ucontrol.contact.compiled_rows.ConstraintRows.bind_dynamics` to ``data``: then
+    ``data`` holds M and h only).
     """
+    if rows.dynamics:
+        gap, normal_velocity, normal_rows = rows(q, v)
+        kinetic, potential = rows.energies()
+        return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
     pin.computeAllTerms(model, data, q, v)
     gap, normal_velocity, normal_rows = rows(q, v)
     kinetic, potential = data.kinetic_energy, data.potential_energy

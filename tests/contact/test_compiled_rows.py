@@ -45,6 +45,31 @@ def test_rows_equal_pinocchio_and_finite_differences(name: str, rng: np.random.G
             np.testing.assert_allclose(derivative, values.rows[:, j], rtol=0, atol=1e-8)
 
 
+@pytest.mark.parametrize("armature", [None, (0.3, 0.7)])
+def test_rows_with_dynamics_fill_m_and_h_as_pinocchio(armature, rng: np.random.Generator) -> None:
+    """A small robot's rows with the dynamics: M, h and the energies of computeAllTerms."""
+    scene = load_scene("two_link_one_constraint")
+    robot = scene.robot if armature is None else scene.robot.with_armature(np.array(armature))
+    constraints = ConstraintSet(robot, scene.constraints.contacts, scene.constraints.stops)
+    rows = compiled_rows(constraints, dynamics=True)
+    assert rows is not None and rows.dynamics
+    model = robot.model
+    bound, reference = pin.Data(model), pin.Data(model)
+    rows.bind_dynamics(bound)
+    for _ in range(10):
+        q, v = _random_state(robot, rng)
+        values = rows(q, v)
+        pin.computeAllTerms(model, reference, q, v)
+        np.testing.assert_allclose(bound.M, reference.M, rtol=0, atol=1e-14)  # both triangles
+        np.testing.assert_allclose(bound.nle, reference.nle, rtol=0, atol=1e-13)
+        kinetic, potential = rows.energies()
+        assert kinetic == pytest.approx(reference.kinetic_energy, rel=1e-14, abs=1e-15)
+        assert potential == pytest.approx(reference.potential_energy, rel=1e-14, abs=1e-15)
+        np.testing.assert_array_equal(values.gap, rows(q, v).gap)  # the rows unchanged
+    panda = load_scene("panda_table")  # nv = 7: Pinocchio's dynamics, the rows alone
+    assert not compiled_rows(panda.constraints, dynamics=True).dynamics
+
+
 def test_values_are_fresh_arrays() -> None:
     scene = load_scene("two_link_one_constraint")
     rows = compiled_rows(scene.constraints)

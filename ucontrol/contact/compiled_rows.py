@@ -23,13 +23,16 @@ one library serves every plane and bound of a robot's contact frames and stop co
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import InvalidParameterError
+
+if TYPE_CHECKING:
+    import pinocchio as pin
 
 Vector = NDArray[np.float64]
 
@@ -56,12 +59,15 @@ class ConstraintRows:
     Args:
         constraints: Point contacts against fixed planes and joint stops of a fixed-base robot
             of revolute and prismatic joints.
+        dynamics: Also compute M(q), h(q, v) and the energies in the same call, from
+            :class:`~ucontrol.model.symbolic_model.SymbolicModel` (see :meth:`bind_dynamics`
+            and :meth:`energies`).
 
     Raises:
         InvalidParameterError: The robot has a joint :class:`SymbolicModel` does not support.
     """
 
-    def __init__(self, constraints: ConstraintSet) -> None:
+    def __init__(self, constraints: ConstraintSet, *, dynamics: bool = False) -> None:
         import casadi as ca  # imported only for the sets that qualify
 
         from ucontrol.model.compiled_function import CompiledFunction
@@ -86,10 +92,15 @@ class ConstraintRows:
             row[index_v] = sign
             rows.append(row)
         J = ca.vertcat(*rows)
-        outputs = ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J.T))  # J row by row
-        self.function = CompiledFunction(
-            ca.Function("constraint_rows", [q, v, planes, stops], [outputs])
-        )
+        outputs = [ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J.T))]  # J row by row
+        if dynamics:  # M, h = C v + g, and the energies (T, V)
+            M = model.mass_matrix(q)
+            h = model.coriolis_matrix(q, v) @ v + model.gravity(q)
+            outputs += [M, h, ca.vertcat(0.5 * ca.dot(v, M @ v), model.potential_energy(q))]
+        name = "constraint_rows_dynamics" if dynamics else "constraint_rows"
+        self.function = CompiledFunction(ca.Function(name, [q, v, planes, stops], outputs))
+        self.dynamics = dynamics
+        self._energies = self.function.output_buffer(3) if dynamics else None
         # Column-major (4, n_c) and (2, n_s) inputs: the rows of the (n_c, 4) and (n_s, 2) terms.
         self.function.input_buffer(2)[:] = constraints.plane_terms.ravel()
         self.function.input_buffer(3)[:] = constraints.stop_terms.ravel()
@@ -103,6 +114,21 @@ class ConstraintRows:
         """Whether calls run compiled C (not casadi's virtual machine)."""
         return self.function.compiled
 
+    def bind_dynamics(self, data: pin.Data) -> None:
+        """Write M(q) and h(q, v) of each call into ``data.M`` and ``data.nle`` (``dynamics``).
+
+        Those of ``pin.computeAllTerms`` to round-off (both triangles of M), so that readers
+        of the data's M and h (a compiled step, a law) need not run it.
+        """
+        self.function.bind_output(1, data.M)
+        self.function.bind_output(2, data.nle)
+
+    def energies(self) -> tuple[float, float]:
+        """Kinetic and potential energy in [J] at the last call's (q, v) (``dynamics``)."""
+        assert self._energies is not None
+        kinetic, potential = self._energies.tolist()
+        return kinetic, potential
+
     def __call__(self, q: Vector, v: Vector) -> RowValues:
         """Gaps, normal velocities and rows at (q (nq,), v (nv,)), in new arrays."""
         self._q[...], self._v[...] = q, v
@@ -112,8 +138,13 @@ class ConstraintRows:
         return RowValues(out[gaps], out[velocities], out[rows].reshape(self._n, self._nv))
 
 
-def compiled_rows(constraints: ConstraintSet) -> ConstraintRows | None:
+def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> ConstraintRows | None:
     """:class:`ConstraintRows` of ``constraints`` when they qualify and compile, else None.
+
+    With ``dynamics``, for robots of at most
+    :data:`~ucontrol.model.symbolic_model.SMALL_ROBOT_MAX_NV` joints, the rows also give the
+    mass matrix, h and the energies (:meth:`ConstraintRows.bind_dynamics`), which their
+    compiled symbolic terms compute faster than Pinocchio's recursive algorithms there.
 
     They qualify with at least one point contact and nothing but point contacts against fixed
     planes and joint stops, without friction or bilateral constraints, on a fixed-base robot
@@ -125,8 +156,12 @@ def compiled_rows(constraints: ConstraintSet) -> ConstraintRows | None:
 
     if not qualifies(constraints) or not compilation_possible():
         return None  # (casadi not even imported)
+    from ucontrol.model.symbolic_model import SMALL_ROBOT_MAX_NV
+
     try:
-        rows = ConstraintRows(constraints)
+        rows = ConstraintRows(
+            constraints, dynamics=dynamics and constraints.robot.nv <= SMALL_ROBOT_MAX_NV
+        )
     except InvalidParameterError:  # a free-flyer base, a spherical or a continuous joint
         return None
     return rows if rows.compiled else None

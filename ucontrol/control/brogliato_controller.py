@@ -52,12 +52,6 @@ if TYPE_CHECKING:
 Matrix = NDArray[np.float64]
 _LWA = pin.LOCAL_WORLD_ALIGNED
 
-#: Largest nv whose compiled law takes C(q, v), the frame's position, Jacobian and its time
-#: variation from :class:`~ucontrol.model.symbolic_model.SymbolicModel` inside the compiled
-#: call instead of Pinocchio's Coriolis pass: measured 0.06 µs against 1.1 µs at nv = 2, but
-#: 12.8 µs against 3.5 µs at nv = 7 (the Christoffel terms grow as nv³ in the C code).
-SYMBOLIC_KINEMATICS_MAX_NV = 3
-
 
 @dataclass(frozen=True, kw_only=True)
 class BrogliatoGains:
@@ -590,12 +584,13 @@ def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
     the world, :math:`J = \partial p / \partial q` the linear part of its LOCAL_WORLD_ALIGNED
     Jacobian and :math:`\dot J = \partial (J v) / \partial q` (the Hessian of p is
     symmetric) its time variation, from :class:`~ucontrol.model.symbolic_model.SymbolicModel`.
-    None above :data:`SYMBOLIC_KINEMATICS_MAX_NV` joints or for joints it does not model
+    None above :data:`~ucontrol.model.symbolic_model.SMALL_ROBOT_MAX_NV` joints (where
+    Pinocchio's Coriolis pass is faster) or for joints it does not model
     (a free-flyer base, spherical or continuous joints).
     """
-    from ucontrol.model.symbolic_model import SymbolicModel
+    from ucontrol.model.symbolic_model import SMALL_ROBOT_MAX_NV, SymbolicModel
 
-    if robot.nv > SYMBOLIC_KINEMATICS_MAX_NV or robot.nq != robot.nv:
+    if robot.nv > SMALL_ROBOT_MAX_NV or robot.nq != robot.nv:
         return None
     try:
         model = SymbolicModel(robot)

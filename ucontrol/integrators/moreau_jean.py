@@ -299,7 +299,10 @@ class MoreauJean:
         self._projection_data = pin.Data(robot.model) if self._bilateral is not None else None
         self._has_contacts = constraints.n_contacts > 0 or self._bilateral is not None
         # Gaps, velocities and rows of plane contacts and stops in one compiled call, if possible.
-        self._rows = compiled_rows(constraints)
+        # (With the dynamics for small rigid robots: M and h written into the data.)
+        self._rows = compiled_rows(constraints, dynamics=self.flexible is None)
+        if self._rows is not None and self._rows.dynamics:
+            self._rows.bind_dynamics(self._data)
         self._rigid_rows = self._rows if self.flexible is None else None
         if self._bilateral is not None:
             if self.friction_solver is not None and not getattr(

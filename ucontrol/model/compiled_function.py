@@ -109,6 +109,7 @@ class CompiledFunction:
         self._out_sizes = [f.nnz_out(i) for i in range(f.n_out())]
         self._outputs = [np.zeros(n) for n in self._out_sizes]
         self._results = tuple(self._outputs)  # what every call returns
+        self._output_owners: list[NDArray[np.float64]] = []  # arrays of bind_output
         self._in_buffers = [np.zeros(n) for n in self._in_sizes]
         self._in_shapes = [f.size_in(i) for i in range(f.n_in())]
         self._in_views = [  # column-major views of the buffers in the inputs' shapes
@@ -215,6 +216,31 @@ class CompiledFunction:
         self._in_views[i] = array
         if self.compiled:
             self._arg[i] = flat.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+    def bind_output(self, i: int, array: NDArray[np.float64]) -> None:
+        """Write output ``i`` into ``array``'s memory at every call, without a copy.
+
+        For buffers whose memory stays put (e.g. the matrices of a ``pinocchio.Data``), like
+        :meth:`bind_input`; :meth:`output_buffer` ``i`` becomes a flat view of ``array``.
+
+        Raises:
+            ValueError: ``array`` is not a column-major float64 array of the output's size.
+        """
+        flat = np.ravel(array, order="F")
+        if (
+            array.dtype != np.float64
+            or flat.size != self._out_sizes[i]
+            or not np.shares_memory(flat, array)
+        ):
+            raise ValueError(
+                f"output {i} of {self.name} needs a column-major float64 array of "
+                f"{self._out_sizes[i]} values, got {array.dtype} {array.shape}"
+            )
+        self._outputs[i] = flat
+        self._results = tuple(self._outputs)
+        self._output_owners.append(array)  # keeps the memory alive
+        if self.compiled:
+            self._res[i] = flat.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
 
     def input_buffer(self, i: int) -> Vector:
         """The buffer of input ``i`` (shape (nnz,), column-major), to be written in place."""
