@@ -123,6 +123,35 @@ def test_single_row_steps_equal_the_numpy_path(
         assert seen["plastic"]  # the energy guard acted (never for one row at θ = 1/2)
 
 
+@pytest.mark.parametrize("name", ["two_link_one_constraint", "panda_table"])
+def test_a_state_with_rows_of_its_own_is_copied_in(name: str, rng: np.random.Generator) -> None:
+    """The step reads q, v and the rows in place only from the rows' last call.
+
+    Against a step that always copies its inputs (not bound to the rows): a state carrying
+    arrays of its own (another velocity) is copied in, and the evaluation itself afterwards.
+    """
+    scene = load_scene(name)
+    bound, copying = scene.build_integrator(), scene.build_integrator()
+    copying._free_step = copying._compiled_free_step()  # not reading the rows in place
+    assert bound._free_step._source is bound._rows and copying._free_step._source is None
+    q0, v0 = scene.initial_state()
+    for _ in range(3):
+        q, v = q0 + 0.05 * rng.normal(size=q0.size), rng.normal(size=v0.size)
+        other_v, tau = rng.normal(size=v0.size), rng.normal(size=v0.size)
+        states = bound.evaluate(q, v), copying.evaluate(q, v)
+        for state, integrator in zip(states, (bound, copying), strict=True):
+            own = state._replace(
+                v=other_v, normal_rows=state.normal_rows.copy(), gap=state.gap.copy()
+            )
+            integrator.results = [
+                [x.copy() for x in integrator._free_step(s, tau)] for s in (own, state)
+            ]
+        for got, expected in zip(bound.results, copying.results, strict=True):
+            for a, b in zip(got, expected, strict=True):
+                np.testing.assert_array_equal(a, b)
+        assert bound._rows.last_rows is None  # the copies went into its buffers
+
+
 def test_viscous_step_solves_the_theta_implicit_update() -> None:
     # Free of contacts, M (v+ - v) = -h (h(q, v) + D ((1 - θ) v + θ v+)): the θ-implicit
     # viscous friction of docs/friction.md, written here with numpy.

@@ -108,6 +108,7 @@ class ConstraintRows:
         self._parts = (slice(0, n), slice(n, 2 * n), slice(2 * n, None))
         self._q, self._v = self.function.input_view(0), self.function.input_view(1)
         self._run, self._out = self.function.runner(), self.function.output_buffer(0)
+        self.last_rows: Vector | None = None  # the rows of the last call's values
 
     @property
     def compiled(self) -> bool:
@@ -135,7 +136,16 @@ class ConstraintRows:
         self._run()
         out = self._out.copy()
         gaps, velocities, rows = self._parts
-        return RowValues(out[gaps], out[velocities], out[rows].reshape(self._n, self._nv))
+        self.last_rows = out[rows].reshape(self._n, self._nv)
+        return RowValues(out[gaps], out[velocities], self.last_rows)
+
+    def buffers(self) -> tuple[Vector, Vector, Vector]:
+        """The compiled call's inputs q (nv,), v (nv,) and its output, as the last call left them.
+
+        The output holds the gaps (n,), the normal velocities (n,) and the rows, row by row
+        (n nv,).
+        """
+        return self._q, self._v, self._out
 
 
 def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> ConstraintRows | None:

@@ -42,13 +42,16 @@ so that a step with one active row (the common contact step) needs no further ar
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.plant import PlantEvaluation
+
+if TYPE_CHECKING:
+    from ucontrol.contact.compiled_rows import ConstraintRows
 
 Vector = NDArray[np.float64]
 
@@ -92,7 +95,9 @@ class CompiledFreeStep:
         W0, Kq, F = _constant_terms(nv, size, dt, theta, flexible, viscous)
         q, v, tau = ca.SX.sym("q", size), ca.SX.sym("v", size), ca.SX.sym("tau", size)
         M_upper, nle = ca.SX.sym("M", nv, nv), ca.SX.sym("nle", nv)
-        rows, gap, velocity = ca.SX.sym("J", n, nv), ca.SX.sym("gap", n), ca.SX.sym("u", n)
+        # The rows as ConstraintRows writes them, row by row: the columns of Jᵀ (nv, n).
+        rows_t, gap, velocity = ca.SX.sym("J_t", nv, n), ca.SX.sym("gap", n), ca.SX.sym("u", n)
+        rows = rows_t.T
         W0_s, Kq_s, F_s = (ca.SX.sym(name, size, size) for name in ("W0", "Kq", "F"))
         scalars = ca.SX.sym("scalars", 3)  # h, θ, γh
         h, th, gh = scalars[0], scalars[1], scalars[2]
@@ -112,7 +117,7 @@ class CompiledFreeStep:
             ca.vec(delassus),
         ]
         activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
-        inputs = [q, v, tau, M_upper, nle, rows, gap, velocity, W0_s, Kq_s, F_s, scalars]
+        inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
         if single_rows is not None:
             inputs += [activation, kinetic]
             for i in range(n):
@@ -131,13 +136,17 @@ class CompiledFreeStep:
             self.function.input_view(i)[...] = value
         self.function.input_buffer(11)[:] = (dt, theta, horizon)
         self.single_rows = single_rows is not None
-        self._one_column = nv == 1
+        self._source: ConstraintRows | None = None  # see read_rows_of
         self._sizes = (size, n)
         # Ends of the outputs v_free, q_free, predicted gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ (Python ints).
         self._split = tuple(np.cumsum([size, size, n, size * n, n * n]).tolist())
         self._kinetic = self.function.input_buffer(13) if self.single_rows else None
-        # The per-step inputs, written in place: q, v, tau, J, gaps, normal velocities.
-        self._inputs = tuple(self.function.input_view(i) for i in (0, 1, 2, 5, 6, 7))
+        # The per-step inputs, written in place: q, v, tau, J (row by row), gaps, normal
+        # velocities.
+        self._inputs = tuple(
+            self.function.input_buffer(i) if i == 5 else self.function.input_view(i)
+            for i in (0, 1, 2, 5, 6, 7)
+        )
         self._run, self._out = self.function.runner(), self.function.output_buffer(0)
         self._last: Vector | None = None  # the last call's outputs
 
@@ -149,16 +158,42 @@ class CompiledFreeStep:
         """
         if self._kinetic is not None:
             self._kinetic[0] = state.kinetic_energy
-        rows = state.normal_rows
-        if self._one_column and rows is not None:  # a column input is a vector
-            rows = rows.reshape(-1)
         q, v, tau_in, J, gap, velocity = self._inputs
-        q[...], v[...], tau_in[...] = state.q, state.v, tau
-        J[...], gap[...], velocity[...] = rows, state.gap, state.normal_velocity
+        source = self._source
+        if source is not None and state.normal_rows is source.last_rows:
+            tau_in[...] = tau  # q, v and the rows: in the inputs and outputs of that call
+        else:  # (into the rows' buffers if bound: they no longer hold their last call)
+            if source is not None:
+                source.last_rows = None
+            rows = state.normal_rows
+            assert rows is not None
+            q[...], v[...], tau_in[...] = state.q, state.v, tau
+            J[...], gap[...], velocity[...] = rows.reshape(-1), state.gap, state.normal_velocity
         self._run()
         out = self._last = self._out.copy()
         a, b, c = self._split[:3]
         return out[:a], out[a:b], out[b:c]
+
+    def read_rows_of(self, rows: ConstraintRows) -> None:
+        """Read q, v and the rows from ``rows``' buffers when a state is its last call's.
+
+        Binds those inputs to the memory ``rows`` wrote them to (its inputs q, v and its
+        output), so that a step from the evaluation ``rows`` made last copies only tau (as M
+        and h, which the step reads from the data, the state must be the last evaluation).
+        For a rigid robot (q and v of the rows' size).
+        """
+        q, v, out = rows.buffers()
+        n, nv = self._sizes[1], q.size
+        if self._sizes[0] != nv:
+            raise ValueError(f"rows of nv = {nv} for a step of size {self._sizes[0]}")
+        function = self.function
+        function.bind_input(0, q)
+        function.bind_input(1, v)
+        function.bind_input(5, out[2 * n :])
+        function.bind_input(6, out[:n])
+        function.bind_input(7, out[n : 2 * n])
+        self._inputs = tuple(function.input_buffer(i) for i in (0, 1, 2, 5, 6, 7))
+        self._source = rows
 
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
         r""":math:`W^{-1} J_a^T` (N, m) and :math:`J_a W^{-1} J_a^T` (m, m) of rows ``indices``.
