@@ -137,7 +137,8 @@ class ConstraintRows:
         out = self._out.copy()
         gaps, velocities, rows = self._parts
         self.last_rows = out[rows].reshape(self._n, self._nv)
-        return RowValues(out[gaps], out[velocities], self.last_rows)
+        values = (out[gaps], out[velocities], self.last_rows)  # without the Python __new__
+        return tuple.__new__(RowValues, values)  # type: ignore[type-var]
 
     def buffers(self) -> tuple[Vector, Vector, Vector]:
         """The compiled call's inputs q (nv,), v (nv,) and its output, as the last call left them.

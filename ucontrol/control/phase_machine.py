@@ -151,16 +151,18 @@ class PhaseMachine:
             offset = path.centre @ self._A_t - task.b  # [m]
             self._plane = (path, np.ascontiguousarray(table.reshape(-1, 2)), offset)
             self._cos_sin = np.zeros(2)
-        # For a circle, what desired() reads to sample it without calls: the table, the offset
-        # on the positions padded with -0.0 (x + (-0.0) is x for every float, -0.0 included,
-        # so one addition on the whole array adds it to the positions alone), the angle
-        # φ0 + ω t in the operations of CirclePath.angle and the buffer of (cos φ, sin φ).
+        # For a circle, what desired() reads to sample it without calls: the table with the
+        # offset on the positions as a third column, padded with -0.0 (x + (-0.0) is x for
+        # every float, -0.0 included), so that one product with (cos φ, sin φ, 1) gives the
+        # samples (bit for bit the product with (cos φ, sin φ) plus the offset), the angle
+        # φ0 + ω t in the operations of CirclePath.angle and the buffer of (cos φ, sin φ, 1).
         self._circle: tuple[Any, ...] | None = None
         if type(path) is CirclePath and self._plane is not None:
             offset_padded = np.full((order + 1) * m, -0.0)
             offset_padded[:m] = self._plane[2]
+            table = np.ascontiguousarray(np.column_stack((self._plane[1], offset_padded)))
             omega = 2.0 * math.pi / path.period  # [rad/s]
-            self._circle = (self._plane[1], offset_padded, path.start_angle, omega, self._cos_sin)
+            self._circle = (table, path.start_angle, omega, np.array([0.0, 0.0, 1.0]))
         self.reset()
 
     def reset(self) -> None:
@@ -286,11 +288,10 @@ class PhaseMachine:
         """The desired trajectory at time ``t`` [s] in the current phases."""
         circle = self._circle
         if circle is not None:  # _nominal for a circle, inlined
-            table, offset_padded, start_angle, omega, cos_sin = circle
+            table, start_angle, omega, cos_sin_one = circle
             angle = start_angle + omega * t  # [rad]
-            cos_sin[0], cos_sin[1] = math.cos(angle), math.sin(angle)
-            samples = np.dot(table, cos_sin)
-            samples += offset_padded
+            cos_sin_one[0], cos_sin_one[1] = math.cos(angle), math.sin(angle)
+            samples = table.dot(cos_sin_one)  # (the method: np.dot's dispatch costs 0.2 µs)
         else:
             samples = self._nominal(t)
         for column, segment, fixed, reads_nominal in self._off_nominal:  # others stay nominal
@@ -306,19 +307,14 @@ class PhaseMachine:
         if self._transiting_coordinates:  # gaps below the surface are clipped
             reference = self._reference(target)
         if not self._held:  # no force: shared read-only zeros
-            return DesiredState(
-                target,
-                reference,
-                self._no_force,
-                self._constrained,
-                self._no_force_derivatives,
-                samples,
-            )
-        if t < self._plateau_until:
+            force, force_derivatives = self._no_force, self._no_force_derivatives
+        elif t < self._plateau_until:
             force, force_derivatives = self._plateau
         else:
             force, force_derivatives = self._forces(t)
-        return DesiredState(target, reference, force, self._constrained, force_derivatives, samples)
+        # Every field, without the NamedTuple's Python-level __new__ (0.18 µs less a call).
+        values = (target, reference, force, self._constrained, force_derivatives, samples)
+        return tuple.__new__(DesiredState, values)  # type: ignore[type-var]
 
     def _nominal(self, t: float) -> NDArray[np.float64]:
         r"""The nominal path and its derivatives at ``t`` [s] in task coordinates, ((order + 1) m,).

@@ -224,7 +224,7 @@ class CompiledFreeStep:
         start = self._split[-1] + i * (5 + 2 * size)
         block = self._last[start : start + 5 + 2 * size]
         _, _, residual, solved, plastic = block[:5].tolist()
-        return SingleRowStep(
+        values = (
             block[0:1],
             block[1:2],
             residual,
@@ -233,6 +233,7 @@ class CompiledFreeStep:
             block[5 : 5 + size],
             block[5 + size :],
         )
+        return tuple.__new__(SingleRowStep, values)  # type: ignore[type-var]  # (no __new__)
 
 
 class SingleRowStep(NamedTuple):
