@@ -101,6 +101,24 @@ def test_native_runner_raises_on_a_nonzero_status(tmp_path, monkeypatch):
         run()
 
 
+@pytest.mark.parametrize("compile", [True, False])
+def test_bound_output_is_written_in_place(compile, tmp_path, monkeypatch):
+    """bind_output: the call writes into the given array (compiled or not); bad arrays refused."""
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    function = CompiledFunction(_function(), compile=compile)
+    target = np.zeros((3, 1), order="F")
+    function.bind_output(0, target)
+    x, A = np.array([0.3, -1.2, 2.0]), np.arange(6.0).reshape(2, 3)
+    function(x, A)
+    np.testing.assert_allclose(target.ravel(), _reference(x, A)[0], rtol=0.0, atol=_TOLERANCE)
+    assert np.shares_memory(function.output_buffer(0), target)
+    with pytest.raises(ValueError, match="output 1 of probe"):
+        function.bind_output(1, np.zeros(2))  # output 1 has one value
+    with pytest.raises(ValueError, match="output 0 of probe"):
+        function.bind_output(0, np.zeros((3, 2))[:, 0])  # not its own memory once raveled
+
+
 def test_runner_through_ctypes_without_the_extension(tmp_path, monkeypatch):
     """Without the extension (no Python headers), runner() calls through ctypes: same values."""
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))

@@ -202,16 +202,7 @@ class CompiledFunction:
         Raises:
             ValueError: ``array`` is not a column-major float64 array of the input's size.
         """
-        flat = np.ravel(array, order="F")
-        if (
-            array.dtype != np.float64
-            or flat.size != self._in_sizes[i]
-            or not np.shares_memory(flat, array)
-        ):
-            raise ValueError(
-                f"input {i} of {self.name} needs a column-major float64 array of "
-                f"{self._in_sizes[i]} values, got {array.dtype} {array.shape}"
-            )
+        flat = self._flat_view(array, self._in_sizes[i], f"input {i}")
         self._in_buffers[i] = flat
         self._in_views[i] = array
         if self.compiled:
@@ -226,21 +217,22 @@ class CompiledFunction:
         Raises:
             ValueError: ``array`` is not a column-major float64 array of the output's size.
         """
-        flat = np.ravel(array, order="F")
-        if (
-            array.dtype != np.float64
-            or flat.size != self._out_sizes[i]
-            or not np.shares_memory(flat, array)
-        ):
-            raise ValueError(
-                f"output {i} of {self.name} needs a column-major float64 array of "
-                f"{self._out_sizes[i]} values, got {array.dtype} {array.shape}"
-            )
+        flat = self._flat_view(array, self._out_sizes[i], f"output {i}")
         self._outputs[i] = flat
         self._results = tuple(self._outputs)
         self._output_owners.append(array)  # keeps the memory alive
         if self.compiled:
             self._res[i] = flat.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+    def _flat_view(self, array: NDArray[np.float64], size: int, what: str) -> Vector:
+        """``array`` as a flat column-major view of ``size`` values, or a ValueError."""
+        flat = np.ravel(array, order="F")
+        if array.dtype != np.float64 or flat.size != size or not np.shares_memory(flat, array):
+            raise ValueError(
+                f"{what} of {self.name} needs a column-major float64 array of {size} values, "
+                f"got {array.dtype} {array.shape}"
+            )
+        return flat
 
     def input_buffer(self, i: int) -> Vector:
         """The buffer of input ``i`` (shape (nnz,), column-major), to be written in place."""
