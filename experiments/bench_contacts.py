@@ -25,7 +25,8 @@ and the largest velocity difference between the two runs. The growth of each cos
 the exponent p of a least-squares fit ``time ~ n^p`` over the sizes from ``--fit-from`` contacts.
 
 Run: ``python experiments/bench_contacts.py`` (about 3 min); ``--sizes 1 2 5 --steps 5`` for a
-smoke run. Writes ``docs/figures/bench_contacts.png`` and ``.md`` (``--out`` to change).
+smoke run; ``--peak-memory 100`` prints the peak memory of three steps of 100 beads. Writes
+``docs/figures/bench_contacts.png`` and ``.md`` (``--out`` to change).
 """
 
 from __future__ import annotations
@@ -301,6 +302,23 @@ def figure(rows: Sequence[BenchRow], path: Path) -> None:
     plt.close(fig)
 
 
+def peak_memory_mb(n: int, steps: int = 3, dt: float = 1e-3) -> float:
+    """Peak resident set size of this process in [MB] after ``steps`` steps of n beads.
+
+    Our friction solver's :class:`~ucontrol.integrators.MoreauJean` only (``ru_maxrss``,
+    Linux units): meaningful in a fresh process, as ``--peak-memory`` runs it.
+    """
+    import resource
+
+    robot, constraints, q, v = column(n)
+    integrator = _integrator("ucontrol", robot, constraints, dt, 1e-10)
+    tau = np.zeros(v.size)
+    for _ in range(steps):
+        outcome = integrator.step(integrator.evaluate(q, v), tau)
+        q, v = outcome.q, outcome.v
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
 def main(argv: Sequence[str] | None = None) -> list[BenchRow]:
     """Run the benchmark, print the table, write the figure and table; return the rows."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
@@ -319,7 +337,16 @@ def main(argv: Sequence[str] | None = None) -> list[BenchRow]:
         help="feasibility/complementarity tolerance of Pinocchio's ADMM [m/s]",
     )
     parser.add_argument("--out", type=Path, default=FIGURES, help="folder of the figure")
+    parser.add_argument(
+        "--peak-memory",
+        type=int,
+        metavar="N",
+        help="only print the peak resident set size after three steps of N beads [MB]",
+    )
     args = parser.parse_args(argv)
+    if args.peak_memory is not None:
+        print(f"peak RSS, {args.peak_memory} beads: {peak_memory_mb(args.peak_memory):.0f} MB")
+        return []
     rows = []
     for n in args.sizes:
         steps = args.steps or int(np.clip(4000 // n, 10, 200))

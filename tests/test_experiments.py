@@ -79,6 +79,14 @@ def test_see_it_runs(tmp_path: Path) -> None:
     assert {"q", "gaps", "forces", "energy", "tracking", "cycle_path", "cycle_time"} <= set(paths)
 
 
+def test_bench_contacts_peak_memory(capsys: pytest.CaptureFixture[str]) -> None:
+    bench = _load("bench_contacts")
+    assert bench.main(["--peak-memory", "3"]) == []
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("peak RSS, 3 beads: ") and line.endswith(" MB")
+    assert float(line.split(": ")[1].split()[0]) > 0.0
+
+
 def test_bench_contacts_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bench = _load("bench_contacts")
     flags = "--sizes 1 3 --steps 3 --repeats 1 --warmup 1 --fit-from 1"
