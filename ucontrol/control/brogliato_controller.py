@@ -219,9 +219,10 @@ class BrogliatoController:
         model, filled by ``pin.computeAllTerms`` at the very (q, v) of each following call.
         The law then runs only its Coriolis pass (C, the joint Jacobians and their time
         variation, which leaves M, h and the energies as they are) and the frame placement
-        on it: two Pinocchio calls fewer, the same law to round-off (M and h from
-        ``computeAllTerms`` rather than ``crba`` and ``nonLinearEffects``). None goes back to
-        the controller's own data.
+        on it, or nothing for a robot whose law has the symbolic kinematics
+        (:func:`_symbolic_kinematics`): two Pinocchio calls fewer, the same law to round-off
+        (M and h from the plant's evaluation rather than ``crba`` and
+        ``nonLinearEffects``). None goes back to the controller's own data.
 
         Returns:
             Whether the plant's data is used (only by the compiled law).
