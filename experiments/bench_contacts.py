@@ -345,6 +345,8 @@ def main(argv: Sequence[str] | None = None) -> list[BenchRow]:
     )
     args = parser.parse_args(argv)
     if args.peak_memory is not None:
+        if args.peak_memory < 1:
+            parser.error(f"--peak-memory: {args.peak_memory} beads; at least 1")
         print(f"peak RSS, {args.peak_memory} beads: {peak_memory_mb(args.peak_memory):.0f} MB")
         return []
     rows = []

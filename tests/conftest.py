@@ -17,6 +17,14 @@ from ucontrol.scene import Scene, load_scene
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+#: The tracking scenes of the phase-machine controller (robots/ names), frictionless.
+TRACKING_SCENES = (
+    "two_link_one_constraint",
+    "two_link_two_constraints",
+    "panda_table",
+    "two_link_flexible_one_constraint",
+    "two_link_flexible_two_constraints",
+)
 
 
 def load_experiment(name: str) -> ModuleType:

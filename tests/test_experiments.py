@@ -85,6 +85,9 @@ def test_bench_contacts_peak_memory(capsys: pytest.CaptureFixture[str]) -> None:
     line = capsys.readouterr().out.strip()
     assert line.startswith("peak RSS, 3 beads: ") and line.endswith(" MB")
     assert float(line.split(": ")[1].split()[0]) > 0.0
+    with pytest.raises(SystemExit):
+        bench.main(["--peak-memory", "0"])
+    assert "--peak-memory: 0 beads" in capsys.readouterr().err
 
 
 def test_bench_contacts_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

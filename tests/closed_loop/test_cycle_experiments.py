@@ -5,22 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import load_experiment
+from conftest import TRACKING_SCENES, load_experiment
 
 from ucontrol.exceptions import URDFError
 from ucontrol.model import example_robot_data_dir
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "two_link_one_constraint",
-        "two_link_two_constraints",
-        "panda_table",
-        "two_link_flexible_one_constraint",
-        "two_link_flexible_two_constraints",
-    ],
-)
+@pytest.mark.parametrize("name", TRACKING_SCENES)
 def test_experiment_runs_one_cycle(
     name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import TRACKING_SCENES
 
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.scene import load_scene
@@ -59,15 +60,7 @@ def test_steps_equal_the_numpy_path(name: str, viscous: bool, rng: np.random.Gen
         np.testing.assert_allclose(a.impulse, b.impulse, rtol=0, atol=2e-14)
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "two_link_one_constraint",
-        "two_link_two_constraints",
-        "panda_table",
-        "two_link_flexible_one_constraint",
-    ],
-)
+@pytest.mark.parametrize("name", TRACKING_SCENES[:4])
 @pytest.mark.parametrize("theta", [0.5, 1.0])
 def test_single_row_steps_equal_the_numpy_path(
     name: str, theta: float, rng: np.random.Generator

@@ -426,10 +426,12 @@ class MoreauJean:
     def evaluation_data(self) -> pin.Data:
         """The Pinocchio data of the last :meth:`evaluate`: ``pin.computeAllTerms`` at its (q, v).
 
-        The links' (q, v) with flexible joints. A controller of the same model may read it
-        between :meth:`evaluate` and :meth:`step`, and run further Pinocchio passes on it at
-        that state (e.g. ``computeCoriolisMatrix``) as long as they leave M, h and the
-        energies as they are.
+        The links' (q, v) with flexible joints. For a small rigid robot whose compiled rows
+        carry the dynamics (:func:`~ucontrol.contact.compiled_rows.compiled_rows`) only M and
+        h are filled (both triangles of M), by the rows' compiled call. A controller of the
+        same model may read it between :meth:`evaluate` and :meth:`step`, and run further
+        Pinocchio passes on it at that state (e.g. ``computeCoriolisMatrix``) as long as they
+        leave M, h and the energies as they are.
         """
         return self._data
 
