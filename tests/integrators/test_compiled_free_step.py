@@ -1,4 +1,8 @@
-"""The compiled free step against the numpy and Pinocchio path it replaces, step by step."""
+"""The generated fast paths of a step against its reference stages, step by step.
+
+From random states and memories (the whole scenes run through both paths in
+tests/test_paths_agree.py); the paths are chosen by the public switch ``compiled``.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +12,7 @@ import numpy as np
 import pytest
 from conftest import TRACKING_SCENES
 
+from ucontrol.integrators.step_stages import StepMemory
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.scene import load_scene
 
@@ -33,9 +38,8 @@ def _pair(name: str, viscous: bool = False, theta: float | None = None):  # type
         nv = scene.robot.nv
         friction = JointFriction(viscous=[0.7] * nv, coulomb=[0.0] * nv)
         scene = dataclasses.replace(scene, joint_friction=friction)
-    compiled, reference = scene.build_integrator(), scene.build_integrator()
-    assert compiled._free_step is not None
-    reference._free_step = None
+    compiled, reference = scene.build_integrator(), scene.build_integrator(compiled=False)
+    assert "free step" in compiled.fast_paths and reference.fast_paths == ()
     return scene, compiled, reference
 
 
@@ -47,10 +51,9 @@ def test_steps_equal_the_numpy_path(name: str, viscous: bool, rng: np.random.Gen
         q = q0 + 0.05 * rng.normal(size=q0.size)
         v = rng.normal(size=v0.size)
         tau = 5.0 * rng.normal(size=v0.size)
-        for integrator in (compiled, reference):
-            integrator.reset()
-            integrator._first_step = False
-            integrator._activation[:] = 1e9 if trial % 2 else 0.0  # every constraint active
+        n = compiled.constraints.size
+        for integrator in (compiled, reference):  # every constraint active, or as predicted
+            integrator.memory = StepMemory(np.full(n, 1e9 if trial % 2 else 0.0), False)
         a = compiled.step(compiled.evaluate(q, v), tau)
         b = reference.step(reference.evaluate(q, v), tau)
         np.testing.assert_array_equal(a.active, b.active)
@@ -72,7 +75,7 @@ def test_single_row_steps_equal_the_numpy_path(
     negative, active without being held (memory 0: Newton's law on its closing speed).
     """
     scene, compiled, reference = _pair(name, theta=theta)
-    assert compiled.theta == theta and compiled._free_step.single_rows
+    assert compiled.theta == theta and "single row" in compiled.fast_paths
     q0, v0 = scene.initial_state()
     n = compiled.constraints.size
     seen = {"held": 0, "newton": 0, "plastic": 0}
@@ -91,8 +94,7 @@ def test_single_row_steps_equal_the_numpy_path(
         memory = np.full(n, -1e9)
         memory[i] = 1e9 if held else 0.0
         for integrator in (compiled, reference):
-            integrator._first_step = False
-            integrator._activation[:] = memory
+            integrator.memory = StepMemory(memory, False)
         a = compiled.step(state_c, tau)
         b = reference.step(state_r, tau)
         assert a.active.sum() == 1 and a.active[i] and np.array_equal(a.active, b.active)
@@ -100,8 +102,8 @@ def test_single_row_steps_equal_the_numpy_path(
         seen["held" if held else "newton"] += 1
         seen["plastic"] += b.plastic
         # Errors relative to the step's scale (velocities in [rad/s] or [m/s], impulses in
-        # [N s]); measured at most over the cases: v 1.1e-14, q 2.4e-17, impulses 1.8e-14,
-        # LCP velocity 7.9e-15.
+        # [N s]), the reference with Pinocchio's rows and dynamics; the LCP velocity w
+        # (hundreds of m/s with the large forces) measured at most 8.8e-14, a few ulp of w.
         scale_v, scale_p = 1.0 + np.abs(b.v).max(), 1.0 + np.abs(b.impulse).max()
         errors["v"] = max(errors["v"], np.abs(a.v - b.v).max() / scale_v)
         errors["q"] = max(errors["q"], np.abs(a.q - b.q).max() / scale_v)
@@ -110,39 +112,10 @@ def test_single_row_steps_equal_the_numpy_path(
             errors["w"], np.abs(a.solution.velocity - b.solution.velocity).max() / scale_v
         )
     assert errors["v"] <= 1e-13 and errors["q"] <= 3e-16
-    assert errors["P"] <= 2e-13 and errors["w"] <= 8e-14
+    assert errors["P"] <= 2e-13 and errors["w"] <= 3e-13
     assert seen["held"] and seen["newton"]
     if theta == 1.0 and compiled.constraints.restitution.any():
         assert seen["plastic"]  # the energy guard acted (never for one row at θ = 1/2)
-
-
-@pytest.mark.parametrize("name", ["two_link_one_constraint", "panda_table"])
-def test_a_state_with_rows_of_its_own_is_copied_in(name: str, rng: np.random.Generator) -> None:
-    """The step reads q, v and the rows in place only from the rows' last call.
-
-    Against a step that always copies its inputs (not bound to the rows): a state carrying
-    arrays of its own (another velocity) is copied in, and the evaluation itself afterwards.
-    """
-    scene = load_scene(name)
-    bound, copying = scene.build_integrator(), scene.build_integrator()
-    copying._free_step = copying._compiled_free_step()  # not reading the rows in place
-    assert bound._free_step._source is bound._rows and copying._free_step._source is None
-    q0, v0 = scene.initial_state()
-    for _ in range(3):
-        q, v = q0 + 0.05 * rng.normal(size=q0.size), rng.normal(size=v0.size)
-        other_v, tau = rng.normal(size=v0.size), rng.normal(size=v0.size)
-        states = bound.evaluate(q, v), copying.evaluate(q, v)
-        for state, integrator in zip(states, (bound, copying), strict=True):
-            own = state._replace(
-                v=other_v, normal_rows=state.normal_rows.copy(), gap=state.gap.copy()
-            )
-            integrator.results = [
-                [x.copy() for x in integrator._free_step(s, tau)] for s in (own, state)
-            ]
-        for got, expected in zip(bound.results, copying.results, strict=True):
-            for a, b in zip(got, expected, strict=True):
-                np.testing.assert_array_equal(a, b)
-        assert bound._rows.last_rows is None  # the copies went into its buffers
 
 
 def test_viscous_step_solves_the_theta_implicit_update() -> None:
@@ -152,7 +125,7 @@ def test_viscous_step_solves_the_theta_implicit_update() -> None:
     q, v = np.array([1.2, -1.0]), np.array([0.3, -0.2])
     state = compiled.evaluate(q, v)
     step = compiled.step(state, np.zeros(2))
-    data = compiled._data
+    data = compiled.evaluation_data
     M = np.triu(data.M) + np.triu(data.M, 1).T
     h, theta, D = compiled.dt, compiled.theta, 0.7
     rhs = M @ v - h * (data.nle + (1.0 - theta) * D * v)
@@ -162,9 +135,9 @@ def test_viscous_step_solves_the_theta_implicit_update() -> None:
 
 def test_without_a_compiler_there_is_no_compiled_step(monkeypatch: pytest.MonkeyPatch) -> None:
     scene = load_scene("two_link_flexible_one_constraint")  # compiled where a compiler is
-    assert scene.build_integrator()._free_step is not None
+    assert scene.build_integrator().fast_paths == ("constraint rows", "free step", "single row")
     monkeypatch.setenv("UCONTROL_NO_COMPILE", "1")
     integrator = scene.build_integrator()
-    assert integrator._free_step is None and integrator._rows is None
+    assert integrator.fast_paths == ()
     q, v = scene.initial_state()  # and the numpy path steps
     assert np.all(np.isfinite(integrator.step(integrator.evaluate(q, v), np.zeros(v.size)).v))

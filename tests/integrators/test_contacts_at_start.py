@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ucontrol.integrators import moreau_jean
+from ucontrol.integrators import step_stages
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
@@ -60,7 +60,7 @@ def test_a_block_put_on_an_incline_slides_without_tilting() -> None:
 
 def test_without_the_rule_the_block_tilts(monkeypatch: pytest.MonkeyPatch) -> None:
     """The same run with the rule switched off: the defect the rule removes is real."""
-    monkeypatch.setattr(moreau_jean, "START_GAP_TOLERANCE", -1.0)
+    monkeypatch.setattr(step_stages, "START_GAP_TOLERANCE", -1.0)
     log = simulate(_block_on_incline(), out=None, progress=False).log
     assert np.abs(log.q[:, 2] - SLOPE).max() > 1e-5  # measured 6.2e-5 rad
     assert not log.active[0].all()

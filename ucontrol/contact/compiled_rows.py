@@ -36,6 +36,9 @@ if TYPE_CHECKING:
 
 Vector = NDArray[np.float64]
 
+#: The compiled call's inputs: the state, then the planes' and the stops' constant terms.
+_IN_NAMES = ["q", "v", "planes", "stops"]
+
 
 class RowValues(NamedTuple):
     """The constraints at one state (q, v), fresh arrays.
@@ -98,17 +101,24 @@ class ConstraintRows:
             h = model.coriolis_matrix(q, v) @ v + model.gravity(q)
             outputs += [M, h, ca.vertcat(0.5 * ca.dot(v, M @ v), model.potential_energy(q))]
         name = "constraint_rows_dynamics" if dynamics else "constraint_rows"
-        self.function = CompiledFunction(ca.Function(name, [q, v, planes, stops], outputs))
+        out_names = ["rows", "M", "h", "energies"][: len(outputs)]
+        function = ca.Function(name, [q, v, planes, stops], outputs, _IN_NAMES, out_names)
+        self.function = CompiledFunction(function)
         self.dynamics = dynamics
-        self._energies = self.function.output_buffer(3) if dynamics else None
+        self._names = function.index_in, function.index_out  # inputs and outputs by name
+        index, out = self._names
+        self._energies = self.function.output_buffer(out("energies")) if dynamics else None
         # Column-major (4, n_c) and (2, n_s) inputs: the rows of the (n_c, 4) and (n_s, 2) terms.
-        self.function.input_buffer(2)[:] = constraints.plane_terms.ravel()
-        self.function.input_buffer(3)[:] = constraints.stop_terms.ravel()
+        self.function.input_buffer(index("planes"))[:] = constraints.plane_terms.ravel()
+        self.function.input_buffer(index("stops"))[:] = constraints.stop_terms.ravel()
         self._n, self._nv = n, nv
         self._parts = (slice(0, n), slice(n, 2 * n), slice(2 * n, None))
-        self._q, self._v = self.function.input_view(0), self.function.input_view(1)
-        self._run, self._out = self.function.runner(), self.function.output_buffer(0)
-        self.last_rows: Vector | None = None  # the rows of the last call's values
+        self._q, self._v = (
+            self.function.input_view(index("q")),
+            self.function.input_view(index("v")),
+        )
+        self._run = self.function.runner()
+        self._out = self.function.output_buffer(out("rows"))
 
     @property
     def compiled(self) -> bool:
@@ -121,8 +131,9 @@ class ConstraintRows:
         Those of ``pin.computeAllTerms`` to round-off (both triangles of M), so that readers
         of the data's M and h (a compiled step, a law) need not run it.
         """
-        self.function.bind_output(1, data.M)
-        self.function.bind_output(2, data.nle)
+        out = self._names[1]
+        self.function.bind_output(out("M"), data.M)
+        self.function.bind_output(out("h"), data.nle)
 
     def energies(self) -> tuple[float, float]:
         """Kinetic and potential energy in [J] at the last call's (q, v) (``dynamics``)."""
@@ -136,17 +147,7 @@ class ConstraintRows:
         self._run()
         out = self._out.copy()
         gaps, velocities, rows = self._parts
-        self.last_rows = out[rows].reshape(self._n, self._nv)
-        values = (out[gaps], out[velocities], self.last_rows)  # without the Python __new__
-        return tuple.__new__(RowValues, values)  # type: ignore[type-var]
-
-    def buffers(self) -> tuple[Vector, Vector, Vector]:
-        """The compiled call's inputs q (nv,), v (nv,) and its output, as the last call left them.
-
-        The output holds the gaps (n,), the normal velocities (n,) and the rows, row by row
-        (n nv,).
-        """
-        return self._q, self._v, self._out
+        return RowValues(out[gaps], out[velocities], out[rows].reshape(self._n, self._nv))
 
 
 def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> ConstraintRows | None:

@@ -42,18 +42,25 @@ so that a step with one active row (the common contact step) needs no further ar
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.integrators.step_stages import (
+    ArrayOps,
+    gains_energy,
+    impulse_energy_gain,
+    newton_offsets,
+    predicted_gaps,
+)
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.plant import PlantEvaluation
 
-if TYPE_CHECKING:
-    from ucontrol.contact.compiled_rows import ConstraintRows
-
 Vector = NDArray[np.float64]
+
+#: The inputs written (or bound) at every step, in this order.
+_STEP_INPUTS = ("q", "v", "tau", "J_t", "gap", "u")
 
 
 class CompiledFreeStep:
@@ -112,14 +119,16 @@ class CompiledFreeStep:
         parts = [
             v_free,
             q + h * ((1.0 - th) * v + th * v_free),
-            gap + gh * velocity,
+            predicted_gaps(gap, velocity, gh),
             ca.vec(Winv_Jt),
             ca.vec(delassus),
         ]
         activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
         inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
+        names = ["q", "v", "tau", "M", "nle", "J_t", "gap", "u", "W0", "Kq", "F", "scalars"]
         if single_rows is not None:
             inputs += [activation, kinetic]
+            names += ["activation", "kinetic"]
             for i in range(n):
                 parts.append(
                     _single_row_step(
@@ -127,73 +136,59 @@ class CompiledFreeStep:
                         activation, kinetic, h, th,
                     )
                 )  # fmt: skip
-        self.function = CompiledFunction(ca.Function("free_step", inputs, [ca.vertcat(*parts)]))
+        function = ca.Function("free_step", inputs, [ca.vertcat(*parts)], names, ["terms"])
+        self.function = CompiledFunction(function)
         self.compiled = self.function.compiled
+        index = function.index_in  # inputs bound by name
         if self.compiled:
-            self.function.bind_input(3, data_M)
-            self.function.bind_input(4, data_nle)
-        for i, value in ((8, W0), (9, Kq), (10, F)):
-            self.function.input_view(i)[...] = value
-        self.function.input_buffer(11)[:] = (dt, theta, horizon)
+            self.function.bind_input(index("M"), data_M)
+            self.function.bind_input(index("nle"), data_nle)
+        for name, value in (("W0", W0), ("Kq", Kq), ("F", F)):
+            self.function.input_view(index(name))[...] = value
+        self.function.input_buffer(index("scalars"))[:] = (dt, theta, horizon)
         self.single_rows = single_rows is not None
-        self._source: ConstraintRows | None = None  # see read_rows_of
         self._sizes = (size, n)
         # Ends of the outputs v_free, q_free, predicted gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ (Python ints).
         self._split = tuple(np.cumsum([size, size, n, size * n, n * n]).tolist())
-        self._kinetic = self.function.input_buffer(13) if self.single_rows else None
+        buffer = self.function.input_buffer
+        self._kinetic: Vector | None
+        self._activation: Vector | None
+        self._kinetic, self._activation = (
+            (buffer(index("kinetic")), buffer(index("activation")))
+            if self.single_rows
+            else (None, None)
+        )
         # The per-step inputs, written in place: q, v, tau, J (row by row), gaps, normal
         # velocities.
         self._inputs = tuple(
-            self.function.input_buffer(i) if i == 5 else self.function.input_view(i)
-            for i in (0, 1, 2, 5, 6, 7)
+            buffer(index(name)) if name == "J_t" else self.function.input_view(index(name))
+            for name in _STEP_INPUTS
         )
         self._run, self._out = self.function.runner(), self.function.output_buffer(0)
         self._last: Vector | None = None  # the last call's outputs
 
-    def __call__(self, state: PlantEvaluation, tau: Vector) -> tuple[Vector, Vector, Vector]:
+    def __call__(
+        self, state: PlantEvaluation, tau: Vector, activation: Vector
+    ) -> tuple[Vector, Vector, Vector]:
         """:math:`v^{free}`, :math:`q^{free}` (each (N,)) and the predicted gaps (n,).
 
-        ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`). The
-        returned arrays are fresh; :meth:`contact_terms` reads the same call's Delassus terms.
+        ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`);
+        ``activation`` (n,) is the step memory's (the single-row steps read which constraints
+        are held). The returned arrays are fresh; :meth:`contact_terms` and
+        :meth:`single_row` read the same call's other outputs.
         """
-        if self._kinetic is not None:
+        if self._kinetic is not None and self._activation is not None:
             self._kinetic[0] = state.kinetic_energy
+            self._activation[:] = activation
         q, v, tau_in, J, gap, velocity = self._inputs
-        source = self._source
-        if source is not None and state.normal_rows is source.last_rows:
-            tau_in[...] = tau  # q, v and the rows: in the inputs and outputs of that call
-        else:  # (into the rows' buffers if bound: they no longer hold their last call)
-            if source is not None:
-                source.last_rows = None
-            rows = state.normal_rows
-            assert rows is not None
-            q[...], v[...], tau_in[...] = state.q, state.v, tau
-            J[...], gap[...], velocity[...] = rows.reshape(-1), state.gap, state.normal_velocity
+        rows = state.normal_rows
+        assert rows is not None
+        q[...], v[...], tau_in[...] = state.q, state.v, tau
+        J[...], gap[...], velocity[...] = rows.reshape(-1), state.gap, state.normal_velocity
         self._run()
         out = self._last = self._out.copy()
         a, b, c = self._split[:3]
         return out[:a], out[a:b], out[b:c]
-
-    def read_rows_of(self, rows: ConstraintRows) -> None:
-        """Read q, v and the rows from ``rows``' buffers when a state is its last call's.
-
-        Binds those inputs to the memory ``rows`` wrote them to (its inputs q, v and its
-        output), so that a step from the evaluation ``rows`` made last copies only tau (as M
-        and h, which the step reads from the data, the state must be the last evaluation).
-        For a rigid robot (q and v of the rows' size).
-        """
-        q, v, out = rows.buffers()
-        n, nv = self._sizes[1], q.size
-        if self._sizes[0] != nv:
-            raise ValueError(f"rows of nv = {nv} for a step of size {self._sizes[0]}")
-        function = self.function
-        function.bind_input(0, q)
-        function.bind_input(1, v)
-        function.bind_input(5, out[2 * n :])
-        function.bind_input(6, out[:n])
-        function.bind_input(7, out[n : 2 * n])
-        self._inputs = tuple(function.input_buffer(i) for i in (0, 1, 2, 5, 6, 7))
-        self._source = rows
 
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
         r""":math:`W^{-1} J_a^T` (N, m) and :math:`J_a W^{-1} J_a^T` (m, m) of rows ``indices``.
@@ -209,14 +204,6 @@ class CompiledFreeStep:
             return Winv_Jt, np.ascontiguousarray(delassus)
         return Winv_Jt[:, indices], delassus[indices[:, None], indices]
 
-    def bind_activation(self, activation: Vector) -> None:
-        """Read the persistence memory (n,) of the integrator from ``activation`` at every call.
-
-        Its values at the call are those of the step's active set (the single-row steps read
-        which constraints are held).
-        """
-        self.function.bind_input(12, activation)
-
     def single_row(self, i: int) -> SingleRowStep:
         """The last call's step with constraint ``i`` alone active (views of its outputs)."""
         assert self._last is not None and self.single_rows
@@ -224,7 +211,7 @@ class CompiledFreeStep:
         start = self._split[-1] + i * (5 + 2 * size)
         block = self._last[start : start + 5 + 2 * size]
         _, _, residual, solved, plastic = block[:5].tolist()
-        values = (
+        return SingleRowStep(
             block[0:1],
             block[1:2],
             residual,
@@ -233,7 +220,6 @@ class CompiledFreeStep:
             block[5 : 5 + size],
             block[5 + size :],
         )
-        return tuple.__new__(SingleRowStep, values)  # type: ignore[type-var]  # (no __new__)
 
 
 class SingleRowStep(NamedTuple):
@@ -264,12 +250,12 @@ class SingleRowRules(NamedTuple):
     Attributes:
         restitution: Newton's restitution of each constraint, shape (n,).
         threshold: Closing speed below which no restitution applies, in [m/s] (or [rad/s]).
-        energy_tolerance: Relative energy gain, of 1 + T, above which the step is made plastic.
+        newton_law: ``"closing"`` (with the energy guard) or ``"siconos"`` (without).
     """
 
     restitution: Vector
     threshold: float
-    energy_tolerance: float
+    newton_law: str
 
 
 def _single_row_step(
@@ -288,43 +274,54 @@ def _single_row_step(
     h: Any,
     theta: Any,
 ) -> Any:
-    """(P, w, residual, solved, plastic, v_{k+1}, q_{k+1}) of row i alone active (5 + 2N,)."""
+    """(P, w, residual, solved, plastic, v_{k+1}, q_{k+1}) of row i alone active (5 + 2N,).
+
+    The impact law and the energy guard are :mod:`~ucontrol.integrators.step_stages`'s, on
+    casadi's symbols.
+    """
     import casadi as ca
 
+    ops = _casadi_ops()
     d, u_free, u_minus = delassus[i, i], J[i, :] @ v_free, velocity[i]
-    held_open = ca.logic_and(activation[i] > 0.0, gap[i] > 0.0)
-    closure = ca.if_else(held_open, gap[i] / h, 0.0)
-    e = float(rules.restitution[i])
-    rebound = (
-        ca.if_else(ca.logic_or(held_open, u_minus >= -rules.threshold), 0.0, e * u_minus)
-        if e != 0.0
-        else ca.SX(0.0)
+    rebound, closure = newton_offsets(
+        ops,
+        gap[i],
+        u_minus,
+        float(rules.restitution[i]),
+        activation[i] > 0.0,
+        h,
+        rules.threshold,
+        rules.newton_law == "siconos",
     )
     b = u_free + closure
 
-    def closed_form(beta: Any) -> tuple[Any, Any, Any]:
+    def closed_form(beta: Any) -> tuple[Any, Any, Any, Any]:
         impulse = ca.if_else(ca.logic_and(beta < 0.0, d > 0.0), -beta / d, 0.0)
         w = d * impulse + beta
         residual = ca.fabs(ca.fmin(ca.if_else(d > 0.0, d * impulse, impulse), w))
-        return impulse, w, residual
+        return impulse, w, residual, ca.logic_or(d > 0.0, beta >= 0.0)
 
-    impulse, w, residual = closed_form(b + rebound)
-    plastic = ca.SX(0.0)
-    if e != 0.0:  # the energy guard, only where a rebound can be nonzero
-        u_plus = w - rebound - (b - u_free)
-        u_k = J[i, :] @ v
-        gain = impulse * (0.5 * (u_free + u_plus) - theta * (u_free - u_k))
-        plastic = ca.logic_and(rebound != 0.0, gain > rules.energy_tolerance * (1.0 + kinetic))
-        impulse_0, w_0, residual_0 = closed_form(b)
-        impulse = ca.if_else(plastic, impulse_0, impulse)
-        w = ca.if_else(plastic, w_0, w)
-        residual = ca.if_else(plastic, residual_0, residual)
-    solved = ca.logic_or(d > 0.0, b + rebound >= 0.0)
-    if e != 0.0:
-        solved = ca.if_else(plastic, ca.logic_or(d > 0.0, b >= 0.0), solved)
+    newton = closed_form(b + rebound)
+    if rules.newton_law == "closing":  # the energy guard
+        gain = impulse_energy_gain(ops, newton[0], u_free, newton[1] - rebound - closure,
+                                   J[i, :] @ v, theta)  # fmt: skip
+        plastic = ops.logical_and(rebound != 0.0, gains_energy(gain, kinetic))
+        plastic_law = closed_form(b)
+        impulse, w, residual, solved = (
+            ca.if_else(plastic, x, y) for x, y in zip(plastic_law, newton, strict=True)
+        )
+    else:
+        (impulse, w, residual, solved), plastic = newton, ca.SX(0.0)
     v_next = v_free + Winv_Jt[:, i] * impulse
     q_next = q + h * ((1.0 - theta) * v + theta * v_next)
     return ca.vertcat(impulse, w, residual, solved, plastic, v_next, q_next)
+
+
+def _casadi_ops() -> ArrayOps:
+    """The shared rules' operations on casadi's symbols."""
+    import casadi as ca
+
+    return ArrayOps(ca.if_else, ca.logic_and, ca.logic_or, ca.dot)
 
 
 def _constant_terms(

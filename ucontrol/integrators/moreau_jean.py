@@ -161,6 +161,17 @@ from ucontrol._validation import as_float, as_in_interval, as_positive
 from ucontrol.contact.compiled_rows import compiled_rows
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidParameterError
+from ucontrol.integrators.step_stages import (
+    NUMPY_OPS,
+    StepMemory,
+    active_set,
+    fresh_memory,
+    gains_energy,
+    impulse_energy_gain,
+    newton_offsets,
+    next_memory,
+    predicted_gaps,
+)
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
@@ -175,19 +186,12 @@ if TYPE_CHECKING:
 
 Vector = NDArray[np.float64]
 
-#: Energy the restitution impulses of a step may add, relative to 1 + the kinetic energy in
-#: [J], before the step is redone with a plastic law (e = 0).
-ENERGY_GAIN_TOLERANCE = 1e-12
 #: Default predicted gap up to which a held constraint stays active, in [m] (or [rad]).
 PERSISTENCE_TOLERANCE = 1e-6
 #: Residual in [m] or [rad] at which the projection stops.
 BILATERAL_PROJECTION_TOLERANCE = 1e-12
 #: Gauss–Newton iterations of the projection at most.
 BILATERAL_PROJECTION_ITERATIONS = 5
-#: Gap in [m] (or [rad]) up to which a constraint counts as closed at the first step of a run.
-START_GAP_TOLERANCE = 1e-9
-#: Largest state (nv, motors included) whose position update runs on Python floats.
-SCALAR_UPDATE_SIZE = 4
 #: Whom Newton's law applies to: the closing constraints of the active set (the project's
 #: rule, with the energy guard), or every active constraint, separating ones included, with no
 #: guard (Siconos' MoreauJeanOSI, to reproduce its runs).
@@ -227,9 +231,14 @@ class MoreauJean:
             convention; with ``persistence_tolerance = 0`` it reproduces Siconos' runs).
         joint_friction: Viscous (θ-implicit) and Coulomb (set-valued, solved with the
             contacts) friction in the joints, on the link coordinates (module docstring).
+        compiled: Run the generated fast paths of the stages where the step allows them and a
+            C compiler is present (not with ``UCONTROL_NO_COMPILE`` set); False runs the
+            readable reference stages alone (module docstring, "Paths").
 
     Attributes:
         friction_solver: The friction solver, or None for constraints without friction.
+        memory: What the last step left to the next (:class:`StepMemory`).
+        compiled: Whether the generated fast paths may run (the ``compiled`` argument).
     """
 
     name = "moreau_jean"
@@ -251,6 +260,7 @@ class MoreauJean:
         persistence_tolerance: float = PERSISTENCE_TOLERANCE,
         newton_law: str = "closing",
         joint_friction: JointFriction | None = None,
+        compiled: bool = True,
     ) -> None:
         if newton_law not in NEWTON_LAWS:
             raise InvalidParameterError("newton_law", newton_law, f"one of {NEWTON_LAWS}")
@@ -300,7 +310,8 @@ class MoreauJean:
         self._has_contacts = constraints.n_contacts > 0 or self._bilateral is not None
         # Gaps, velocities and rows of plane contacts and stops in one compiled call, if possible.
         # (With the dynamics for small rigid robots: M and h written into the data.)
-        self._rows = compiled_rows(constraints, dynamics=self.flexible is None)
+        self.compiled = bool(compiled)
+        self._rows = compiled_rows(constraints, dynamics=flexible is None) if compiled else None
         if self._rows is not None and self._rows.dynamics:
             self._rows.bind_dynamics(self._data)
         self._rigid_rows = self._rows if self.flexible is None else None
@@ -318,25 +329,19 @@ class MoreauJean:
                     "solver", self.solver.name, "'proxsuite' with bilateral constraints"
                 )
         self._friction = constraints.has_friction
-        self._plastic = not constraints.restitution.any()  # no restitution terms to compute
         self.persistence_tolerance = as_float("persistence_tolerance", persistence_tolerance)
         if self.persistence_tolerance < 0.0:
             raise InvalidParameterError("persistence_tolerance", persistence_tolerance, ">= 0")
-        # Largest predicted gap of each constraint in the active set: the persistence
-        # tolerance for those held in the last step (positive only for them), else 0.
-        self._activation = np.zeros(constraints.size)
-        self._holding = False  # whether some entry of _activation may be positive
-        self._first_step = True  # contacts closed at the start are held (module docstring)
-        # The outcome of a step without impulses: shared, read-only zeros.
+        #: What the last step left to the next (:class:`StepMemory`); :meth:`reset` renews it.
+        self.memory = fresh_memory(constraints.size)
+        # The memory after a step without impulses, and that step's outcome: shared, read-only.
+        self._free_memory = StepMemory(_read_only(np.zeros(constraints.size)), False)
         self._no_impulse = _read_only(np.zeros(constraints.size))
         self._no_friction_impulse = (
             _read_only(np.zeros((constraints.size, 3))) if constraints.has_friction else None
         )
-        # q ⊕ dq on Python floats for the few coordinates where that beats numpy's calls.
-        self._scalar_update = (
-            self._vector_space
-            and robot.nv + (0 if flexible is None else flexible.nf) <= SCALAR_UPDATE_SIZE
-        )
+        # Rows of the contact problem present at every step (a problem even with no contact).
+        self._problem_rows = int(self._coulomb_rows is not None) + int(self._bilateral is not None)
         if flexible is not None:
             ht = self.dt * self.theta
             self._stiffness = flexible.coupling_matrix(flexible.stiffness)  # K_q
@@ -347,8 +352,6 @@ class MoreauJean:
             implicit[nv:, nv:] += np.diag(flexible.motor_inertia)  # + B on the motors
             self._implicit_forces = implicit  # W without the links' M(q)
         self._free_step = self._compiled_free_step()
-        if self._free_step is not None and self._rigid_rows is not None:
-            self._free_step.read_rows_of(self._rigid_rows)  # no copies of q, v and the rows
 
     def _set_joint_friction(
         self,
@@ -377,10 +380,8 @@ class MoreauJean:
             self._coulomb_bounds = self.dt * friction.coulomb[index]
 
     def reset(self) -> None:
-        """Forget which constraints carried an impulse in the last step (a new run)."""
-        self._activation[:] = 0.0
-        self._holding = False
-        self._first_step = True
+        """Start a new run: forget the memory of the last step (:attr:`memory`)."""
+        self.memory = fresh_memory(self.constraints.size)
 
     def _compiled_free_step(self) -> CompiledFreeStep | None:
         """The free part of the step as one compiled call, where the step allows it.
@@ -388,8 +389,7 @@ class MoreauJean:
         With the compiled constraint rows (plane contacts and stops of a robot whose joints are
         vector spaces), without midpoint Coriolis forces, Coulomb joints or bilateral
         constraints, and where a C compiler is present. The same call solves the steps with
-        one active row when Newton's law is the project's and the solver's one-row solve is
-        the closed form.
+        one active row when the solver's one-row solve is the closed form.
         """
         if (
             self._rows is None
@@ -411,16 +411,29 @@ class MoreauJean:
             flexible=self.flexible,
             viscous=self._viscous,
             single_rows=SingleRowRules(
-                self.constraints.restitution, self.restitution_threshold, ENERGY_GAIN_TOLERANCE
+                self.constraints.restitution, self.restitution_threshold, self.newton_law
             )
-            if closed_form and self.newton_law == "closing"
+            if closed_form
             else None,
         )
-        if not step.compiled:
-            return None
-        if step.single_rows:
-            step.bind_activation(self._activation)
-        return step
+        return step if step.compiled else None
+
+    @property
+    def fast_paths(self) -> tuple[str, ...]:
+        """The generated fast paths the steps run, by name.
+
+        ``"constraint rows"`` (gaps, rows and, on small robots, M and h in one compiled call),
+        ``"free step"`` (the free velocity, predicted gaps and Delassus terms) and
+        ``"single row"`` (a step with one active row); none with ``compiled = False``,
+        ``UCONTROL_NO_COMPILE`` or no C compiler.
+        """
+        free = self._free_step
+        paths = (
+            ("constraint rows", self._rows is not None),
+            ("free step", free is not None),
+            ("single row", free is not None and free.single_rows),
+        )
+        return tuple(name for name, used in paths if used)
 
     @property
     def evaluation_data(self) -> pin.Data:
@@ -462,92 +475,42 @@ class MoreauJean:
     def step(self, state: PlantEvaluation, tau: Vector) -> StepOutcome:
         """Advance one step from ``state`` (the last :meth:`evaluate`) under forces ``tau``.
 
+        The stages of the module docstring: free velocity, active set (with :attr:`memory`),
+        impact law, contact problem with the energy guard, position update (and the
+        projection onto bilateral constraints); :attr:`memory` then holds what the next step
+        needs.
+
         Args:
             state: The evaluation at the start of the step.
             tau: Generalized forces (actuation plus external), shape (nv,), in [N m] or [N]
                 (nv + nf with flexible joints: the motor torques last).
         """
-        model, data, h = self._model, self._data, self.dt
-        inverse_inertia: Callable[[Vector], Vector]
-        free_step, q_free, first = self._free_step, None, self._first_step
-        if free_step is not None:  # the same terms in one compiled call
-            v_free, q_free, predicted = free_step(state, tau)
+        memory, free_step = self.memory, self._free_step
+        inverse_inertia: Callable[[Vector], Vector] | None = None
+        q_free: Vector | None = None
+        if free_step is not None:  # the stages below in one generated call
+            v_free, q_free, predicted = free_step(state, tau, memory.activation)
         else:
-            if self.flexible is None and not self.midpoint and self._viscous is None:
-                pin.cholesky.decompose(model, data)
-                v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)
-                inverse_inertia = self._rigid_inverse_inertia
-            else:
-                v_free, inverse_inertia = self._free_velocity(state, tau)
+            v_free, inverse_inertia = self._free_velocity(state, tau)
             # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
-            predicted = state.gap + (self.gamma * h) * state.normal_velocity
-        if self._first_step:
-            self._first_step = False
-            closed = (state.gap <= START_GAP_TOLERANCE) & (predicted > self._activation)
-            self._activation[closed] = max(self.persistence_tolerance, START_GAP_TOLERANCE)
-            self._holding = True
-        active = predicted <= self._activation
-        if self._bilateral is not None:
-            return self._mixed_step(state, v_free, inverse_inertia, active, active.nonzero()[0])
-        count = np.count_nonzero(active)
-        if not count and self._coulomb_rows is None:  # no contact problem
-            return self._free_outcome(state, v_free, active, q_free)
-        if count == 1 and free_step is not None and free_step.single_rows and not first:
-            return self._single_row_outcome(state, free_step, active, int(active.argmax()))
+            predicted = predicted_gaps(state.gap, state.normal_velocity, self.gamma * self.dt)
+        active, activation = active_set(memory, state.gap, predicted, self.persistence_tolerance)
         indices = active.nonzero()[0]
-        impulse = np.zeros(self.constraints.size)
-        friction_impulse = np.zeros((self.constraints.size, 3)) if self._friction else None
-        plastic = False
-        J = (
-            self.constraints.jacobian(data, indices)
-            if state.normal_rows is None
-            else state.normal_rows[indices]
-        )
-        tangents = self.constraints.tangent_count[indices] if self._friction else None
-        if tangents is not None and tangents.any():
-            T, directions = self.constraints.tangent_rows(data, indices)
-            J = np.vstack((J, T))
-        else:
-            tangents = None
-        if self.flexible is not None:  # contacts act on the links only
-            J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
-        if self._coulomb_rows is not None:  # Coulomb joints' rows last
-            J = np.vstack((J, self._coulomb_rows))
-        if free_step is not None:
-            Minv_Jt, D = free_step.contact_terms(indices)
-        else:
-            Minv_Jt = inverse_inertia(J)
-            D = J.dot(Minv_Jt)
-        u_free = J.dot(v_free)
-        rate_now = None
-        if self.constraints.time_dependent:  # velocities relative to moving surfaces
-            rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
-            rate_now = _pad(rate_now, u_free.size)
-            u_free = u_free + _pad(rate_next, u_free.size)
-        rebound, closure = self._offsets(indices, state)
-        b = u_free if closure is None else u_free + _pad(closure, u_free.size)
-        rebound = _pad(rebound, u_free.size)  # none on tangential and joint rows
-        solution = self._solve(D, b + rebound, indices, tangents)
-        if np.count_nonzero(rebound) and self.newton_law == "closing":
-            # Energy the impulses add to T + V over the step [J] (module docstring).
-            u_plus = solution.velocity - rebound - (b - u_free)
-            u_k = J.dot(state.v) if rate_now is None else J.dot(state.v) + rate_now
-            gain = solution.impulses.dot(0.5 * (u_free + u_plus) - self.theta * (u_free - u_k))
-            if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
-                solution = self._solve(D, b, indices, tangents)
-                plastic = True
-        impulse[indices] = solution.impulses[: indices.size]
-        if tangents is not None and friction_impulse is not None:
-            _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
-        v_next = v_free + Minv_Jt.dot(solution.impulses)
-        return self._outcome(state, v_next, impulse, active, solution, plastic, friction_impulse)
+        rows = indices.size + self._problem_rows
+        if not rows:  # no contact problem: nothing held next
+            self.memory = self._free_memory
+            q_next = self._advance_theta(state, v_free) if q_free is None else q_free
+            return StepOutcome(
+                q_next, v_free, self._no_impulse, active, None,
+                friction_impulse=self._no_friction_impulse,
+            )  # fmt: skip
+        if indices.size == rows == 1 and free_step is not None and free_step.single_rows:
+            if not memory.first:
+                return self._single_row_outcome(free_step, active, int(indices[0]))
+        return self._contact_outcome(state, v_free, inverse_inertia, active, indices, activation)
 
     def _single_row_outcome(
-        self,
-        state: PlantEvaluation,
-        free_step: CompiledFreeStep,
-        active: NDArray[np.bool_],
-        i: int,
+        self, free_step: CompiledFreeStep, active: NDArray[np.bool_], i: int
     ) -> StepOutcome:
         """The outcome of a step with constraint ``i`` alone active, from the compiled call.
 
@@ -556,221 +519,98 @@ class MoreauJean:
         """
         row = free_step.single_row(i)
         status = "solved" if row.solved else "infeasible"
-        values = (row.impulse, row.velocity, status, 0, row.residual, 0.0, False, 0)
-        solution = tuple.__new__(ContactSolution, values)  # type: ignore[type-var]
+        solution = ContactSolution(row.impulse, row.velocity, status, 0, row.residual, 0.0, False)
         if not row.solved:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
-        impulse[i] = impulse_i = row.impulse.item()
-        # The persistence memory of the next step, as _outcome writes it (no bilateral rows).
-        self._activation.fill(0.0)
-        if impulse_i > 0.0:
-            self._activation[i] = self.persistence_tolerance
-        self._holding = True
-        # Every field, without the NamedTuple's Python-level __new__ (0.3 µs less a step).
-        fields = (row.q, row.v, impulse, active, solution, 0, row.plastic, None)
-        return tuple.__new__(StepOutcome, fields)  # type: ignore[type-var]
+        impulse[i] = row.impulse.item()
+        self.memory = next_memory(impulse, self.persistence_tolerance)
+        return StepOutcome(row.q, row.v, impulse, active, solution, plastic=row.plastic)
 
-    def _free_outcome(
+    def _contact_outcome(
         self,
         state: PlantEvaluation,
         v_free: Vector,
-        active: NDArray[np.bool_],
-        q_free: Vector | None,
-    ) -> StepOutcome:
-        """The outcome of a step without a contact problem: no impulse, nothing held next."""
-        if self._holding:
-            self._activation.fill(0.0)
-            self._holding = False
-        if q_free is None:
-            q_free = self._advance_theta(state, v_free)
-        # Every field, without the NamedTuple's Python-level __new__ (0.3 µs less a step).
-        no_impulse, no_friction = self._no_impulse, self._no_friction_impulse
-        fields = (q_free, v_free, no_impulse, active, None, 0, False, no_friction)
-        return tuple.__new__(StepOutcome, fields)  # type: ignore[type-var]
-
-    def _offsets(
-        self, indices: NDArray[np.intp], state: PlantEvaluation
-    ) -> tuple[Vector, Vector | None]:
-        """Offsets of the normal rows ``indices`` in the contact problem, in [m/s] or [rad/s].
-
-        Returns:
-            The restitution terms :math:`e_a u_a^-` of the closing constraints (0 elsewhere),
-            and the closure :math:`g_a / h` of the held constraints with a positive gap (which
-            get no restitution), or None when there is none; each of shape (m,).
-        """
-        h, gap = self.dt, state.gap[indices]
-        if indices.size == 1:  # the common single contact, without array temporaries
-            i = indices[0]
-            if self._activation[i] > 0.0 and gap[0] > 0.0:
-                return np.zeros(1), gap / h
-            return self._rebound(indices, state), None
-        rebound = self._rebound(indices, state)
-        held_open = (self._activation[indices] > 0.0) & (gap > 0.0)
-        if not np.count_nonzero(held_open):
-            return rebound, None
-        rebound[held_open] = 0.0
-        return rebound, np.where(held_open, gap / h, 0.0)
-
-    def _rebound(self, indices: NDArray[np.intp], state: PlantEvaluation) -> Vector:
-        """:math:`e_a u_a^-` of the closing constraints among ``indices``, 0 elsewhere, (m,)."""
-        if self._plastic:  # every restitution 0: no array arithmetic
-            return np.zeros(indices.size)
-        u_minus = state.normal_velocity[indices]
-        if self.newton_law != "closing":  # Siconos: every active constraint
-            return self.constraints.restitution[indices] * u_minus
-        closing = u_minus < -self.restitution_threshold
-        if indices.size == 1:
-            return self.constraints.restitution[indices] * u_minus if closing[0] else np.zeros(1)
-        return np.where(closing, self.constraints.restitution[indices] * u_minus, 0.0)
-
-    def _mixed_step(
-        self,
-        state: PlantEvaluation,
-        v_free: Vector,
-        inverse_inertia: Callable[[Vector], Vector],
+        inverse_inertia: Callable[[Vector], Vector] | None,
         active: NDArray[np.bool_],
         indices: NDArray[np.intp],
+        activation: Vector,
     ) -> StepOutcome:
-        """Steps 3 and 4 with bilateral rows first (module docstring), frictionless.
+        r"""Impact law, contact problem, energy guard and position update of a step.
 
-        With friction rows (active contacts with friction, or Coulomb joints) the step is
-        :meth:`_mixed_coulomb_step`'s.
+        The rows of the contact problem are the active constraints' normal rows, their
+        tangential rows (with friction), the Coulomb joints' rows and the bilateral rows, in
+        this order; Newton's law and the closures act on the normal rows, the energy guard
+        measures every row but the bilateral ones (module docstring).
         """
-        assert self._bilateral is not None
-        if self._coulomb_rows is not None or (
-            self._friction and self.constraints.tangent_count[indices].any()
-        ):
-            return self._mixed_coulomb_step(state, v_free, inverse_inertia, active, indices)
-        data = self._data
-        J_b = self._bilateral.jacobian(data)
-        m_b = J_b.shape[0]
-        J = np.vstack((J_b, self.constraints.jacobian(data, indices))) if indices.size else J_b
-        if self.flexible is not None:  # constraints act on the links only
-            J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
-        Minv_Jt = inverse_inertia(J)
-        D = J.dot(Minv_Jt)
-        u_free = J.dot(v_free)
-        rate_now = None
-        if self.constraints.time_dependent and indices.size:
-            rate_now, rate_next = self._surface_rates(indices, None, state.t)
-            u_free[m_b:] += rate_next
-        offsets = np.zeros(u_free.size)
-        rebound = np.zeros(u_free.size)
-        if indices.size:
-            rebound[m_b:], closure = self._offsets(indices, state)
-            if closure is not None:
-                offsets[m_b:] = closure
-        b = u_free + offsets
-        solution = self._solve_mixed(D, b + rebound, m_b)
-        plastic = False
-        if np.count_nonzero(rebound):
-            # Energy the unilateral impulses add to T + V over the step [J].
-            u_plus = solution.velocity[m_b:] - rebound[m_b:] - offsets[m_b:]
-            u_k = J[m_b:].dot(state.v) + (0.0 if rate_now is None else rate_now)
-            unilateral = u_free[m_b:]
-            gain = solution.impulses[m_b:].dot(
-                0.5 * (unilateral + u_plus) - self.theta * (unilateral - u_k)
-            )
-            if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
-                solution = self._solve_mixed(D, b, m_b)
-                plastic = True
-        impulse = np.zeros(self.constraints.size)
-        impulse[indices] = solution.impulses[m_b:]
-        v_next = v_free + Minv_Jt.dot(solution.impulses)
-        held = J[m_b:][impulse[indices] > 0.0, : self.robot.nv]  # kept by the projection
-        return self._outcome(state, v_next, impulse, active, solution, plastic, None, held=held)
-
-    def _mixed_coulomb_step(
-        self,
-        state: PlantEvaluation,
-        v_free: Vector,
-        inverse_inertia: Callable[[Vector], Vector],
-        active: NDArray[np.bool_],
-        indices: NDArray[np.intp],
-    ) -> StepOutcome:
-        r"""Steps 3 and 4 with friction and bilateral rows (module docstring).
-
-        The rows are the contacts' normal and tangential ones, the Coulomb joints', then the
-        bilateral ones, :math:`J_b v_{k+1} = 0` with free impulses: one Coulomb problem with
-        ``equalities`` rows (:class:`CoulombProblem`). The drift is projected away after the
-        step as in :meth:`_mixed_step`; the energy guard measures the other rows only.
-        """
-        assert self._bilateral is not None
-        data, constraints = self._data, self.constraints
-        J_b = self._bilateral.jacobian(data)
-        m_b = J_b.shape[0]
-        J = constraints.jacobian(data, indices)
-        tangents = constraints.tangent_count[indices] if self._friction else None
-        if tangents is not None and tangents.any():
-            T, directions = constraints.tangent_rows(data, indices)
-            J = np.vstack((J, T))
+        constraints, data, m = self.constraints, self._data, indices.size
+        if state.normal_rows is not None:
+            J = state.normal_rows[indices]
         else:
-            tangents = None
-        J = np.vstack((J, J_b))
+            J = constraints.jacobian(data, indices)
+        tangents: NDArray[np.intp] | None = None
+        if self._friction and m:
+            counts = constraints.tangent_count[indices]
+            if counts.any():
+                T, directions = constraints.tangent_rows(data, indices)
+                J, tangents = np.vstack((J, T)), counts
         if self.flexible is not None:  # constraints act on the links only
             J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
-        if self._coulomb_rows is not None:  # Coulomb joints' rows before the bilateral ones
-            J = np.vstack((J[:-m_b], self._coulomb_rows, J[-m_b:]))
-        Minv_Jt = inverse_inertia(J)
-        D = J.dot(Minv_Jt)
+        if self._coulomb_rows is not None:  # Coulomb joints' rows after the contacts'
+            J = np.vstack((J, self._coulomb_rows))
+        m_b = 0
+        if self._bilateral is not None:  # bilateral rows last, their impulses free
+            J_b = self._bilateral.jacobian(data)
+            if self.flexible is not None:
+                J_b = np.hstack((J_b, np.zeros((J_b.shape[0], self.flexible.nf))))
+            J, m_b = np.vstack((J, J_b)), J_b.shape[0]
+        if inverse_inertia is None:  # the compiled free step's terms (normal rows only)
+            assert self._free_step is not None
+            Minv_Jt, D = self._free_step.contact_terms(indices)
+        else:
+            Minv_Jt = inverse_inertia(J)
+            D = J.dot(Minv_Jt)
         u_free = J.dot(v_free)
-        r = u_free.size - m_b  # contact (normal, tangential) and joint rows
-        rate_now = None
-        if constraints.time_dependent and indices.size:  # velocities relative to surfaces
+        r = u_free.size - m_b  # the rows the energy guard measures
+        rate_now: Vector | float = 0.0
+        if constraints.time_dependent and m:  # velocities relative to moving surfaces
             rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
             rate_now = _pad(rate_now, r)
             u_free[:r] += _pad(rate_next, r)
-        rebound, closure = self._offsets(indices, state)
-        b = u_free.copy()
-        if closure is not None:
-            b[: closure.size] += closure
-        rebound = _pad(rebound, u_free.size)  # none on tangential, joint and bilateral rows
+        rebound, closure = np.zeros(u_free.size), np.zeros(u_free.size)
+        if m:  # the impact law on the normal rows
+            rebound[:m], closure[:m] = newton_offsets(
+                NUMPY_OPS,
+                state.gap[indices],
+                state.normal_velocity[indices],
+                constraints.restitution[indices],
+                activation[indices] > 0.0,
+                self.dt,
+                self.restitution_threshold,
+                self.newton_law == "siconos",
+            )
+        b = u_free + closure
         solution = self._solve(D, b + rebound, indices, tangents, m_b)
         plastic = False
-        if np.count_nonzero(rebound) and self.newton_law == "closing":
-            # Energy the contact and joint impulses add to T + V over the step [J].
-            u_plus = solution.velocity[:r] - rebound[:r] - (b[:r] - u_free[:r])
-            u_k = J[:r].dot(state.v) + (0.0 if rate_now is None else rate_now)
-            gain = solution.impulses[:r].dot(
-                0.5 * (u_free[:r] + u_plus) - self.theta * (u_free[:r] - u_k)
+        if self.newton_law == "closing" and np.count_nonzero(rebound):  # the energy guard
+            u_plus = solution.velocity[:r] - rebound[:r] - closure[:r]
+            u_k = J[:r].dot(state.v) + rate_now
+            gain = impulse_energy_gain(
+                NUMPY_OPS, solution.impulses[:r], u_free[:r], u_plus, u_k, self.theta
             )
-            if gain > ENERGY_GAIN_TOLERANCE * (1.0 + state.kinetic_energy):
-                solution = self._solve(D, b, indices, tangents, m_b)
-                plastic = True
+            if gains_energy(gain, state.kinetic_energy):
+                solution, plastic = self._solve(D, b, indices, tangents, m_b), True
         impulse = np.zeros(constraints.size)
-        impulse[indices] = solution.impulses[: indices.size]
+        impulse[indices] = solution.impulses[:m]
         friction_impulse = np.zeros((constraints.size, 3)) if self._friction else None
         if tangents is not None and friction_impulse is not None:
             _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
         v_next = v_free + Minv_Jt.dot(solution.impulses)
-        held = J[: indices.size][impulse[indices] > 0.0, : self.robot.nv]
-        return self._outcome(
-            state, v_next, impulse, active, solution, plastic, friction_impulse, held=held
-        )
-
-    def _outcome(
-        self,
-        state: PlantEvaluation,
-        v_next: Vector,
-        impulse: Vector,
-        active: NDArray[np.bool_],
-        solution: ContactSolution | None,
-        plastic: bool,
-        friction_impulse: Vector | None,
-        *,
-        held: Vector | None = None,
-    ) -> StepOutcome:
-        """The step's outcome from :math:`v_{k+1}`, and the persistence memory of the next step.
-
-        :math:`q_{k+1}` is step 4's, projected onto the bilateral constraints on a closed chain
-        with the ``held`` contacts' normal rows kept (shape (k, nv) or None).
-        """
         q_next = self._advance_theta(state, v_next)
-        if self._bilateral is not None:
-            q_next = self._project(q_next, held if held is not None and held.size else None)
-        np.multiply(impulse > 0.0, self.persistence_tolerance, out=self._activation)
-        self._holding = True
+        if self._bilateral is not None:  # held contacts' normal rows kept by the projection
+            held = J[:m][impulse[indices] > 0.0, : self.robot.nv]
+            q_next = self._project(q_next, held if held.size else None)
+        self.memory = next_memory(impulse, self.persistence_tolerance)
         return StepOutcome(
             q_next,
             v_next,
@@ -782,16 +622,9 @@ class MoreauJean:
         )
 
     def _advance_theta(self, state: PlantEvaluation, v_next: Vector) -> Vector:
-        r""":math:`q_k \oplus \mathrm{h}\big((1 - \theta) v_k + \theta v_{k+1}\big)` (step 4).
-
-        On a few vector-space coordinates, the same IEEE operations on Python floats (numpy's
-        five calls on tiny arrays cost twice as much).
-        """
-        h, theta = self.dt, self.theta
-        if self._scalar_update:
-            a, rows = 1.0 - theta, zip(state.q.tolist(), state.v.tolist(), v_next.tolist())
-            return np.array([q + h * (a * v + theta * w) for q, v, w in rows])
-        return self._advance(state.q, h * ((1.0 - theta) * state.v + theta * v_next))
+        r""":math:`q_k \oplus \mathrm{h}\big((1 - \theta) v_k + \theta v_{k+1}\big)` (step 4)."""
+        theta = self.theta
+        return self._advance(state.q, self.dt * ((1.0 - theta) * state.v + theta * v_next))
 
     def _project(self, q: Vector, held: Vector | None = None) -> Vector:
         r"""``q`` moved onto h(q) = 0 by Gauss–Newton steps of least norm (links only).
@@ -821,12 +654,6 @@ class MoreauJean:
                 step = np.linalg.lstsq(rows, target, rcond=None)[0]
             q1 = pin.integrate(model, q1, -step)
         return q1 if q.size == nq else np.concatenate((q1, q[nq:]))
-
-    def _solve_mixed(self, D: Vector, b: Vector, equalities: int) -> ContactSolution:
-        """The mixed problem (bilateral rows first); unsolved as ``on_unsolved`` says."""
-        solver: Any = self.solver
-        solution: ContactSolution = solver.solve_mixed(D, b, equalities)
-        return self._checked(solver, solution)
 
     def _checked(self, solver: Any, solution: ContactSolution) -> ContactSolution:
         """``solution``, or :class:`ContactSolveError` / a warning when it is unsolved."""
@@ -875,14 +702,20 @@ class MoreauJean:
     def _free_velocity(
         self, state: PlantEvaluation, tau: Vector
     ) -> tuple[Vector, Callable[[Vector], Vector]]:
-        r"""Free velocity of a flexible or midpoint step, and the map J ↦ W⁻¹ Jᵀ.
+        r"""Free velocity of the step (stage 1), and the map J ↦ W⁻¹ Jᵀ.
 
         W is the inertia (of the links at q_k or at the midpoint, and of the motors) plus the
         θ-implicit spring, damper and joint viscous friction terms; with ``midpoint`` the
         Coriolis forces are the symmetric :math:`\Gamma(v_k, v^*)` of a first solve's velocity
-        :math:`v^*`.
+        :math:`v^*`. Where W is M(q_k) alone it is factored by Pinocchio's Cholesky (which
+        follows the kinematic tree's sparsity), else by LAPACK's.
         """
         model, h, flexible = self._model, self.dt, self.flexible
+        if flexible is None and not self.midpoint and self._viscous is None:  # W = M(q_k)
+            data = self._data
+            pin.cholesky.decompose(model, data)
+            v_free = state.v + h * pin.cholesky.solve(model, data, tau - data.nle)
+            return v_free, self._rigid_inverse_inertia
         nv = self.robot.nv
         q1, v1 = (state.q, state.v) if flexible is None else flexible.split(state.q, state.v)[:2]
         force = tau.copy()
@@ -960,9 +793,10 @@ class MoreauJean:
     ) -> ContactSolution:
         """The contact problem (D, b) of the constraints ``indices``.
 
-        Frictionless when ``tangents`` is None, else a Coulomb problem whose constraint
-        ``indices[j]`` has ``tangents[j]`` tangential rows, followed by ``equalities``
-        bilateral rows (then never frictionless). An unsolved problem raises
+        Frictionless when ``tangents`` is None and no joint has Coulomb friction (a mixed
+        problem with ``equalities`` bilateral rows last), else a Coulomb problem whose
+        constraint ``indices[j]`` has ``tangents[j]`` tangential rows, followed by the
+        Coulomb joints' rows and the ``equalities`` bilateral rows. An unsolved problem raises
         :class:`ContactSolveError` or warns, as ``on_unsolved`` says.
         """
         solver: LCPSolver | CoulombSolver
@@ -972,7 +806,10 @@ class MoreauJean:
             return self._checked(self.friction_solver, solution)
         if tangents is None or self.friction_solver is None:  # the latter: not with tangents
             solver = self.solver
-            solution = self.solver.solve(D, b)
+            if equalities:  # bilateral rows last (checked at construction: proxsuite's)
+                solution = self.solver.solve_mixed(D, b, equalities)  # type: ignore[attr-defined]
+            else:
+                solution = self.solver.solve(D, b)
         else:
             solver = self.friction_solver
             problem = CoulombProblem(D, b, self.constraints.friction[indices], tangents, equalities)

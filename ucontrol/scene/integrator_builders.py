@@ -21,8 +21,10 @@ if TYPE_CHECKING:
     from ucontrol.scene.scene import Scene
 
 
-def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
+def build_integrator(scene: Scene, dt: float | None = None, *, compiled: bool = True) -> Integrator:
     """The integrator ``scene.integrator`` names, with its step or ``dt`` in [s].
+
+    ``compiled = False`` runs Moreau–Jean's reference stages alone (no generated fast path).
 
     Raises:
         InvalidParameterError: The scene has friction and the integrator is not
@@ -66,10 +68,11 @@ def build_integrator(scene: Scene, dt: float | None = None) -> Integrator:
             f"'moreau_jean' for scenes with Coulomb [joint_friction] ({name} has viscous joint "
             "friction only)",
         )
-    return _BUILDERS[name](scene, scene.integrator.dt if dt is None else dt)
+    h = scene.integrator.dt if dt is None else dt
+    return _moreau_jean(scene, h, compiled) if name == "moreau_jean" else _BUILDERS[name](scene, h)
 
 
-def _moreau_jean(scene: Scene, dt: float) -> Integrator:
+def _moreau_jean(scene: Scene, dt: float, compiled: bool = True) -> Integrator:
     settings = scene.integrator
     contact_solver, friction_solver = build_contact_solvers(
         settings.contact_solver,
@@ -93,6 +96,7 @@ def _moreau_jean(scene: Scene, dt: float) -> Integrator:
         persistence_tolerance=settings.persistence_tolerance,
         newton_law=settings.newton_law,
         joint_friction=scene.joint_friction,
+        compiled=compiled,
     )
 
 

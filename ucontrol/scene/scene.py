@@ -160,15 +160,18 @@ class Scene:
         assert self.motor_q0 is not None and self.motor_v0 is not None
         return np.concatenate((self.q0, self.motor_q0)), np.concatenate((self.v0, self.motor_v0))
 
-    def build_integrator(self, dt: float | None = None) -> Integrator:
+    def build_integrator(self, dt: float | None = None, *, compiled: bool = True) -> Integrator:
         """The integrator of this scene, optionally with another step ``dt`` in [s].
+
+        ``compiled = False`` runs the reference stages of a Moreau–Jean step alone, without
+        its generated fast paths (which also stay off with ``UCONTROL_NO_COMPILE`` set).
 
         Raises:
             InvalidParameterError: The scene has friction and the integrator is not
                 ``moreau_jean`` (the others are frictionless), or a ``qpsolvers:`` contact
                 solver was asked for a scene with friction.
         """
-        return build_integrator(self, dt)
+        return build_integrator(self, dt, compiled=compiled)
 
     def build_controller(self) -> Controller:
         """The controller declared by the scene's ``[controller]`` table."""

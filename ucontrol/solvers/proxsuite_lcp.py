@@ -9,9 +9,10 @@ is the optimality system of the convex QP :math:`\min_{P \ge 0} \tfrac12 P^T D P
 solved here with proxsuite's dense solver. Redundant constraints make :math:`D` singular; the
 proximal method still converges and the velocity :math:`v = v_\text{free} + W^{-1} J^T P` is unique.
 
-With bilateral constraints (:meth:`ProxsuiteLCPSolver.solve_mixed`) the first rows are
-equalities, their impulses free in sign: :math:`D_{b\cdot} P + b_b = 0`, and the QP has the
-bounds :math:`P \ge 0` on the unilateral rows only (a mixed LCP).
+With bilateral constraints (:meth:`ProxsuiteLCPSolver.solve_mixed`) the last rows are
+equalities (as in :class:`~ucontrol.solvers.coulomb_problem.CoulombProblem`), their impulses
+free in sign: :math:`D_{b\cdot} P + b_b = 0`, and the QP has the bounds :math:`P \ge 0` on the
+unilateral rows only (a mixed LCP).
 """
 
 from __future__ import annotations
@@ -109,9 +110,9 @@ class ProxsuiteLCPSolver:
     def solve_mixed(
         self, D: NDArray[np.float64], b: NDArray[np.float64], equalities: int
     ) -> ContactSolution:
-        r"""Impulses of the mixed problem: the first ``equalities`` rows bilateral.
+        r"""Impulses of the mixed problem: the last ``equalities`` rows bilateral.
 
-        :math:`w = D P + b` with :math:`w_i = 0` (:math:`P_i` free) on the first rows and
+        :math:`w = D P + b` with :math:`w_i = 0` (:math:`P_i` free) on the last rows and
         :math:`0 \le P_i \perp w_i \ge 0` on the others. The QP's solution is polished on
         its active set (least squares: dependent rows, as redundant closures give, keep the
         minimum-norm impulses). The residual is the largest of :math:`|w_i|` on the bilateral
@@ -120,7 +121,7 @@ class ProxsuiteLCPSolver:
         Args:
             D: Delassus matrix, symmetric positive semidefinite, shape (m, m).
             b: Free constraint velocities plus offsets in [m/s], shape (m,).
-            equalities: Number of bilateral rows, first in ``D`` and ``b``.
+            equalities: Number of bilateral rows, last in ``D`` and ``b``.
         """
         if equalities == 0:
             return self.solve(D, b)
@@ -131,26 +132,26 @@ class ProxsuiteLCPSolver:
             bounds = self._mixed_bounds.get((m, equalities))
             if bounds is None:
                 C = np.zeros((unilateral, m))
-                C[:, equalities:] = np.eye(unilateral)
+                C[:, :unilateral] = np.eye(unilateral)
                 bounds = (C, np.zeros(unilateral), np.full(unilateral, INFINITY))
                 self._mixed_bounds[(m, equalities)] = bounds
             results = self._qp.solve(D, b, *bounds)
         else:
             results = self._qp.solve(D, b, None, None, None)
         impulses = np.array(results.x)
-        impulses[equalities:] = np.maximum(impulses[equalities:], 0.0)
-        diagonal = D.diagonal()[equalities:]
+        impulses[:unilateral] = np.maximum(impulses[:unilateral], 0.0)
+        diagonal = D.diagonal()[:unilateral]
         velocity = D @ impulses + b
         residual = _mixed_residual(diagonal, impulses, velocity, equalities)
         polished = False
         if self.polish and residual > POLISH_THRESHOLD:
             active = np.ones(m, dtype=bool)
-            scale = velocity_scale(D)[equalities:]
-            active[equalities:] = scale * impulses[equalities:] > velocity[equalities:]
+            scale = velocity_scale(D)[:unilateral]
+            active[:unilateral] = scale * impulses[:unilateral] > velocity[:unilateral]
             candidate = np.zeros(m)
             rows = np.flatnonzero(active)
             candidate[rows] = np.linalg.lstsq(D[np.ix_(rows, rows)], -b[rows], rcond=None)[0]
-            if (candidate[equalities:] >= 0.0).all():
+            if (candidate[:unilateral] >= 0.0).all():
                 candidate_velocity = D @ candidate + b
                 candidate_residual = _mixed_residual(
                     diagonal, candidate, candidate_velocity, equalities
@@ -180,10 +181,11 @@ def _mixed_residual(
 
     ``diagonal`` is that of D on the unilateral rows, shape (m - equalities,).
     """
-    residual = float(np.abs(velocity[:equalities]).max())
-    if impulses.size > equalities:
+    unilateral = impulses.size - equalities
+    residual = float(np.abs(velocity[unilateral:]).max())
+    if unilateral:
         residual = max(
             residual,
-            natural_map_residual(diagonal, impulses[equalities:], velocity[equalities:]),
+            natural_map_residual(diagonal, impulses[:unilateral], velocity[:unilateral]),
         )
     return residual
