@@ -111,7 +111,7 @@ gains energy.
 
 **Bilateral constraints.** With loop closures or joint couplings
 (:attr:`~ucontrol.contact.ConstraintSet.bilateral`, rows :math:`J_b`, residual :math:`h(q)`)
-step 3 is a mixed problem: the bilateral rows are stacked first, their impulses free in sign,
+step 3 is a mixed problem: the bilateral rows are stacked last, their impulses free in sign,
 
 .. math:: J_b v_{k+1} = 0, \qquad
           0 \le u_a(v_{k+1}) + e_a u_a(v_k) \perp P_a \ge 0 \; (a \in I),
@@ -127,10 +127,11 @@ four-bar of ``tests/integrators/test_bilateral.py``) kept the residual at 6e-5 m
 the energy error and the phase error twentyfold at h = 1e-3.
 Dependent rows (a planar mechanism's out-of-plane closure row, a closure declared twice) make
 :math:`D` singular; the proximal QP and a least-squares polish keep the minimum-norm impulses.
-Bilateral constraints need the proxsuite solver; the energy guard measures the unilateral
-rows' impulses only. With friction (active contacts with a friction coefficient, or Coulomb
-joints) the bilateral rows are stacked *last*, after the contacts' normal and tangential rows
-and the joints' rows, and the step solves the mixed Coulomb problem
+Bilateral constraints need the proxsuite solver; the energy guard measures the other rows'
+impulses only (and, as everywhere, runs under the ``"closing"`` law alone). With friction
+(active contacts with a friction coefficient, or Coulomb joints) the bilateral rows come
+after the contacts' normal and tangential rows and the joints' rows, and the step solves the
+mixed Coulomb problem
 
 .. math:: J_b v_{k+1} = 0 \;(P_b \text{ free}), \qquad
           K_a \ni P_a \perp \hat u_a \in K_a^* \; (a \in I),
@@ -139,6 +140,22 @@ and the joints' rows, and the step solves the mixed Coulomb problem
 fixed point, each Tresca QP leaving the bilateral impulses unbounded
 (:class:`~ucontrol.solvers.ProxsuiteCoulombSolver`, the only friction solver accepted with
 bilateral constraints); the drift is projected away as above.
+
+**Stages and paths.** A step is a list of named stages (:meth:`MoreauJean.step`): free
+velocity, active set, impact law (the offsets of the problem), contact problem with the energy
+guard, position update (and projection). What a step leaves to the next — the activation of
+the held constraints and whether the run has started — is one object,
+:attr:`MoreauJean.memory` (:class:`~ucontrol.integrators.step_stages.StepMemory`), and the
+rules of the stages are pure functions of :mod:`~ucontrol.integrators.step_stages`. Unilateral,
+frictional, Coulomb-joint and bilateral rows are blocks of one contact stage. Each stage has
+one readable reference (numpy, Pinocchio, LAPACK) and at most one generated fast path
+(casadi, compiled to C): the constraint rows with M and h on small robots
+(:mod:`~ucontrol.contact.compiled_rows`) and the free step with its one-row steps
+(:mod:`~ucontrol.integrators.compiled_free_step`), which apply the same definitions of the
+impact law, the predicted gaps and the energy guard on casadi's symbols. The public switch
+``compiled = False`` (or ``UCONTROL_NO_COMPILE=1``, or no C compiler) runs the references
+alone; ``tests/test_paths_agree.py`` runs every shipped scene both ways and compares the logs
+field by field (:attr:`MoreauJean.fast_paths` names the paths a step runs).
 
 **Unsolved problems.** A solve whose residual stays above its solver's tolerance raises
 :class:`~ucontrol.exceptions.ContactSolveError` (``on_unsolved = "raise"``), or issues a
