@@ -2,7 +2,7 @@ r"""The free part of a Moreau–Jean step in one compiled call.
 
 Before its contact problem, a Moreau–Jean step of a robot whose joints are all vector spaces
 (nq = nv: revolute and prismatic joints) computes, in numpy and LAPACK, a dozen small array
-operations of about 0.5 µs each (:mod:`ucontrol.integrators.moreau_jean`). With every
+operations, each a Python call (:mod:`ucontrol.integrators.moreau_jean`). With every
 generalized force of the step linear in the state, they are written here as one casadi Function,
 compiled to C (:class:`~ucontrol.model.compiled_function.CompiledFunction`):
 
@@ -22,8 +22,8 @@ viscous joint friction: :math:`W_0 = \mathrm{h}\theta (C_v + D) + \mathrm{h}^2\t
 springs' stiffness and damping matrices on the extended coordinates, B the motor inertias, D
 the viscous friction on the links; all zero on a rigid robot without joint friction). J are the
 normal rows of every constraint (:class:`~ucontrol.contact.compiled_rows.ConstraintRows`), zero
-on the motors. W is factored by a Cholesky decomposition written out in the expression; the
-results equal the numpy and Pinocchio path to round-off.
+on the motors. W is factored by casadi's symbolic Cholesky decomposition (``casadi.chol``) and
+two triangular solves; the results equal the reference stages to round-off.
 
 With ``single_rows``, the call also solves, for each constraint i in parallel, the step in
 which i alone is active, as the closed form of the one-row LCP
@@ -53,6 +53,7 @@ from ucontrol.integrators.step_stages import (
     impulse_energy_gain,
     newton_offsets,
     predicted_gaps,
+    theta_displacement,
 )
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.plant import PlantEvaluation
@@ -112,13 +113,13 @@ class CompiledFreeStep:
         W = W0_s + ca.diagcat(M, ca.SX.zeros(size - nv, size - nv))
         force = tau - ca.vertcat(nle, ca.SX.zeros(size - nv)) - Kq_s @ q - F_s @ v
         J = ca.horzcat(rows, ca.SX.zeros(n, size - nv))
-        factor = _cholesky(W)
-        v_free = v + _cholesky_solve(factor, h * force)
-        Winv_Jt = _cholesky_solve(factor, J.T)
+        R = ca.chol(W)  # W = RᵀR, R upper triangular: two triangular solves
+        v_free = v + ca.solve(R, ca.solve(R.T, h * force))
+        Winv_Jt = ca.solve(R, ca.solve(R.T, J.T))
         delassus = J @ Winv_Jt
         parts = [
             v_free,
-            q + h * ((1.0 - th) * v + th * v_free),
+            q + theta_displacement(v, v_free, h, th),
             predicted_gaps(gap, velocity, gh),
             ca.vec(Winv_Jt),
             ca.vec(delassus),
@@ -313,7 +314,7 @@ def _single_row_step(
     else:
         (impulse, w, residual, solved), plastic = newton, ca.SX(0.0)
     v_next = v_free + Winv_Jt[:, i] * impulse
-    q_next = q + h * ((1.0 - theta) * v + theta * v_next)
+    q_next = q + theta_displacement(v, v_next, h, theta)
     return ca.vertcat(impulse, w, residual, solved, plastic, v_next, q_next)
 
 
@@ -346,35 +347,3 @@ def _constant_terms(
         W0[links, links] += ht * viscous
         F[links, links] += viscous
     return W0, Kq, F
-
-
-def _cholesky(W: Any) -> list[list[Any]]:
-    """Lower Cholesky factor of the symmetric positive definite expression W (n, n), by rows."""
-    import casadi as ca
-
-    n = W.shape[0]
-    L: list[list[Any]] = [[None] * n for _ in range(n)]
-    for j in range(n):
-        L[j][j] = ca.sqrt(W[j, j] - sum((L[j][k] ** 2 for k in range(j)), ca.SX(0)))
-        for i in range(j + 1, n):
-            dot = sum((L[i][k] * L[j][k] for k in range(j)), ca.SX(0))
-            L[i][j] = (W[i, j] - dot) / L[j][j]
-    return L
-
-
-def _cholesky_solve(L: list[list[Any]], B: Any) -> Any:
-    """:math:`W^{-1} B` with :math:`W = L L^T` (:func:`_cholesky`), B of shape (n, k)."""
-    import casadi as ca
-
-    n, k = B.shape
-    columns = []
-    for c in range(k):
-        y: list[Any] = []
-        for i in range(n):  # L y = b
-            y.append((B[i, c] - sum((L[i][j] * y[j] for j in range(i)), ca.SX(0))) / L[i][i])
-        x: list[Any] = [None] * n
-        for i in reversed(range(n)):  # L^T x = y
-            rest = sum((L[j][i] * x[j] for j in range(i + 1, n)), ca.SX(0))
-            x[i] = (y[i] - rest) / L[i][i]
-        columns.append(ca.vertcat(*x))
-    return ca.horzcat(*columns)

@@ -188,6 +188,7 @@ from ucontrol.integrators.step_stages import (
     newton_offsets,
     next_memory,
     predicted_gaps,
+    theta_displacement,
 )
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.joint_friction import JointFriction
@@ -640,8 +641,7 @@ class MoreauJean:
 
     def _advance_theta(self, state: PlantEvaluation, v_next: Vector) -> Vector:
         r""":math:`q_k \oplus \mathrm{h}\big((1 - \theta) v_k + \theta v_{k+1}\big)` (step 4)."""
-        theta = self.theta
-        return self._advance(state.q, self.dt * ((1.0 - theta) * state.v + theta * v_next))
+        return self._advance(state.q, theta_displacement(state.v, v_next, self.dt, self.theta))
 
     def _project(self, q: Vector, held: Vector | None = None) -> Vector:
         r"""``q`` moved onto h(q) = 0 by Gauss–Newton steps of least norm (links only).
@@ -888,7 +888,7 @@ def _upper_cholesky(W: Vector) -> Vector:
     """Upper Cholesky factor of the symmetric positive definite W (its upper triangle read).
 
     LAPACK's ``potrf``, as ``scipy.linalg.cho_factor`` calls it, without that wrapper's
-    checks (about 7 µs per call, most of a flexible step's factorization).
+    checks (which cost more than the factorization of a small W: docs/benchmarks.md).
 
     Raises:
         numpy.linalg.LinAlgError: W is not positive definite.

@@ -87,6 +87,15 @@ def predicted_gaps(gap: Any, normal_velocity: Any, horizon: Any) -> Any:
     return gap + horizon * normal_velocity
 
 
+def theta_displacement(v: Any, v_next: Any, h: Any, theta: Any) -> Any:
+    r""":math:`\mathrm{h}\big((1 - \theta) v_k + \theta v_{k+1}\big)`, the step's displacement.
+
+    The tangent vector the position update adds to :math:`q_k` (:math:`q_k \oplus` it), in the
+    units of v times [s].
+    """
+    return h * ((1.0 - theta) * v + theta * v_next)
+
+
 def active_set(
     memory: StepMemory, gap: Vector, predicted: Vector, persistence_tolerance: float
 ) -> tuple[NDArray[np.bool_], Vector]:
