@@ -155,6 +155,7 @@ def plot(studies: dict[str, ConvergenceStudy], path: Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     figure, axes = plt.subplots(
         1, len(studies), figsize=(4.2 * len(studies), 3.8), layout="constrained", squeeze=False
@@ -169,6 +170,7 @@ def plot(studies: dict[str, ConvergenceStudy], path: Path) -> Path:
             order = 2 if curve == MIDPOINT else 1
             axis.loglog(h, error[-1] * (h / h[-1]) ** order, "k:", linewidth=0.8)
         axis.set_title(f"{case} ({study.duration:g} s)")
+        axis.xaxis.set_minor_formatter(NullFormatter())  # decades only: no crowded labels
         axis.set_xlabel("h [s]")
         axis.set_ylabel("max |q - q_ref| [rad]")
         axis.grid(True, which="both", alpha=0.3)
