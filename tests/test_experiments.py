@@ -129,3 +129,35 @@ def test_friction_cases_run(tmp_path: Path) -> None:
     assert tables["painleve"][0]["impulse_over_mgh"] > 1.0  # mu = 1.5: a tangential impact
     for row in tables["beads"]:  # a vertical column: no impact gains energy, none moves aside
         assert row["energy_increase_at_impacts"] == 0.0 and row["max_lateral_position"] == 0.0
+
+
+def test_midpoint_order_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    midpoint_order = _load("midpoint_order")
+    flags = "--duration 0.2 --drop-duration 0.05 --dts 2e-3 1e-3 --reference-tolerance 1e-10"
+    studies = midpoint_order.main([*flags.split(), "--out", str(tmp_path)])
+    assert set(studies) == set(midpoint_order.CASES)
+    for study in studies.values():
+        assert set(study.curves()) == set(midpoint_order.CURVES)
+        assert all(np.isfinite(run.error) and run.error > 0.0 for run in study.runs)
+    for name in ("midpoint_order.png", "midpoint_order.md", "midpoint_order.csv"):
+        assert (tmp_path / name).is_file()
+    assert "| slope |" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        ("--cases two_link_drop --drop-duration 0.3 --dts 2e-3", "reaches the drop's first impact"),
+        ("--cases four_bar --duration 0 --dts 2e-3", "`duration` must be > 0, got 0.0"),
+        ("--cases four_bar --dts 1e-3 7e-4", "a step that divides the largest step"),
+        ("--cases four_bar --reference-tolerance 0 --dts 2e-3", "`rtol` must be > 0, got 0.0"),
+    ],
+)
+def test_midpoint_order_refuses_bad_flags(
+    flags: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    midpoint_order = _load("midpoint_order")
+    with pytest.raises(SystemExit) as exit_info:
+        midpoint_order.main(["--duration", "0.01", "--out", str(tmp_path), *flags.split()])
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
