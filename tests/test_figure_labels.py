@@ -278,6 +278,11 @@ def test_work_precision_labels_never_overlap(case: str) -> None:
         assert not any(box.overlaps(other) for other in boxes[:i]), ax.texts[i].get_text()
     (legend,) = figure.legends
     assert legend.get_window_extent(renderer).y1 <= axes_box.y0  # below the axes
+    # Each label in its curve's colour, at one of its curve's points.
+    lines = {line.get_color(): line for line in ax.get_lines()}
+    for text in ax.texts:
+        line = lines[text.get_color()]
+        assert tuple(text.xy) in set(zip(line.get_xdata(), line.get_ydata(), strict=True))
 
 
 def test_a_configuration_error_over_lengths_and_angles_says_both(two_link_scene) -> None:

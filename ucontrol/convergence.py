@@ -496,10 +496,10 @@ def plot_work_precision(study: ConvergenceStudy, path: str | Path) -> Path:
 def work_precision_figure(study: ConvergenceStudy) -> Any:
     """Log-log plot of error against wall time, one line per curve, unsaved.
 
-    Each point is labelled with its step, tolerance or stiffness where the label fits: it
-    takes the first of four places around the point that overlaps no label placed before,
-    no marker and no border of the axes, and is left out when none does. The legend sits
-    below the axes.
+    Each point is labelled, in its curve's colour, with its step, tolerance or stiffness where
+    the label fits: it takes the first of four places around the point that overlaps no label
+    placed before, no marker and no border of the axes, and is left out when none does. The
+    legend sits below the axes.
 
     Returns:
         The matplotlib figure.
@@ -512,11 +512,13 @@ def work_precision_figure(study: ConvergenceStudy) -> Any:
     axes = figure.add_subplot()
     floor = np.finfo(float).eps
     points: list[tuple[ConvergenceRun, float, float]] = []
+    colours: dict[str, str] = {}  # of each curve: its labels take it
     for curve, marker in zip(study.curves(), itertools.cycle(_MARKERS), strict=False):
         runs = study.of(curve)
         times = [run.wall_time_s for run in runs]
         errors = [max(run.error, floor) for run in runs]
-        axes.loglog(times, errors, marker=marker, label=curve)
+        (line,) = axes.loglog(times, errors, marker=marker, label=curve)
+        colours[curve] = line.get_color()
         points += zip(runs, times, errors, strict=True)
     axes.set_xlabel("wall time [s]")
     axes.set_ylabel(f"error [{study.error_unit}]")
@@ -531,7 +533,7 @@ def work_precision_figure(study: ConvergenceStudy) -> Any:
     )
     canvas.draw()  # the layout, hence where each point lands
     figure.set_layout_engine("none")  # the labels below must not move the axes
-    _label_points(canvas.get_renderer(), axes, points)
+    _label_points(canvas.get_renderer(), axes, points, colours)
     return figure
 
 
@@ -545,12 +547,15 @@ _LABEL_PLACES = (
 
 
 def _label_points(
-    renderer: Any, axes: Any, points: list[tuple[ConvergenceRun, float, float]]
+    renderer: Any,
+    axes: Any,
+    points: list[tuple[ConvergenceRun, float, float]],
+    colours: Mapping[str, str],
 ) -> None:
     """Label each point where its label overlaps no other label, marker or axes border.
 
     Consecutive runs of one curve drawn on top of each other share one label, the range of
-    their values (``1e-04…1e-12``).
+    their values (``1e-04…1e-12``). A label takes the colour of its curve.
     """
     inside = axes.get_window_extent(renderer)
     marker = 4.0 * axes.figure.dpi / 72.0  # [px] half the side of a marker's box
@@ -568,6 +573,7 @@ def _label_points(
             groups.append([k])
     taken: list[Any] = []  # window extents of the labels placed
     for group in groups:
+        first = points[group[0]][0]
         low, high = points[group[0]][0].value, points[group[-1]][0].value
         text = f"{low:.0e}" if len(group) == 1 else f"{low:.0e}…{high:.0e}"
         for offset, horizontal, vertical in _LABEL_PLACES:
@@ -579,6 +585,7 @@ def _label_points(
                 ha=horizontal,
                 va=vertical,
                 fontsize=7,
+                color=colours[first.curve],
             )
             box = label.get_window_extent(renderer)
             clash = any(box.overlaps(other) for other in taken) or any(
