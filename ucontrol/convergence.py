@@ -512,7 +512,7 @@ def work_precision_figure(study: ConvergenceStudy) -> Any:
     axes = figure.add_subplot()
     floor = np.finfo(float).eps
     points: list[tuple[ConvergenceRun, float, float]] = []
-    colours: dict[str, str] = {}  # of each curve: its labels take it
+    colours: dict[str, Any] = {}  # of each curve: its labels take it
     for curve, marker in zip(study.curves(), itertools.cycle(_MARKERS), strict=False):
         runs = study.of(curve)
         times = [run.wall_time_s for run in runs]
@@ -550,7 +550,7 @@ def _label_points(
     renderer: Any,
     axes: Any,
     points: list[tuple[ConvergenceRun, float, float]],
-    colours: Mapping[str, str],
+    colours: Mapping[str, Any],
 ) -> None:
     """Label each point where its label overlaps no other label, marker or axes border.
 
