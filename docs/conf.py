@@ -1,7 +1,9 @@
 """Sphinx configuration: ``sphinx-build -W -b html docs docs/_build/html``.
 
-The pages are the markdown files of this folder (MyST); the API reference is autodoc over the
-installed ``ucontrol`` package with Google docstrings (napoleon); maths is MathJax.
+The pages are the markdown files of this folder (MyST, through MyST-NB); the tutorials are
+Jupyter notebooks in MyST-NB's text form, executed at every build in a temporary folder (an
+error in a cell fails the build); the API reference is autodoc over the installed ``ucontrol``
+package with Google docstrings (napoleon); maths is MathJax.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ copyright = "ucontrol developers"
 version = release = ucontrol.__version__
 
 extensions = [
-    "myst_parser",
+    "myst_nb",  # MyST markdown (myst-parser) and executed notebooks
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.napoleon",
@@ -22,7 +24,8 @@ extensions = [
     "sphinx-mathjax-offline",  # MathJax served from _static: formulas render offline
     "sphinx.ext.viewcode",
 ]
-source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
+# .rst first: autosummary writes its generated pages with the first suffix that reads rst.
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 root_doc = "index"
 # The tables beside the figures are data written by experiments/, shown by the pages.
 exclude_patterns = ["_build", "figures/*.md", "figures/**/*.md"]
@@ -30,6 +33,14 @@ autosummary_generate = True  # docs/_autosummary/: one page per module, written 
 
 myst_enable_extensions = ["dollarmath", "amsmath"]
 myst_heading_anchors = 3
+
+# Notebooks (the pages with a kernelspec, docs/tutorials): run at every build, each in an empty
+# temporary folder, as tests/test_tutorials.py runs them; a cell that raises fails the build.
+nb_execution_mode = "force"
+nb_execution_in_temp = True
+nb_execution_raise_on_error = True
+nb_execution_timeout = 300  # [s] per cell
+nb_execution_show_tb = True
 
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False

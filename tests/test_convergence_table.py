@@ -45,7 +45,9 @@ def _event_driven(rtol: float, error: float, wall_time_s: float) -> ConvergenceR
 
 def _study(event_driven: list[ConvergenceRun]) -> ConvergenceStudy:
     runs = tuple(_moreau_jean(dt) for dt in DTS) + tuple(event_driven)
-    return ConvergenceStudy(scene="test", duration=1.0, reference="hand-made", runs=runs)
+    return ConvergenceStudy(
+        scene="test", duration=1.0, reference="hand-made", error_unit="m", runs=runs
+    )
 
 
 def _table_rows(markdown: str, header_start: str) -> list[list[str]]:

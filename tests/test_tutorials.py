@@ -1,9 +1,10 @@
-"""The tutorials of docs/tutorials run as they stand: their code blocks, in order, in a new folder.
+"""The tutorials of docs/tutorials run as they stand: their code cells, in order, in a new folder.
 
-A page's ``{code-block}`` directives with a ``:caption:`` are the files the reader saves under
-that name (a URDF, a scene); its ``python`` blocks are run in page order in one namespace, as a
-reader pasting them into one session would. Console blocks are shown, not run. The tutorials keep
-their runs short themselves, so that this file runs in well under a minute.
+The tutorials are Jupyter notebooks in MyST-NB's text form (``{code-cell}`` directives), which
+the documentation build executes too. A cell that starts with ``%%writefile NAME`` is a file
+the reader saves under that name (a URDF, a scene, a campaign); the other cells run in page
+order in one namespace, as the notebook's kernel runs them. The tutorials keep their runs
+short themselves, so that this file runs in well under a minute.
 """
 
 from __future__ import annotations
@@ -15,31 +16,39 @@ import matplotlib
 import pytest
 
 TUTORIALS = Path(__file__).resolve().parents[1] / "docs" / "tutorials"
-#: A fenced block: ```python ...``` or ```{code-block} LANG with a :caption: FILE option.
-_BLOCK = re.compile(
-    r"^```(?:(?P<python>python)|\{code-block\}\s+(?P<lang>\S+)\n:caption:\s*(?P<file>\S+)\n)\n?"
-    r"(?P<body>.*?)^```\s*$",
+#: A code cell: ```{code-cell} ipython3, its ":key: value" options, an optional blank line.
+_CELL = re.compile(
+    r"^```\{code-cell\}\s+ipython3\n(?P<options>(?::\S+:[^\n]*\n)*)\n?(?P<body>.*?)^```[ \t]*$",
     re.M | re.S,
 )
+#: The cell magic that saves a cell's content to a file.
+_WRITEFILE = re.compile(r"\A%%writefile\s+(?P<file>\S+)\n")
 
 
 def tutorial_blocks(page: Path) -> list[tuple[str, str]]:
-    """The blocks of a page in order: ("python", code) or (file name, content)."""
+    """The code cells of a page in order: ("python", code) or (file name, content)."""
     blocks = []
-    for match in _BLOCK.finditer(page.read_text(encoding="utf-8")):
-        kind = "python" if match["python"] else match["file"]
-        blocks.append((kind, match["body"]))
+    for match in _CELL.finditer(page.read_text(encoding="utf-8")):
+        body = match["body"]
+        saved = _WRITEFILE.match(body)
+        if saved is None:
+            blocks.append(("python", body))
+        else:
+            blocks.append((saved["file"], body[saved.end() :]))
     return blocks
 
 
 PAGES = sorted(TUTORIALS.glob("*.md"))
 
 
-def test_every_tutorial_is_in_the_toctree() -> None:
+def test_every_tutorial_is_in_the_toctree_and_a_notebook() -> None:
     index = (TUTORIALS.parents[0] / "index.md").read_text(encoding="utf-8")
-    assert len(PAGES) >= 3
+    assert len(PAGES) >= 4
     for page in PAGES:
         assert f"tutorials/{page.stem}" in index, page.name
+        header = page.read_text(encoding="utf-8").split("---\n")[1]  # the YAML front matter
+        assert "format_name: myst" in header and "kernelspec:" in header, page.name
+        assert "```python" not in page.read_text(encoding="utf-8"), page.name  # no dead code
 
 
 @pytest.mark.parametrize("page", PAGES, ids=[page.stem for page in PAGES])
@@ -61,6 +70,14 @@ def test_tutorial_runs(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPat
 
 def test_blocks_are_found() -> None:
     page = TUTORIALS / "first_impacting_scene.md"
-    kinds = [kind for kind, _ in tutorial_blocks(page)]
+    blocks = tutorial_blocks(page)
+    kinds = [kind for kind, _ in blocks]
     assert kinds[:2] == ["ball.urdf", "drop.toml"]
+    assert blocks[0][1].startswith('<robot name="ball">')  # the magic and options left out
     assert kinds.count("python") >= 3
+
+
+@pytest.mark.parametrize("page", PAGES, ids=[page.stem for page in PAGES])
+def test_each_tutorial_shows_the_run_in_meshcat_inline(page: Path) -> None:
+    code = [body for kind, body in tutorial_blocks(page) if kind == "python"]
+    assert any("notebook_replay(" in body.splitlines()[-1] for body in code), page.name

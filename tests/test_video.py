@@ -20,6 +20,7 @@ from scipy import ndimage
 
 from ucontrol.exceptions import InvalidParameterError, VideoError
 from ucontrol.log import Log
+from ucontrol.saved_run import SavedRun
 from ucontrol.scene import load_scene
 from ucontrol.simulate import simulate
 from ucontrol.viz import video
@@ -162,3 +163,42 @@ def test_cli_view_writes_the_video(ball_run, tmp_path, capsys) -> None:
     path = tmp_path / "cli.mp4"
     assert main(["view", str(ball_run), "--video", str(path), "--fps", "8"]) == 0
     assert int(_probe(path)["nb_read_frames"]) == round(DURATION * 8)
+
+
+def test_scale_bar_and_force_arrow_state_their_lengths(ball_run) -> None:
+    """The scale bar and arrow are as long as the metres and newtons they state.
+
+    The ball's URDF diameter sets the image's metre; the force scale draws the ball's weight
+    (URDF mass) at WEIGHT_ARROW view radii.
+    """
+    from matplotlib.patches import FancyArrow, Polygon
+
+    root = ET.parse(ROBOTS / "ball.urdf").getroot()
+    radius = float(root.find(".//sphere").attrib["radius"])  # type: ignore[union-attr]
+    mass = float(root.find(".//mass").attrib["value"])  # type: ignore[union-attr]
+    run = SavedRun.load(ball_run)
+    renderer = video.SceneRenderer(run.require_scene(), run.log)
+    figure = renderer.figure()
+    renderer.draw(figure, 0)
+    (ax,) = figure.axes
+    (ball,) = [
+        p
+        for p in ax.patches
+        if isinstance(p, Polygon)
+        and not isinstance(p, FancyArrow)
+        and np.ptp(p.get_xy()[:, 1]) > 0.5 * radius
+    ]
+    diameter = np.ptp(ball.get_xy()[:, 0])  # [m] in image coordinates
+    assert diameter == pytest.approx(2.0 * radius, rel=1e-2)
+    texts = {t.get_text() for t in ax.texts}
+    length, force = renderer.scales()
+    assert f"{length:g} m" in texts and f"{force:g} N" in texts
+    (bar,) = [line for line in ax.get_lines() if len(line.get_xdata()) == 2]
+    assert np.ptp(bar.get_xdata()) == pytest.approx(length, rel=1e-12)
+    (arrow,) = [p for p in ax.patches if isinstance(p, FancyArrow)]  # no contact force at t = 0
+    assert np.ptp(arrow.get_xy()[:, 0]) == pytest.approx(force * renderer.force_scale, rel=1e-9)
+    weight_arrow = mass * 9.81 * renderer.force_scale  # [m]
+    assert weight_arrow == pytest.approx(video.WEIGHT_ARROW * renderer.view.radius, rel=1e-9)
+    for value in (length, force):  # round numbers: 1, 2 or 5 times a power of ten
+        mantissa = value / 10.0 ** np.floor(np.log10(value))
+        assert min(abs(mantissa - m) for m in (1.0, 2.0, 5.0)) < 1e-9

@@ -51,6 +51,7 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
 from ucontrol.analysis.bouncing_ball import BouncingBall
+from ucontrol.analysis.coordinates import coordinate_units
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, UnknownKeyError
 from ucontrol.integrators.methods import INTEGRATORS, IVP_METHODS
 from ucontrol.log import Log
@@ -144,12 +145,15 @@ class ConvergenceStudy:
         scene: Scene name.
         duration: Simulated time of every run in [s].
         reference: How the error was measured.
+        error_unit: Unit of the errors: ``"m"``, ``"rad"``, or ``"m or rad"`` for a
+            configuration error over lengths and angles.
         runs: Every run, grouped by integrator.
     """
 
     scene: str
     duration: float
     reference: str
+    error_unit: str
     runs: tuple[ConvergenceRun, ...]
 
     def of(self, curve: str) -> list[ConvergenceRun]:
@@ -426,6 +430,8 @@ def run_convergence(
             f"{scene.constraints.names[index]!r} over every sample, in [m]"
         )
 
+        error_unit = "m"
+
         def error(log: Log) -> float:
             height, _ = ball.state(log.t)
             return float(np.max(np.abs(log.gap[:, index] - height)))
@@ -443,8 +449,11 @@ def run_convergence(
         reference_log, _ = _simulate(
             scene, "event_driven", period, options, duration, control_period
         )
+        model = scene.robot.model
+        _, v_units = coordinate_units(model, model.nq, model.nv)  # those of q ⊖ q_ref
+        error_unit = " or ".join(sorted({unit.removesuffix("/s") for unit in v_units}))
         reference = (
-            f"largest |q - q_ref| (inf-norm, [m] or [rad]) every {period:g} s against "
+            f"largest |q - q_ref| (inf-norm, [{error_unit}]) every {period:g} s against "
             f"event_driven ({method}) at rtol = {reference_tolerance:g}"
         )
 
@@ -468,48 +477,127 @@ def run_convergence(
             )
         )
     return ConvergenceStudy(
-        scene=scene.name, duration=duration, reference=reference, runs=tuple(runs)
+        scene=scene.name,
+        duration=duration,
+        reference=reference,
+        error_unit=error_unit,
+        runs=tuple(runs),
     )
 
 
 def plot_work_precision(study: ConvergenceStudy, path: str | Path) -> Path:
-    """Log-log plot of error against wall time, one line per curve, saved to ``path``."""
-    import matplotlib
+    """Save :func:`work_precision_figure` of ``study`` to ``path`` (PNG at 120 dpi)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    work_precision_figure(study).savefig(path, dpi=120)
+    return path
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    figure, axes = plt.subplots(figsize=(6.4, 4.4), layout="constrained")
+def work_precision_figure(study: ConvergenceStudy) -> Any:
+    """Log-log plot of error against wall time, one line per curve, unsaved.
+
+    Each point is labelled, in its curve's colour, with its step, tolerance or stiffness where
+    the label fits: it takes the first of four places around the point that overlaps no label
+    placed before, no marker and no border of the axes, and is left out when none does. The
+    legend sits below the axes.
+
+    Returns:
+        The matplotlib figure.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(6.4, 5.0), layout="constrained")
+    canvas = FigureCanvasAgg(figure)
+    axes = figure.add_subplot()
     floor = np.finfo(float).eps
-    labelled: list[tuple[float, float]] = []
+    points: list[tuple[ConvergenceRun, float, float]] = []
+    colours: dict[str, Any] = {}  # of each curve: its labels take it
     for curve, marker in zip(study.curves(), itertools.cycle(_MARKERS), strict=False):
         runs = study.of(curve)
         times = [run.wall_time_s for run in runs]
         errors = [max(run.error, floor) for run in runs]
-        axes.loglog(times, errors, marker=marker, label=curve)
-        for run, time, err in zip(runs, times, errors, strict=True):
-            if any(
-                abs(math.log(time / t)) < 0.3 and abs(math.log(err / e)) < 0.3 for t, e in labelled
-            ):
-                continue  # a point on top of a labelled one: its label would hide it
-            labelled.append((time, err))
-            axes.annotate(
-                f"{run.value:.0e}",
-                (time, err),
-                textcoords="offset points",
-                xytext=(4, 3),
-                fontsize=7,
-            )
+        (line,) = axes.loglog(times, errors, marker=marker, label=curve)
+        colours[curve] = line.get_color()
+        points += zip(runs, times, errors, strict=True)
     axes.set_xlabel("wall time [s]")
-    axes.set_ylabel("error")
+    axes.set_ylabel(f"error [{study.error_unit}]")
     axes.set_title(f"{study.scene}: error against run time ({study.duration:g} s simulated)")
     axes.grid(True, which="both", alpha=0.3)
-    axes.legend(title="labels: h [s], rtol, k [N/m]", fontsize=8, title_fontsize=8)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=120)
-    plt.close(figure)
-    return path
+    figure.legend(
+        title="labels: h [s], rtol, k [N/m]",
+        loc="outside lower center",
+        ncol=min(4, len(study.curves())),
+        fontsize=8,
+        title_fontsize=8,
+    )
+    canvas.draw()  # the layout, hence where each point lands
+    figure.set_layout_engine("none")  # the labels below must not move the axes
+    _label_points(canvas.get_renderer(), axes, points, colours)
+    return figure
+
+
+#: Places of a point's label tried in order, as (dx, dy) offsets in points and alignments.
+_LABEL_PLACES = (
+    ((4, 3), "left", "bottom"),
+    ((4, -3), "left", "top"),
+    ((-4, 3), "right", "bottom"),
+    ((-4, -3), "right", "top"),
+)
+
+
+def _label_points(
+    renderer: Any,
+    axes: Any,
+    points: list[tuple[ConvergenceRun, float, float]],
+    colours: Mapping[str, Any],
+) -> None:
+    """Label each point where its label overlaps no other label, marker or axes border.
+
+    Consecutive runs of one curve drawn on top of each other share one label, the range of
+    their values (``1e-04…1e-12``). A label takes the colour of its curve.
+    """
+    inside = axes.get_window_extent(renderer)
+    marker = 4.0 * axes.figure.dpi / 72.0  # [px] half the side of a marker's box
+    markers = [axes.transData.transform((time, error)) for _, time, error in points]
+    groups: list[list[int]] = []
+    for k, (run, _, _) in enumerate(points):
+        last = groups[-1][-1] if groups else None
+        if (
+            last is not None
+            and points[last][0].curve == run.curve
+            and np.all(np.abs(markers[k] - markers[last]) < marker)
+        ):
+            groups[-1].append(k)
+        else:
+            groups.append([k])
+    taken: list[Any] = []  # window extents of the labels placed
+    for group in groups:
+        first = points[group[0]][0]
+        low, high = points[group[0]][0].value, points[group[-1]][0].value
+        text = f"{low:.0e}" if len(group) == 1 else f"{low:.0e}…{high:.0e}"
+        for offset, horizontal, vertical in _LABEL_PLACES:
+            label = axes.annotate(
+                text,
+                points[group[0]][1:],
+                textcoords="offset points",
+                xytext=offset,
+                ha=horizontal,
+                va=vertical,
+                fontsize=7,
+                color=colours[first.curve],
+            )
+            box = label.get_window_extent(renderer)
+            clash = any(box.overlaps(other) for other in taken) or any(
+                j not in group
+                and box.x0 - marker < x < box.x1 + marker
+                and box.y0 - marker < y < box.y1 + marker
+                for j, (x, y) in enumerate(markers)
+            )
+            if not clash and inside.contains(box.x0, box.y0) and inside.contains(box.x1, box.y1):
+                taken.append(box)
+                break
+            label.remove()
 
 
 def write_report(study: ConvergenceStudy, out: str | Path) -> dict[str, Path]:

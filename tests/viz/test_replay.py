@@ -135,3 +135,39 @@ def test_a_server_that_cannot_start_raises_a_viewer_error(
     monkeypatch.setattr(sys, "executable", "/bin/false")
     with pytest.raises(ViewerError, match="meshcat server stopped"):
         MeshcatServer()
+
+
+def test_html_export_shows_the_logged_time_of_each_frame(tmp_path: Path) -> None:
+    import json
+    import re
+
+    from ucontrol.viz.replay import TIME_LABEL_ID
+
+    scene = load_scene(ROBOTS / "ball.toml")
+    log = simulate(scene, duration=0.5, dt=1.5e-3).log  # frame times off the step grid
+    html = write_html(tmp_path / "ball.html", scene, log, fps=20.0).read_text()
+    assert html.count(f'id="{TIME_LABEL_ID}"') == 1
+    assert html.index(TIME_LABEL_ID) > html.index("new MeshCat.Viewer")  # after the viewer
+    match = re.search(r"const times = (\[.*?\]);", html)
+    assert match is not None
+    times = json.loads(match.group(1))
+    np.testing.assert_allclose(times, log.t[frame_rows(log.t, 20.0)], atol=1e-9)
+    assert "viewer.animator.time * 20" in html  # the frame of meshcat's animation clock
+
+
+def test_notebook_replay_is_the_html_page_in_an_iframe(tmp_path: Path) -> None:
+    import html
+
+    from ucontrol.exceptions import InvalidParameterError
+    from ucontrol.viz.replay import InlinePage, notebook_replay
+
+    scene = load_scene(ROBOTS / "ball.toml")
+    log = simulate(scene, duration=0.2).log
+    inline = notebook_replay(scene, log, height=300)._repr_html_()
+    assert inline.startswith('<iframe srcdoc="') and "height: 300px" in inline
+    source = html.unescape(inline.split('srcdoc="')[1].split('" style=')[0])
+    page = write_html(tmp_path / "ball.html", scene, log).read_text()
+    assert source.count("new MeshCat.Viewer") == page.count("new MeshCat.Viewer") == 1
+    assert len(source) == pytest.approx(len(page), rel=1e-3)  # the same page (uuids differ)
+    with pytest.raises(InvalidParameterError, match="height"):
+        InlinePage(page, height=0)

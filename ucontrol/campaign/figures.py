@@ -3,7 +3,7 @@
 - ``success_<key>.png``: success rate against each swept parameter (bins of the values, the
   95 % Wilson interval as error bars, the number of runs written over each bar);
 - ``success_map.png``: success rate against the first two swept parameters, a heat map with
-  ``successes/runs`` written in each cell;
+  ``successes/runs`` written in each cell, cells without runs hatched grey;
 - ``metrics.png``: a histogram of each numeric metric, successes and failures stacked;
 - ``worst.md`` and ``worst.csv``: the worst runs with their parameters and the ``ucontrol run``
   command that re-runs each one alone.
@@ -26,6 +26,8 @@ from ucontrol.campaign.table import load, read_campaign, wilson_interval
 BINS = 6
 #: Worst runs listed by default.
 N_WORST = 5
+#: Look of a cell of the success map without runs: hatched grey, outside the colour scale.
+EMPTY_CELL: dict[str, Any] = {"facecolor": "0.85", "edgecolor": "0.45", "hatch": "///", "lw": 0.0}
 
 
 def plot_campaign(directory: str | Path, out: str | Path | None = None) -> list[Path]:
@@ -205,32 +207,59 @@ def _success_1d(frame: Any, key: str, info: dict[str, Any], out: Path) -> Path:
 
 
 def _success_map(frame: Any, x_key: str, y_key: str, info: dict[str, Any], out: Path) -> Path:
-    import matplotlib.pyplot as plt
+    figure = success_map_figure(frame, x_key, y_key, info["name"])
+    path = out / "success_map.png"
+    figure.savefig(path, dpi=110)
+    return path
+
+
+def success_map_figure(frame: Any, x_key: str, y_key: str, name: str) -> Any:
+    """The success rate of each cell of two binned parameters, a heat map.
+
+    Each cell says ``successes/runs``; a cell without runs is hatched grey (with its legend
+    entry), never painted with a colour of the rate's scale.
+
+    Args:
+        frame: The campaign table (:func:`ucontrol.campaign.table.load`).
+        x_key: Parameter along x.
+        y_key: Parameter along y.
+        name: Name of the campaign, in the title.
+
+    Returns:
+        The matplotlib figure, unsaved.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch, Rectangle
 
     x_codes, x_labels = _bins(_numeric(frame[x_key]))
     y_codes, y_labels = _bins(_numeric(frame[y_key]))
     success = frame["success"].to_numpy(dtype=bool)
     rate = np.full((len(y_labels), len(x_labels)), np.nan)
-    fig, ax = plt.subplots(figsize=(7.5, 5.5))
+    figure = Figure(figsize=(7.5, 5.8), layout="constrained")
+    ax = figure.add_subplot()
     for i in range(len(y_labels)):
         for j in range(len(x_labels)):
             mask = (np.asarray(y_codes) == i) & (np.asarray(x_codes) == j)
             n, k = int(mask.sum()), int(success[mask].sum())
             if n:
                 rate[i, j] = k / n
+            else:
+                ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1.0, 1.0, **EMPTY_CELL))
             ax.text(j, i, f"{k}/{n}", ha="center", va="center", fontsize=8)
     image = ax.imshow(rate, origin="lower", cmap="RdYlGn", vmin=0, vmax=1, aspect="auto")
-    fig.colorbar(image, ax=ax, label="success rate")
+    figure.colorbar(image, ax=ax, label="success rate")
+    if np.isnan(rate).any():
+        figure.legend(
+            handles=[Patch(**EMPTY_CELL, label="no runs in the cell")],
+            loc="outside lower right",
+            fontsize=8,
+        )
     ax.set_xticks(range(len(x_labels)), x_labels, rotation=30, ha="right", fontsize=8)
     ax.set_yticks(range(len(y_labels)), y_labels, fontsize=8)
     ax.set_xlabel(x_key)
     ax.set_ylabel(y_key)
-    ax.set_title(f"{info['name']}: successes/runs per cell")
-    fig.tight_layout()
-    path = out / "success_map.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    ax.set_title(f"{name}: successes/runs per cell")
+    return figure
 
 
 def _histograms(frame: Any, metrics: list[str], out: Path) -> Path:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import html
+import json
 from pathlib import Path
 
 import meshcat
@@ -17,6 +19,8 @@ from ucontrol.viz.scene_drawing import SceneDrawing
 
 #: Frames per second of simulated time in replays and live views.
 FPS = 30.0
+#: HTML id of the time label of a replay page.
+TIME_LABEL_ID = "ucontrol-time"
 
 
 def frame_rows(t: NDArray[np.float64], fps: float = FPS) -> NDArray[np.intp]:
@@ -103,6 +107,8 @@ def write_html(path: str | Path, scene: Scene, log: Log, fps: float = FPS) -> Pa
 
     The page embeds meshcat's viewer (three.js included) and the animation; it needs neither
     a server nor a network. A meshcat server runs in a subprocess while the page is built.
+    The time of the frame shown (the logged time of its row) is written in the bottom left
+    corner while the animation plays or is scrubbed.
 
     Args:
         path: The HTML file to write; its folder is created.
@@ -114,9 +120,88 @@ def write_html(path: str | Path, scene: Scene, log: Log, fps: float = FPS) -> Pa
         The path written.
     """
     path = Path(path)
+    page = _replay_page(scene, log, fps)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(page)
+    return path
+
+
+def _replay_page(scene: Scene, log: Log, fps: float) -> str:
+    """The standalone HTML page of the replay, with its time label."""
     with MeshcatServer() as server:
         replay(server.viewer, scene, log, fps)
-        html = server.static_html()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(html)
-    return path
+        page = server.static_html()
+    head, body_end, tail = page.rpartition("</body>")
+    return head + time_overlay(log.t[frame_rows(log.t, fps)], fps) + body_end + tail
+
+
+class InlinePage:
+    """A standalone HTML page shown inline by Jupyter, in an iframe (its ``srcdoc``).
+
+    Args:
+        page: The HTML page, e.g. that :func:`write_html` writes.
+        height: Height of the frame in [px].
+    """
+
+    def __init__(self, page: str, height: int = 420) -> None:
+        self.page = page
+        self.height = int(as_positive("height", height))
+
+    def _repr_html_(self) -> str:
+        source = html.escape(self.page, quote=True)
+        return (
+            f'<iframe srcdoc="{source}" style="width: 100%; height: {self.height}px; '
+            'border: 1px solid #ccc"></iframe>'
+        )
+
+
+def notebook_replay(scene: Scene, log: Log, fps: float = FPS, height: int = 420) -> InlinePage:
+    """The replay of ``log`` inline in a Jupyter notebook: the page of :func:`write_html`.
+
+    The page plays offline (no server once built, no network), so an executed notebook, or
+    the documentation built from it, keeps the view. A meshcat server runs in a subprocess
+    while the page is built.
+
+    Args:
+        scene: The scene of the run.
+        log: The run.
+        fps: Frames per second of simulated time.
+        height: Height of the view in [px].
+
+    Returns:
+        An object Jupyter displays as the viewer (the last expression of a cell).
+    """
+    return InlinePage(_replay_page(scene, log, fps), height)
+
+
+def time_overlay(times: NDArray[np.float64], fps: float) -> str:
+    """HTML of a label that shows the time of the animation frame meshcat's viewer shows.
+
+    The viewer's animation clock (``viewer.animator.time``, in seconds of animation, which
+    plays at ``fps`` frames per second) gives the frame; the label shows its logged time.
+
+    Args:
+        times: Logged time of each frame in [s], shape (F,).
+        fps: Frames per second of the animation.
+
+    Returns:
+        A ``div`` and the ``script`` that updates it at every repaint.
+    """
+    values = json.dumps([round(float(t), 9) for t in times])
+    return f"""<div id="{TIME_LABEL_ID}" style="position: fixed; left: 12px; bottom: 12px;
+ font: 16px monospace; background: rgba(255, 255, 255, 0.85); border: 1px solid #888;
+ padding: 2px 6px">t = {times[0]:.3f} s</div>
+<script>
+(function () {{
+  const times = {values};  // [s] logged time of each animation frame
+  const label = document.getElementById("{TIME_LABEL_ID}");
+  function show() {{
+    const frame = Math.round(viewer.animator.time * {fps:g});
+    const t = times[Math.min(times.length - 1, Math.max(0, frame))];
+    label.textContent = "t = " + t.toFixed(3) + " s";
+    requestAnimationFrame(show);
+  }}
+  show();
+}})();
+</script>
+"""

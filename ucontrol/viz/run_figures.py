@@ -20,6 +20,7 @@ import pinocchio as pin
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from ucontrol.analysis.coordinates import UNKNOWN_UNIT, coordinate_names, coordinate_units
 from ucontrol.analysis.energy_balance import actuator_work
 from ucontrol.analysis.impacts import impact_mask
 from ucontrol.control.brogliato_controller import BrogliatoController
@@ -34,6 +35,8 @@ from ucontrol.viz.phase_bands import phase_bands, phase_legend
 DPI = 110
 #: Height of one panel of the per-constraint figures in [in].
 PANEL_HEIGHT = 1.8
+#: Colour of the impact lines of the energy figure: dark, to stand out on every phase band.
+IMPACT_LINE_COLOUR = "0.15"
 
 
 def run_figures(log: Log, out_dir: str | Path, *, scene: Scene | None = None) -> list[Path]:
@@ -82,62 +85,17 @@ def run_figure_set(
         ``q``, ``gaps``, ``forces``, ``energy`` and, when the controller logged task
         coordinates, ``tracking``.
     """
+    units = constraint_units(log, scene)
     figures = {
         "q": _configuration_figure(log, None if scene is None else scene.robot.model),
-        "gaps": _gap_figure(log),
-        "forces": _force_figure(log),
+        "gaps": _gap_figure(log, [gap for gap, _ in units]),
+        "forces": _force_figure(log, [force for _, force in units]),
         "energy": _energy_figure(log),
     }
     if "task_position" in log.fields:
         names = None if controller is None else controller.task.names
         figures["tracking"] = _tracking_figure(log, names)
     return figures
-
-
-def coordinate_names(model: pin.Model | None, nq: int, nv: int) -> tuple[list[str], list[str]]:
-    """Names of the configuration and velocity coordinates, after the model's joints.
-
-    A joint of one coordinate gives its name (``panda_joint1``); a joint of several gives one
-    name per coordinate with a suffix: ``root_joint.x`` … ``root_joint.qw`` and
-    ``root_joint.vx`` … ``root_joint.wz`` for a free flyer, ``name[k]`` otherwise. Without a
-    model (or with one of other sizes) the names are ``q[i]`` and ``v[i]``.
-
-    Args:
-        model: The Pinocchio model of the run's robot, or None.
-        nq: Number of configuration coordinates of the log.
-        nv: Number of velocity coordinates of the log.
-
-    Returns:
-        The names of q, length nq, and of v, length nv.
-    """
-    if model is None or model.nq != nq or model.nv != nv:
-        return [f"q[{i}]" for i in range(nq)], [f"v[{i}]" for i in range(nv)]
-    q_names, v_names = [""] * nq, [""] * nv
-    for joint, name in zip(model.joints[1:], model.names[1:], strict=True):
-        suffixes = _SUFFIXES.get(joint.shortname(), ((), ()))
-        for names, start, size, known in (
-            (q_names, joint.idx_q, joint.nq, suffixes[0]),
-            (v_names, joint.idx_v, joint.nv, suffixes[1]),
-        ):
-            for k in range(size):
-                if size == 1:
-                    names[start + k] = name
-                elif len(known) == size:
-                    names[start + k] = f"{name}.{known[k]}"
-                else:
-                    names[start + k] = f"{name}[{k}]"
-    return q_names, v_names
-
-
-#: Coordinate suffixes of Pinocchio joints of several coordinates: (of q, of v).
-_SUFFIXES = {
-    "JointModelFreeFlyer": (
-        ("x", "y", "z", "qx", "qy", "qz", "qw"),
-        ("vx", "vy", "vz", "wx", "wy", "wz"),
-    ),
-    "JointModelPlanar": (("x", "y", "cos", "sin"), ("vx", "vy", "w")),
-    "JointModelSpherical": (("qx", "qy", "qz", "qw"), ("wx", "wy", "wz")),
-}
 
 
 def _phase_controller(log: Log, scene: Scene | None) -> BrogliatoController | None:
@@ -167,22 +125,68 @@ def _time_axes(log: Log, rows: int, height: float) -> tuple[Figure, list[Axes]]:
     return figure, axes
 
 
+def constraint_units(log: Log, scene: Scene | None) -> list[tuple[str, str]]:
+    """Units of the gap and of the force of each constraint of the log.
+
+    Contacts have gaps in [m] and forces in [N]; a joint stop has the unit of its joint's
+    coordinate, [rad] and [N m] on a revolute joint, [m] and [N] on a prismatic one. Without
+    the scene (or with one of other constraints), names ending in ``/lower`` or ``/upper``
+    (those of stops) get both units, e.g. ``rad or m``.
+
+    Args:
+        log: The run.
+        scene: The scene of the run, or None.
+
+    Returns:
+        (gap unit, force unit) of each of ``log.constraint_names``.
+    """
+    contact, angle = ("m", "N"), ("rad", "N m")
+    if scene is None or scene.constraints.names != log.constraint_names:
+        either = ("rad or m", "N m or N")
+        return [
+            either if name.endswith(("/lower", "/upper")) else contact
+            for name in log.constraint_names
+        ]
+    constraints = scene.constraints
+    model = scene.robot.model
+    q_units, _ = coordinate_units(model, model.nq, model.nv)
+    stops = [angle if q_units[q] == "rad" else contact for q, _ in constraints.stop_coordinates]
+    return [contact] * constraints.n_contacts + stops
+
+
+def _unit_groups(units: list[str]) -> list[tuple[str, list[int]]]:
+    """The distinct units of a list in order of appearance, each with its indices."""
+    groups: dict[str, list[int]] = {}
+    for i, unit in enumerate(units):
+        groups.setdefault(unit, []).append(i)
+    return list(groups.items())
+
+
+def _unit_label(symbol: str, unit: str) -> str:
+    """Axis label of a quantity in a unit: ``q [rad]``; ``[-]`` for dimensionless ones."""
+    if unit == UNKNOWN_UNIT:
+        return f"{symbol} (unit unknown without the scene)"
+    return f"{symbol} [{'-' if unit == '1' else unit}]"
+
+
 def _configuration_figure(log: Log, model: pin.Model | None) -> Figure:
-    q_names, v_names = coordinate_names(model, log.q.shape[1], log.v.shape[1])
-    figure, (top, bottom) = _time_axes(log, 2, 2.6)
-    for i, name in enumerate(q_names):
-        top.plot(log.t, log.q[:, i], lw=1, label=name)
-    for i, name in enumerate(v_names):
-        bottom.plot(log.t, log.v[:, i], lw=1, label=name)
-    top.set_ylabel("q [rad, m]")
-    bottom.set_ylabel("v [rad/s, m/s]")
-    for ax in (top, bottom):
-        legend_outside(ax, ncol=1 if len(q_names) <= 12 else 2)
-    top.set_title("configuration and velocity")
+    """Configuration and velocity, one panel per unit (angles apart from lengths)."""
+    nq, nv = log.q.shape[1], log.v.shape[1]
+    q_names, v_names = coordinate_names(model, nq, nv)
+    q_units, v_units = coordinate_units(model, nq, nv)
+    panels = [("q", log.q, q_names, unit, rows) for unit, rows in _unit_groups(q_units)]
+    panels += [("v", log.v, v_names, unit, rows) for unit, rows in _unit_groups(v_units)]
+    figure, axes = _time_axes(log, len(panels), 2.2)
+    for ax, (symbol, values, names, unit, rows) in zip(axes, panels, strict=True):
+        for i in rows:
+            ax.plot(log.t, values[:, i], lw=1, label=names[i])
+        ax.set_ylabel(_unit_label(symbol, unit))
+        legend_outside(ax, ncol=1 if len(rows) <= 12 else 2)
+    axes[0].set_title("configuration q and velocity v, one axis per unit")
     return figure
 
 
-def _gap_figure(log: Log) -> Figure:
+def _gap_figure(log: Log, units: list[str]) -> Figure:
     names = log.constraint_names
     figure, axes = _time_axes(log, max(1, len(names)), PANEL_HEIGHT)
     impacts = impact_mask(log)
@@ -191,18 +195,20 @@ def _gap_figure(log: Log) -> Figure:
         ax.axhline(0.0, color="0.3", lw=0.8)
         rows = np.flatnonzero(impacts[:, i])
         ax.plot(log.t[rows], log.gap[rows, i], "v", ms=4, color="C3", label="impact")
-        ax.set_ylabel(name, fontsize=8)
+        ax.set_ylabel(f"{name}\n[{units[i]}]", fontsize=8)
         legend_outside(ax)
-    axes[0].set_title("gaps [m] (joint stops: [rad] or [m]); negative = penetration")
+    axes[0].set_title("gaps; negative = penetration")
     return figure
 
 
-def _force_figure(log: Log) -> Figure:
+def _force_figure(log: Log, units: list[str]) -> Figure:
     """Mean force impulse / dt of each constraint, its moving mean and the desired force.
 
     Constraints that never carry an impulse are only named in the title. The y scale of a panel
-    is set by the forces carried between impacts and the desired force; the impact peaks above
-    it are clipped and their number and range written in the panel.
+    is set by the forces carried between impacts and the desired force, or, on a constraint
+    that only takes impacts, by the largest moving mean (the impulses spread over
+    :data:`~ucontrol.viz.cycle_figures.FORCE_WINDOW`); the impact peaks above it are clipped
+    and their number and range written in the panel.
     """
     desired = _desired_forces(log)
     names = log.constraint_names
@@ -214,7 +220,7 @@ def _force_figure(log: Log) -> Figure:
     impacts = impact_mask(log)
     for ax, i in zip(axes, shown, strict=False):
         name = names[i]
-        force = log.impulse[:-1, i] / dt  # [N] over each step (the last row has none)
+        force = log.impulse[:-1, i] / dt  # [N] (or [N m]) over each step; the last row has none
         ax.plot(t, force, lw=0.5, alpha=0.5, label="impulse / dt")
         kernel = np.ones(window)
         mean = np.convolve(force, kernel, "same") / np.convolve(np.ones_like(force), kernel, "same")
@@ -224,17 +230,17 @@ def _force_figure(log: Log) -> Figure:
         carried = force[(force > 0.0) & ~impacts[:-1, i]]
         if carried.size:
             top = float(np.percentile(carried, 99))
-        else:  # impacts only: they set the scale
-            top = float(force.max()) if (force > 0.0).any() else 1.0
+        else:  # impacts only: their mean over the window sets the scale
+            top = float(mean.max()) if (mean > 0.0).any() else 1.0
         if name in desired:
             ax.plot(t, desired[name][:-1], "k--", lw=1, label="λ_d (desired)")
             top = max(top, 1.5 * float(desired[name].max()))
         low, high = -0.05 * top, 1.3 * top  # [N] impact peaks above are left out
         ax.set_ylim(low, high)
-        annotate_clip(ax, clip_note(force, low, high, "N"))
-        ax.set_ylabel(name, fontsize=8)
+        annotate_clip(ax, clip_note(force, low, high, units[i]))
+        ax.set_ylabel(f"{name}\n[{units[i]}]", fontsize=8)
         legend_outside(ax)
-    title = "contact forces [N] (joint stops: [N m] or [N])"
+    title = "contact forces: impulse / dt"
     idle = [name for i, name in enumerate(names) if i not in shown]
     if idle:
         title += f"\nno force on: {', '.join(idle)}"
@@ -256,10 +262,11 @@ def _energy_figure(log: Log) -> Figure:
     ax.plot(log.t, log.energy, lw=1.2, label="E = kinetic + potential")
     if np.any(work != 0.0):
         ax.plot(log.t, log.energy - work, lw=1.2, label="E − actuator work")
-    for row in np.flatnonzero(impact_mask(log).any(axis=1)):
-        ax.axvline(log.t[row], color="C3", lw=0.4, alpha=0.4)
+    for k, row in enumerate(np.flatnonzero(impact_mask(log).any(axis=1))):
+        label = "impact" if k == 0 else None  # one legend entry for all the lines
+        ax.axvline(log.t[row], color=IMPACT_LINE_COLOUR, lw=0.8, ls="--", label=label, zorder=1)
     ax.set_ylabel("energy [J]")
-    ax.set_title("energy (red lines: impacts)")
+    ax.set_title("energy")
     legend_outside(ax, fontsize=8)
     return figure
 

@@ -6,7 +6,8 @@ skeleton (joints and the segments to the joints and frames they carry) for bodie
 visual, as in the meshcat view (:mod:`ucontrol.viz.scene_drawing`). Each plane surface is a thin
 grey slab, each contact a marker at its contact point with an arrow along the surface normal of
 length proportional to the mean normal force over the frame, and the time and the controller's
-phase are written in a corner.
+phase are written in a corner; a scale bar of round length and an arrow of a round force in
+the top right corner give the lengths in [m] and the forces in [N].
 
 Why matplotlib and not the headless-browser screenshots of the meshcat scene: a browser launch
 costs seconds and, headless, intermittently never ends its virtual-time budget
@@ -210,6 +211,7 @@ class SceneRenderer:
         if alpha >= 1.0:
             self._draw_contacts(ax, q, row, previous)
             self._draw_label(ax, row)
+            self._draw_scales(ax)
 
     def _points(self, configurations: Matrix, *, bodies: bool = True) -> Matrix:
         """World positions of joints, frames and contact points (and bodies' outlines)."""
@@ -321,6 +323,59 @@ class SceneRenderer:
                 )
             )
 
+    def scales(self) -> tuple[float, float]:
+        """The length of the scale bar in [m] and the force of the scale arrow in [N].
+
+        Each a round number (1, 2 or 5 times a power of ten): the bar at most a quarter of
+        the view's width, the arrow at most a third of the view radius long.
+        """
+        return _round_down(0.5 * self.view.radius), _round_down(
+            self.view.radius / (3.0 * self.force_scale)
+        )
+
+    def _draw_scales(self, ax: object) -> None:
+        """A length scale bar and a force scale arrow in the top right corner."""
+        length, force = self.scales()
+        x_low, x_high = ax.get_xlim()  # type: ignore[attr-defined]
+        y_low, y_high = ax.get_ylim()  # type: ignore[attr-defined]
+        pad = 0.04 * (x_high - x_low)  # [m]
+        right, bottom = x_high - pad, y_high - 2.0 * pad  # of the bar
+        ax.plot(  # type: ignore[attr-defined]
+            [right - length, right], [bottom, bottom], color="k", lw=3.0, solid_capstyle="butt"
+        )
+        ax.text(  # type: ignore[attr-defined]
+            right - 0.5 * length,
+            bottom + 0.01 * (y_high - y_low),
+            f"{length:g} m",
+            ha="center",
+            va="bottom",
+            fontsize=9,
+        )
+        arrow = force * self.force_scale  # [m]
+        base = bottom - 0.1 * (y_high - y_low)  # of the arrow
+        ax.add_patch(  # type: ignore[attr-defined]
+            FancyArrow(
+                right - arrow,
+                base,
+                arrow,
+                0.0,
+                width=0.012 * self.view.radius,
+                head_width=0.05 * self.view.radius,
+                head_length=min(0.05 * self.view.radius, arrow),
+                length_includes_head=True,
+                color=ARROW_COLOUR,
+            )
+        )
+        ax.text(  # type: ignore[attr-defined]
+            right - 0.5 * arrow,
+            base + 0.03 * self.view.radius,
+            f"{force:g} N",
+            ha="center",
+            va="bottom",
+            fontsize=9,
+            color=ARROW_COLOUR,
+        )
+
     def _draw_label(self, ax: object, row: int) -> None:
         """Time and, for a phase-machine run, the phase, in the top left corner."""
         text = f"t = {self.log.t[row]:.3f} s"
@@ -339,6 +394,12 @@ class SceneRenderer:
             family="monospace",
             bbox={"facecolor": colour, "edgecolor": "0.5", "pad": 3.0},
         )
+
+
+def _round_down(value: float) -> float:
+    """The largest of 1, 2 or 5 times a power of ten that is at most ``value`` (> 0)."""
+    power = 10.0 ** np.floor(np.log10(value))
+    return float(max(m * power for m in (1.0, 2.0, 5.0) if m * power <= value * (1 + 1e-12)))
 
 
 def frame_rows(t: NDArray[np.float64], fps: float, speed: float = 1.0) -> NDArray[np.intp]:
