@@ -119,6 +119,7 @@ class ConstraintRows:
         )
         self._run = self.function.runner()
         self._out = self.function.output_buffer(out("rows"))
+        self.last_rows: Vector | None = None  # the rows of the last call's values
 
     @property
     def compiled(self) -> bool:
@@ -147,7 +148,16 @@ class ConstraintRows:
         self._run()
         out = self._out.copy()
         gaps, velocities, rows = self._parts
-        return RowValues(out[gaps], out[velocities], out[rows].reshape(self._n, self._nv))
+        self.last_rows = out[rows].reshape(self._n, self._nv)
+        return RowValues(out[gaps], out[velocities], self.last_rows)
+
+    def buffers(self) -> tuple[Vector, Vector, Vector]:
+        """The compiled call's inputs q (nv,), v (nv,) and its output, as the last call left them.
+
+        The output holds the gaps (n,), the normal velocities (n,) and the rows, row by row
+        (n nv,).
+        """
+        return self._q, self._v, self._out
 
 
 def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> ConstraintRows | None:

@@ -42,7 +42,7 @@ so that a step with one active row (the common contact step) needs no further ar
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,6 +57,9 @@ from ucontrol.integrators.step_stages import (
 )
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.plant import PlantEvaluation
+
+if TYPE_CHECKING:
+    from ucontrol.contact.compiled_rows import ConstraintRows
 
 Vector = NDArray[np.float64]
 
@@ -167,6 +170,7 @@ class CompiledFreeStep:
         )
         self._run, self._out = self.function.runner(), self.function.output_buffer(0)
         self._last: Vector | None = None  # the last call's outputs
+        self._source: ConstraintRows | None = None  # see read_rows_of
 
     def __call__(
         self, state: PlantEvaluation, tau: Vector, activation: Vector
@@ -182,14 +186,41 @@ class CompiledFreeStep:
             self._kinetic[0] = state.kinetic_energy
             self._activation[:] = activation
         q, v, tau_in, J, gap, velocity = self._inputs
-        rows = state.normal_rows
-        assert rows is not None
-        q[...], v[...], tau_in[...] = state.q, state.v, tau
-        J[...], gap[...], velocity[...] = rows.reshape(-1), state.gap, state.normal_velocity
+        source = self._source
+        if source is not None and state.normal_rows is source.last_rows:
+            tau_in[...] = tau  # q, v and the rows: in the inputs and outputs of that call
+        else:  # (into the rows' buffers if bound: they no longer hold their last call)
+            if source is not None:
+                source.last_rows = None
+            rows = state.normal_rows
+            assert rows is not None
+            q[...], v[...], tau_in[...] = state.q, state.v, tau
+            J[...], gap[...], velocity[...] = rows.reshape(-1), state.gap, state.normal_velocity
         self._run()
         out = self._last = self._out.copy()
         a, b, c = self._split[:3]
         return out[:a], out[a:b], out[b:c]
+
+    def read_rows_of(self, rows: ConstraintRows) -> None:
+        """Read q, v and the rows in place from ``rows``' buffers when a state is its last call's.
+
+        Binds those inputs to the memory ``rows`` wrote them to (its inputs q, v and its
+        output), so that a step from the evaluation ``rows`` made last copies only tau (as M
+        and h, which the step reads from the data, the state must be the last evaluation): the
+        copies cost more than 5 % of a two-link step (docs/benchmarks.md). For a rigid robot
+        (q and v of the rows' size).
+        """
+        q, v, out = rows.buffers()
+        n, nv = self._sizes[1], q.size
+        if self._sizes[0] != nv:
+            raise ValueError(f"rows of nv = {nv} for a step of size {self._sizes[0]}")
+        function, index = self.function, self.function.function.index_in
+        for name, buffer in (
+            ("q", q), ("v", v), ("J_t", out[2 * n :]), ("gap", out[:n]), ("u", out[n : 2 * n])
+        ):  # fmt: skip
+            function.bind_input(index(name), buffer)
+        self._inputs = tuple(function.input_buffer(index(name)) for name in _STEP_INPUTS)
+        self._source = rows
 
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
         r""":math:`W^{-1} J_a^T` (N, m) and :math:`J_a W^{-1} J_a^T` (m, m) of rows ``indices``.

@@ -388,6 +388,8 @@ class MoreauJean:
             implicit[nv:, nv:] += np.diag(flexible.motor_inertia)  # + B on the motors
             self._implicit_forces = implicit  # W without the links' M(q)
         self._free_step = self._compiled_free_step()
+        if self._free_step is not None and self._rigid_rows is not None:
+            self._free_step.read_rows_of(self._rigid_rows)  # no copies of q, v and the rows
 
     def _set_joint_friction(
         self,
