@@ -120,15 +120,11 @@ def simulate(
     k = 0
     try:
         loop.share_plant_data()
-        plain_step = loop.plain_step if loop.plain else None
         for k in range(n_steps):
-            if plain_step is not None:
-                plain_step(k * h)
-            else:
-                state = loop.sample(k * h)
-                if k % hold == 0:
-                    loop.control(k * h, state)
-                loop.advance(state)
+            state = loop.sample(k * h)
+            if k % hold == 0:
+                loop.control(k * h, state)
+            loop.advance(state)
             if k % 1000 == 0:
                 last_checkpoint = _report_progress(bar, k + 1, log, out_dir, last_checkpoint)
         k = n_steps
@@ -235,17 +231,6 @@ class _ClosedLoop:
         self.measured_q, self.measured_v, self.commanded_u = self.q, self.v, self.u
         self.plant_model = robot.model
         self.shares_plant_data = False
-        self.names, self.dt = integrator.constraints.names, integrator.dt
-        # The plain loop (plain_step): the controller acts on the plant's own state at every
-        # step and its output is tau, nothing observes the rows.
-        self.plain = (
-            hold == 1
-            and self.sensors is None
-            and self.actuators is None
-            and observer is None
-            and flexible is None
-            and self.tau_is_u
-        )
 
     def share_plant_data(self) -> None:
         """Let the controller read M and h from the plant's evaluation, where that is exact.
@@ -305,7 +290,9 @@ class _ClosedLoop:
         if self.sensors is not None:
             q, v, contacts = self.sensors.measure(q, v, contacts, t)
             self.measured_q, self.measured_v = q, v
-        output = _as_array(self.controller(t, q, v, contacts))
+        output = self.controller(t, q, v, contacts)
+        if type(output) is not np.ndarray or output.dtype != np.float64:
+            output = _as_array(output)
         if output.shape != (self.nu,):
             raise ShapeError("controller output u", (self.nu,), output.shape)
         self.commanded_u = output
@@ -350,50 +337,6 @@ class _ClosedLoop:
             as_vector("controller output u", self.u)  # names the culprit if it is the controller
             t = float(log.t[len(log) - 1]) + self.integrator.dt
             raise _NonFiniteState(f"the state became non-finite at t = {t:.6g} s")
-
-    def plain_step(self, t: float) -> None:
-        """:meth:`sample`, :meth:`control` and :meth:`advance` at t [s] of a plain loop.
-
-        The same stages in one call, for the loop the attribute ``plain`` flags (control at
-        every step on the plant's own rigid state, the output acting as tau, no sensors,
-        actuators or observer): their branches and calls cost about 1.7 µs of a 30 µs step.
-        """
-        integrator, log, q, v = self.integrator, self.log, self.q, self.v
-        state = integrator.evaluate(q, v, t)
-        energy = state.kinetic_energy + state.potential_energy
-        if not math.isfinite(energy):
-            raise _NonFiniteState(f"the energy became non-finite ({energy}) at t = {t:.6g} s")
-        log.record_state(t, q, v, state.gap, state.normal_velocity, energy)
-        self.row_open = True
-        # Every field, without the NamedTuple's Python-level __new__ (0.18 µs less a step).
-        values = (self.names, state.gap, state.normal_velocity, self.impulse, self.active, self.dt)
-        contacts = tuple.__new__(ContactState, values)  # type: ignore[type-var]
-        u = self.controller(t, q, v, contacts)
-        if type(u) is not np.ndarray or u.dtype != np.float64:
-            u = _as_array(u)
-        if u.shape != (self.nu,):
-            raise ShapeError("controller output u", (self.nu,), u.shape)
-        self.u = self.commanded_u = self.tau = u
-        u_sum = self.u_sum = sum(u.tolist())
-        if self.recorder is not None:
-            self.recorder.record(log)
-        outcome = integrator.step(state, u)
-        if outcome.solution is None and outcome.friction_impulse is None:
-            log.record_step_without_solve(u, outcome.impulse, outcome.active)
-        else:
-            _record_step(log, u, outcome)
-        self.row_open = False
-        self.q, self.v, self.impulse, self.active = (
-            outcome.q,
-            outcome.v,
-            outcome.impulse,
-            outcome.active,
-        )
-        self.n_events += outcome.events
-        self.n_plastic += outcome.plastic
-        if not math.isfinite(sum(self.q.tolist()) + sum(self.v.tolist()) + u_sum):
-            as_vector("controller output u", u)  # names the culprit if it is the controller
-            raise _NonFiniteState(f"the state became non-finite at t = {t + self.dt:.6g} s")
 
     def _record_controller_fields(self) -> None:
         """The controller's own fields, and what it measured and commanded, in the open row."""
