@@ -110,9 +110,7 @@ def evaluate_rigid_rows(
         pin.computeAllTerms(model, data, q, v)
         gap, normal_velocity, normal_rows = rows(q, v)
         kinetic, potential = data.kinetic_energy, data.potential_energy
-    # Every field, without the NamedTuple's Python-level __new__ (0.18 µs less a step).
-    values = (q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
-    return tuple.__new__(PlantEvaluation, values)  # type: ignore[type-var]
+    return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
 
 
 class StepOutcome(NamedTuple):
