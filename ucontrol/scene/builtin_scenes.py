@@ -42,7 +42,7 @@ def builtin_scene(name: str = DEFAULT_SCENE) -> Path:
 
 
 def builtin_scenes() -> dict[str, str]:
-    """Each built-in scene's name and the first sentence of its description, sorted by name.
+    """Each built-in scene's name and the whole first sentence of its description, by name.
 
     Other TOML files shipped beside the scenes (design tasks, campaigns) are left out: a scene
     has a ``[robot]`` table.
@@ -58,8 +58,7 @@ def builtin_scenes() -> dict[str, str]:
                 break
             comment.append(line.lstrip("#").strip())
         description = " ".join(comment)
-        sentence = description.split(". ")[0].rstrip(".")
-        scenes[path.stem] = sentence if len(sentence) <= 100 else sentence[:99] + "…"
+        scenes[path.stem] = description.split(". ")[0].rstrip(".")
     return scenes
 
 
