@@ -119,6 +119,7 @@ _INTEGRATOR_KEYS = {
     "lzb_stiffness",
     "lzb_exponent",
     "lzb_impulse_step",
+    "lzb_max_steps",
 }
 _REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
 
