@@ -50,6 +50,7 @@ def test_run_writes_log_and_summary(tmp_path: Path) -> None:
         assert log["t"][-1] == pytest.approx(1.0)
 
 
+@pytest.mark.slow
 def test_run_without_a_scene_runs_the_builtin_default(tmp_path: Path) -> None:
     completed = subprocess.run(
         [sys.executable, "-m", "ucontrol.cli", "run", "--out", str(tmp_path), "--duration", "0.5"],
@@ -70,6 +71,7 @@ def test_bad_scene_is_reported_without_a_traceback(tmp_path: Path, capsys) -> No
     assert "`dt` must be > 0, got -1" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_builtin_scenes_by_name_from_any_folder(tmp_path: Path) -> None:
     """`ucontrol run ball`, `ucontrol scenes` and `--version` outside the repository."""
 

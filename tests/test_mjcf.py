@@ -67,6 +67,7 @@ def test_mjcf_arm_has_the_urdf_twins_dynamics(rng: np.random.Generator) -> None:
         )
 
 
+@pytest.mark.slow
 def test_shipped_mjcf_scene_tracks_like_its_urdf_twin() -> None:
     # 6 s: the free motion, the approach and the first impacts on the ground (at ~5 s)
     mjcf = simulate(load_scene("two_link_mjcf_one_constraint"), duration=6.0)

@@ -42,6 +42,7 @@ def test_every_tutorial_is_in_the_toctree() -> None:
         assert f"tutorials/{page.stem}" in index, page.name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", PAGES, ids=[page.stem for page in PAGES])
 def test_tutorial_runs(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     matplotlib.use("Agg")

@@ -15,6 +15,8 @@ from ucontrol.exceptions import ShapeError, SimulationError
 from ucontrol.scene import load_scene
 from ucontrol.simulate import _ClosedLoop, simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 
 def _ignore(log: object) -> None:
     """An observer: makes the loop staged."""

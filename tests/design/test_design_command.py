@@ -43,6 +43,7 @@ def _write_task(path: Path, **changes: object) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_design_writes_cycle_report_and_figures(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     task = _write_task(tmp_path / "task.toml")
     out = tmp_path / "out"

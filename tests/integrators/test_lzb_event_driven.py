@@ -68,6 +68,7 @@ def test_lzb_max_steps_reaches_the_law_of_the_scene() -> None:
     assert law.impact_law.max_steps == 7  # type: ignore[attr-defined]
 
 
+@pytest.mark.slow
 def test_lzb_bouncing_ball_comes_to_rest_through_its_accumulation_like_newtons() -> None:
     """With e = 0.5 the rebounds accumulate at t∞ = t1 (1 + 2e / (1 - e)) = 3 t1 = 1.355 s.
 
