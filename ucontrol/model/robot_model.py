@@ -110,7 +110,7 @@ class RobotModel:
             else:
                 model = pin.buildModelFromUrdf(str(path))
         except (ValueError, RuntimeError) as error:
-            raise URDFError(str(path), pinocchio_reason(error)) from error
+            raise URDFError(str(path), _pinocchio_reason(error)) from error
         _set_gravity(model, gravity)
         return cls(model, floating_base=floating_base, urdf_path=path.resolve())
 
@@ -147,7 +147,7 @@ class RobotModel:
         try:
             model, constraints = pin.buildModelsFromMJCF(str(path), geometry_types=[])
         except (ValueError, RuntimeError) as error:
-            raise MJCFError(str(path), pinocchio_reason(error)) from error
+            raise MJCFError(str(path), _pinocchio_reason(error)) from error
         if len(constraints) > 0:
             raise MJCFError(
                 str(path),
@@ -200,12 +200,12 @@ class RobotModel:
             try:
                 return pin.buildGeomFromUrdf(self.model, str(path), kind, package_dirs=package_dirs)
             except (ValueError, RuntimeError) as error:
-                raise URDFError(str(path), pinocchio_reason(error)) from error
+                raise URDFError(str(path), _pinocchio_reason(error)) from error
         if self.mjcf_path is not None:
             try:  # MJCF mesh paths are relative to the file (or its <compiler meshdir>)
                 return pin.buildGeomFromMJCF(self.model, str(self.mjcf_path), kind)
             except (ValueError, RuntimeError) as error:
-                raise MJCFError(str(self.mjcf_path), pinocchio_reason(error)) from error
+                raise MJCFError(str(self.mjcf_path), _pinocchio_reason(error)) from error
         raise InvalidParameterError("robot", self.name, "a robot loaded from a URDF or MJCF file")
 
     def with_model(self, model: pin.Model) -> RobotModel:
@@ -346,7 +346,7 @@ class RobotModel:
         return float(kinetic), float(potential)
 
 
-def pinocchio_reason(error: Exception) -> str:
+def _pinocchio_reason(error: Exception) -> str:
     """The line of a Pinocchio parser's exception that says what is wrong.
 
     Pinocchio's C++ exceptions read ``From file: ... in function: ... at line: ...
