@@ -230,6 +230,7 @@ def test_closed_loop_cpu_clock_splits_the_same_way() -> None:
     assert sum(parts) == pytest.approx(result.total_us, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_closed_loop_experiment_prints_one_row_per_scene(capsys) -> None:
     """experiments/bench_closed_loop.py, briefly: the table's rows and columns."""
     module = _experiment("bench_closed_loop")

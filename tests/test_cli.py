@@ -50,6 +50,7 @@ def test_run_writes_log_and_summary(tmp_path: Path) -> None:
         assert log["t"][-1] == pytest.approx(1.0)
 
 
+@pytest.mark.slow
 def test_run_without_a_scene_runs_the_builtin_default(tmp_path: Path) -> None:
     completed = subprocess.run(
         [sys.executable, "-m", "ucontrol.cli", "run", "--out", str(tmp_path), "--duration", "0.5"],
@@ -70,6 +71,7 @@ def test_bad_scene_is_reported_without_a_traceback(tmp_path: Path, capsys) -> No
     assert "`dt` must be > 0, got -1" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_builtin_scenes_by_name_from_any_folder(tmp_path: Path) -> None:
     """`ucontrol run ball`, `ucontrol scenes` and `--version` outside the repository."""
 
@@ -84,9 +86,20 @@ def test_builtin_scenes_by_name_from_any_folder(tmp_path: Path) -> None:
         ).stdout
 
     assert ucontrol("--version").strip() == "ucontrol 0.1.0"
-    listing = dict(line.split(maxsplit=1) for line in ucontrol("scenes").splitlines())
-    assert {"ball", "two_link_drop", "panda_table"} <= set(listing)
+    listing: dict[str, str] = {}
+    for line in ucontrol("scenes").splitlines():
+        assert len(line) <= 100, line
+        if line.startswith(" "):  # a long description wraps under itself
+            last = list(listing)[-1]
+            listing[last] += " " + line.strip()
+        else:
+            scene, text = line.split(maxsplit=1)
+            listing[scene] = text
+    assert {"ball", "two_link_drop", "panda_table", "two_link_mjcf_one_constraint"} <= set(listing)
     assert listing["ball"].startswith("A 1 kg ball dropped")
+    assert "…" not in "".join(listing.values())  # never cut: the whole first sentence
+    assert listing["ball_mesh_wedge"].endswith("onto the ground halfspace")
+    assert "ucontrol run NAME" in " ".join(ucontrol("scenes", "--help").split())
     assert not any(name.endswith("_task") for name in listing)  # design tasks are no scenes
     ucontrol("run", "ball", "--duration", "0.5", "--no-progress")
     summary = json.loads((tmp_path / "runs" / "ball" / "summary.json").read_text())

@@ -11,6 +11,8 @@ from conftest import load_experiment
 from ucontrol.exceptions import URDFError
 from ucontrol.model import example_robot_data_dir
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 _load = load_experiment
 
 

@@ -112,6 +112,7 @@ def _one_run(out: str, report: str, barrier: Any) -> None:
     sys.exit(status)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="fork start method")
 def test_two_simultaneous_runs_never_report_a_log_they_did_not_write(tmp_path: Path) -> None:
     context = multiprocessing.get_context("fork")

@@ -45,6 +45,7 @@ def _run_until_progress(out: Path, progress_steps: int) -> subprocess.Popen[byte
     pytest.fail(f"the run did not start within {DEADLINE_S} s: {seen[-500:]!r}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("signum", "status"),
     [(signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGINT, 130)],
@@ -73,6 +74,7 @@ def test_a_signal_keeps_the_log_up_to_its_time(
     assert np.all(np.isfinite(log.q)) and not (tmp_path / "summary.json").exists()
 
 
+@pytest.mark.slow
 def test_sigterm_after_a_checkpoint_keeps_the_rows_since(tmp_path: Path) -> None:
     """The periodic checkpoint (every 10 s of wall time) does not cap what a signal keeps."""
     child = _run_until_progress(tmp_path, 1000)

@@ -51,6 +51,7 @@ def test_every_tutorial_is_in_the_toctree_and_a_notebook() -> None:
         assert "```python" not in page.read_text(encoding="utf-8"), page.name  # no dead code
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", PAGES, ids=[page.stem for page in PAGES])
 def test_tutorial_runs(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     matplotlib.use("Agg")
@@ -81,3 +82,17 @@ def test_blocks_are_found() -> None:
 def test_each_tutorial_shows_the_run_in_meshcat_inline(page: Path) -> None:
     code = [body for kind, body in tutorial_blocks(page) if kind == "python"]
     assert any("notebook_replay(" in body.splitlines()[-1] for body in code), page.name
+
+
+def test_getting_started_runs_outside_the_clone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """docs/getting_started.md's Python runs in an empty folder: built-in scenes by name."""
+    monkeypatch.chdir(tmp_path)
+    text = (TUTORIALS.parent / "getting_started.md").read_text(encoding="utf-8")
+    code = re.findall(r"```python\n(.*?)```", text, flags=re.DOTALL)  # a page, not a notebook
+    assert code and all("robots/" not in body for body in code)
+    namespace: dict[str, object] = {"__name__": "getting_started"}
+    for number, body in enumerate(code):
+        exec(compile(body, f"getting_started.md (block {number})", "exec"), namespace)
+    assert (tmp_path / "runs" / "pd" / "summary.json").is_file()

@@ -16,6 +16,7 @@ import argparse
 import dataclasses
 import signal
 import sys
+import textwrap
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -35,6 +36,8 @@ from ucontrol.simulate import simulate
 #: Scene benchmarked by ``ucontrol bench`` without a scene argument: four redundant feet on a
 #: table, which Pinocchio's ADMM and PGS solve too.
 BENCH_SCENE = "table_drop"
+#: Width in characters of `ucontrol scenes` lines (longer descriptions wrap under themselves).
+_SCENES_WIDTH = 100
 _SCENE_HELP = "scene TOML file or built-in scene name (default: the built-in default scene)"
 
 if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
@@ -48,7 +51,15 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"ucontrol {__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
-    commands.add_parser("scenes", help="list the built-in scenes (run one by its name)")
+    commands.add_parser(
+        "scenes",
+        help="list the built-in scenes (run one by its name)",
+        description="List the scenes shipped with ucontrol (the repository's robots/ folder, "
+        "installed as the package ucontrol.robots), each with the first sentence of its "
+        "description. Run one from any folder by its name: `ucontrol run NAME`. The campaign "
+        "shipped beside them runs the same way: `ucontrol sweep ball_restitution_campaign "
+        "--out DIR`.",
+    )
     run = commands.add_parser("run", help="run a scene and write log.npz and summary.json")
     run.add_argument("scene", nargs="?", help=_SCENE_HELP)
     run.add_argument(
@@ -224,8 +235,17 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _scenes(args: argparse.Namespace) -> int:
+    """Print each scene's name and its description's first sentence, wrapped, never cut."""
     for name, summary in builtin_scenes().items():
-        print(f"{name:36s} {summary}")
+        print(
+            textwrap.fill(
+                summary,
+                width=_SCENES_WIDTH,
+                initial_indent=f"{name:36s} ",
+                subsequent_indent=" " * 37,
+                break_on_hyphens=False,
+            )
+        )
     return 0
 
 

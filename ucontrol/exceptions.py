@@ -68,18 +68,41 @@ class NonFiniteValueError(InvalidParameterError):
         self.expected = "finite"
 
 
-class URDFError(UControlError):
-    """A URDF file is missing or cannot be parsed.
+class RobotFileError(UControlError):
+    """A robot description file (URDF, MJCF, SDF) is missing or cannot be read.
 
     Attributes:
-        path: Path of the URDF file.
+        path: Path of the file.
         reason: What went wrong.
+        format: The file's format, ``"URDF"``, ``"MJCF"`` or ``"SDF"``.
     """
 
-    def __init__(self, path: str, reason: str) -> None:
+    def __init__(self, path: str, reason: str, format: str) -> None:
         self.path = path
         self.reason = reason
-        super().__init__(f"cannot load URDF {path!r}: {reason}")
+        self.format = format
+        super().__init__(f"cannot load {format} {path!r}: {reason}")
+
+
+class URDFError(RobotFileError):
+    """A URDF file is missing or cannot be parsed (:class:`RobotFileError` of format URDF)."""
+
+    def __init__(self, path: str, reason: str) -> None:
+        super().__init__(path, reason, "URDF")
+
+
+class MJCFError(RobotFileError):
+    """An MJCF (MuJoCo XML) file is missing or Pinocchio's MJCF parser cannot read it."""
+
+    def __init__(self, path: str, reason: str) -> None:
+        super().__init__(path, reason, "MJCF")
+
+
+class SDFError(RobotFileError):
+    """An SDF file cannot be read, e.g. because the installed Pinocchio has no SDF parser."""
+
+    def __init__(self, path: str, reason: str) -> None:
+        super().__init__(path, reason, "SDF")
 
 
 class NotFoundError(UControlError, KeyError):

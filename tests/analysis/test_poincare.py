@@ -285,6 +285,7 @@ def test_scene_stroboscopic_map_converges_to_the_oscillator_map() -> None:
     assert errors[1] < 1e-2
 
 
+@pytest.mark.slow
 def test_impact_oscillator_experiment_runs(tmp_path) -> None:
     from tests.conftest import load_experiment
 

@@ -339,6 +339,7 @@ def test_worst_cases_rank_failures_then_the_worst_metric(campaign_dir):
     assert text[4] == "- `run-00004` passed, max_penetration = 0.0009"
 
 
+@pytest.mark.slow
 def test_figures_of_a_two_parameter_sweep(campaign_dir, tmp_path):
     import matplotlib.image as mpimg
 

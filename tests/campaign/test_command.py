@@ -41,6 +41,7 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+@pytest.mark.slow
 def test_sweep_then_plot_and_rerun_a_worst_case(tmp_path, capsys):
     path = tmp_path / "sweep.toml"
     path.write_text(textwrap.dedent(CAMPAIGN))
@@ -109,6 +110,7 @@ def test_success_map_counts_cover_every_run(tmp_path):
     assert list(counts.sum(axis=1)) == [int((frame["b"] == v).sum()) for v in (0.1, 0.2, 0.3)]
 
 
+@pytest.mark.slow
 def test_sweep_with_unreachable_scheduler_fails_before_any_run(tmp_path):
     path = tmp_path / "sweep.toml"
     path.write_text(textwrap.dedent(CAMPAIGN))

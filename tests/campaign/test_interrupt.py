@@ -14,6 +14,8 @@ import pytest
 
 from ucontrol.campaign import load
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 CAMPAIGN = """
 [campaign]
 scene = "ball.toml"

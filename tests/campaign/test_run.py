@@ -205,6 +205,7 @@ def test_parquet_without_pyarrow_is_a_typed_error():
         check_formats(("csv", "parquet"))
 
 
+@pytest.mark.slow
 def test_killed_worker_run_is_retried_once_then_recorded(client, tmp_path):
     body = """
         [campaign]

@@ -235,6 +235,15 @@ def test_unknown_campaign_keys_and_scene_are_named(write_campaign):
         load_campaign("/nonexistent/campaign.toml")
 
 
+def test_shipped_campaign_by_name_from_any_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    campaign = load_campaign("ball_restitution_campaign")
+    assert campaign.name == "ball_restitution"
+    assert len(campaign.plan()) == 4  # 2 restitutions x 2 runs
+    with pytest.raises(CampaignFileError, match=r"nor a shipped campaign: ball_restitution_c"):
+        load_campaign("ball_restitution")
+
+
 def test_unwritable_out_is_named(write_campaign, tmp_path):
     campaign = load_campaign(write_campaign(HEAD))
     blocker = tmp_path / "a_file"

@@ -32,6 +32,8 @@ from ucontrol.model import RobotModel
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 CASE = "two_link_one_constraint"
 
 

@@ -11,6 +11,8 @@ from ucontrol.control import BrogliatoController, ContactState, TaskCoordinates
 from ucontrol.exceptions import URDFError
 from ucontrol.model import example_robot_data_dir
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 _LWA = pin.LOCAL_WORLD_ALIGNED
 
 

@@ -10,6 +10,8 @@ from conftest import TRACKING_SCENES, load_experiment
 from ucontrol.exceptions import URDFError
 from ucontrol.model import example_robot_data_dir
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 
 @pytest.mark.parametrize("name", TRACKING_SCENES)
 def test_experiment_runs_one_cycle(

@@ -18,6 +18,8 @@ from ucontrol.analysis.weak_stability import weak_stability
 from ucontrol.control import BrogliatoController, Event, FlexibleBrogliatoController, Phase
 from ucontrol.log import Log
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 ONE, TWO = "two_link_flexible_one_constraint", "two_link_flexible_two_constraints"
 CYCLES = 3
 GROUND, WALL = 0, 1

@@ -17,6 +17,8 @@ from conftest import load_experiment
 
 from ucontrol.control import Phase
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 LINKS = 1.0  # l1 + l2 [m]
 DT = 1e-3  # [s]
 

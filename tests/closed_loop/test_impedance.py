@@ -35,6 +35,8 @@ from ucontrol.exceptions import (
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 #: Finite-difference step of the Jacobian, in [rad].
 H = 1e-7
 

@@ -18,6 +18,8 @@ from ucontrol.control.impedance_controller import (
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
 from ucontrol.scene import Scene
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 
 class _Still:
     """A constant desired point, period 1 s."""

@@ -17,6 +17,8 @@ from ucontrol.analysis.cycles import cycle_events
 from ucontrol.control import BrogliatoController
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 
 def _mean_force_error(force_gain: float) -> float:
     """Mean contact force error [N] mid-way through the first constrained phase."""

@@ -24,6 +24,8 @@ from ucontrol.exceptions import InvalidParameterError, NotFoundError, UnknownKey
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 _APEX = 0.2  # [m], ball centre
 _DT = 2e-3  # [s], sampling and control period of the event-driven plant
 _CONTACT = "ball/paddle"

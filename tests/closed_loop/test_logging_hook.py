@@ -5,12 +5,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from brogliato_runs import scene
 from conftest import ball_scene
 
 from ucontrol.control import ContactState, Event, LoggingController
 from ucontrol.log import Log
 from ucontrol.simulate import simulate
+
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
 
 
 class _Counter:

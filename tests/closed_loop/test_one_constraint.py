@@ -18,6 +18,8 @@ from ucontrol.control.trajectory_segment import BlendToNominal, Parabola
 from ucontrol.log import Log
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 CASE = "two_link_one_constraint"
 CYCLES = 3
 #: V(τ0) below this is the discretisation floor, in [J]: γ1 γ2 ‖X̃‖² for a 4 µm error at τ0

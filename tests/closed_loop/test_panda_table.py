@@ -12,6 +12,8 @@ from ucontrol.exceptions import URDFError
 from ucontrol.log import Log
 from ucontrol.model import example_robot_data_dir
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 CYCLES = 2
 
 

@@ -15,6 +15,8 @@ from ucontrol.control.trajectory_segment import (
     smooth_step,
 )
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 DT = 1e-3
 
 

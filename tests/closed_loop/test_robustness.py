@@ -16,6 +16,8 @@ from brogliato_runs import DT_ROBUSTNESS, run
 
 from ucontrol.analysis.cycles import cycle_events
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 CASES = ("two_link_one_constraint", "two_link_two_constraints")
 CYCLES = 2
 

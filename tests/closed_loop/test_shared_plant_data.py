@@ -21,6 +21,8 @@ from ucontrol.control.controller import ContactState
 from ucontrol.scene import Scene, builtin_scene, load_scene
 from ucontrol.simulate import _ClosedLoop, simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 ROBOTS = builtin_scene().parent
 
 

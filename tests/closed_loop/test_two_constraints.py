@@ -13,6 +13,8 @@ from ucontrol.control import BrogliatoController, Event, Phase
 from ucontrol.log import Log
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 CASE = "two_link_two_constraints"
 CYCLES = 3
 GROUND, WALL = 0, 1

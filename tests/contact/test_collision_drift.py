@@ -170,6 +170,7 @@ def test_drift_of_collision_rows_needs_the_state(tmp_path: Path) -> None:
         constraints.normal_drift(pin.Data(robot.model), [0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("q0", "v0", "duration"),
     [
@@ -202,6 +203,7 @@ def test_event_driven_box_drop_equals_hand_declared_corners(
         np.testing.assert_allclose(impulse, 9.81 * 1e-3, rtol=1e-13)  # measured 2.2e-16
 
 
+@pytest.mark.slow
 def test_event_driven_ball_on_vibrating_box_equals_vibrating_plane() -> None:
     box = _event_driven(Scene.from_toml(ROBOTS / "ball_vibrating_box.toml"))
     plane = _event_driven(Scene.from_toml(ROBOTS / "ball_vibrating_table.toml"))

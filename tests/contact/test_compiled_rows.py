@@ -94,6 +94,7 @@ def test_sets_that_do_not_qualify_keep_the_pinocchio_path() -> None:
     assert compiled_rows(floating.constraints) is None
 
 
+@pytest.mark.slow
 def test_closed_loop_without_compiler_equals_compiled_to_round_off(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

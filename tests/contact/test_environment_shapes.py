@@ -126,6 +126,7 @@ def test_mesh_scene_loads_its_file_relative_to_the_scene(tmp_path: Path) -> None
     np.testing.assert_allclose(scene.constraints.gaps(scene.q0), [0.10765657818966341 - 0.1])
 
 
+@pytest.mark.slow
 def test_ball_on_a_vibrating_halfspace_equals_the_moving_plane() -> None:
     reference = _run(_vibrating())
     halfspace = {

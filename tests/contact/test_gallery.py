@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from conftest import ROBOTS, load_experiment
 
 
+@pytest.mark.slow
 def test_gallery_draws_every_scene(tmp_path: Path) -> None:
     gallery = load_experiment("gallery")
     assert all((ROBOTS / f"{name}.toml").is_file() for name in gallery.SCENES)

@@ -137,6 +137,7 @@ def test_planar_table_equals_the_path_derivatives_on_a_tilted_circle(
     assert np.all(error <= 1e-14 * size)  # measured: 1.5e-15 (order 2), 1.3e-15 (order 4)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", [2, 4])
 @pytest.mark.parametrize("scene", ["two_link_one_constraint", "two_link_two_constraints"])
 def test_update_returning_early_changes_nothing(

@@ -176,6 +176,7 @@ def test_lyapunov_derivative_in_free_motion(
         assert measured == pytest.approx(expected, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_closed_loop_tracks_the_circle_with_v_decreasing() -> None:
     # DESIGN's flexible case from q0 = (0.9, -1.5, 0.9, -1.5) at rest, free motion until τ0.
     law = controller()

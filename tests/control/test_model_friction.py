@@ -38,6 +38,7 @@ def _free_tracking_error(plant: dict | None, belief: dict | None) -> float:
     return float(np.sqrt(np.mean(error[log.t >= 1.5] ** 2)))
 
 
+@pytest.mark.slow
 def test_believed_friction_restores_the_frictionless_tracking() -> None:
     frictionless = _free_tracking_error(None, None)
     believed = _free_tracking_error(PLANT_FRICTION, None)  # the model is the plant's

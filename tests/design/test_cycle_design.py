@@ -17,6 +17,8 @@ from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.design import DesignedCycle, DesignTask, design_cycle
 from ucontrol.exceptions import InfeasibleDesignError
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 
 @pytest.fixture
 def task() -> DesignTask:

@@ -43,6 +43,7 @@ def _write_task(path: Path, **changes: object) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_design_writes_cycle_report_and_figures(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     task = _write_task(tmp_path / "task.toml")
     out = tmp_path / "out"
@@ -53,6 +54,15 @@ def test_design_writes_cycle_report_and_figures(tmp_path, capsys) -> None:  # ty
         assert (out / name).is_file(), name
     report = json.loads((out / "report.json").read_text())
     assert report["success"] and report["period"] == pytest.approx(10.0)
+    # one landing, timed or said to be soft (slower than 100 zeno_velocity), never "[nan]"
+    (error,) = report["replay"]["impact_time_errors_s"]
+    (speed,) = report["replay"]["landing_speeds_m_s"]
+    markdown = (out / "report.md").read_text()
+    assert "nan" not in markdown.lower()
+    if error is None:
+        assert f"not timed (soft landing at {speed:.3g} m/s" in markdown
+    else:
+        assert f"impact time errors: {error:.3g} s" in markdown
     # a coarse grid (3 RK4 steps per interval of 0.5 s and more): measured 1.6e-4 rad
     assert report["replay"]["q_error_rad"] < 1e-3
     cycle = DesignedCycle.load(out / "cycle")
@@ -73,3 +83,24 @@ def test_infeasible_task_exits_with_1_and_names_the_limit(tmp_path, capsys, monk
     assert run_design(_parse(["design", str(task), "--out", str(out), "--no-figures"])) == 1
     assert "torque limit of joint 'shoulder'" in capsys.readouterr().err
     assert not (out / "cycle.npz").exists()
+
+
+def test_report_words_for_timed_and_soft_landings() -> None:
+    from ucontrol.design.command import _impact_time_errors, _timed
+    from ucontrol.design.open_loop_replay import ReplayResult
+
+    empty = np.zeros(0)
+    replay = ReplayResult(
+        t=empty,
+        q=empty,
+        v=empty,
+        q_error=0.0,
+        v_error=0.0,
+        impact_times=np.array([3.0, np.nan]),
+        impact_time_errors=np.array([2.5e-9, np.nan]),
+        landing_speeds=np.array([0.3, 1e-4]),
+    )
+    assert _impact_time_errors(replay, zeno_velocity=1e-5) == (
+        "2.5e-09 s; not timed (soft landing at 0.0001 m/s, below 0.001 m/s)"
+    )
+    assert _timed(replay.impact_time_errors) == [2.5e-9, None]  # JSON null, not NaN

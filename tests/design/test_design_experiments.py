@@ -5,7 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from conftest import load_experiment
+
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
 
 
 def test_design_two_link_runs(tmp_path: Path) -> None:

@@ -20,6 +20,8 @@ from ucontrol.exceptions import InvalidParameterError, SceneError
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 #: Simulated time in [s]: the first landing (7.85 s), the contact phase, the takeoff (10 s).
 DURATION = 10.6
 

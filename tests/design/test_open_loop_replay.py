@@ -19,6 +19,8 @@ from two_link_design import ROBOTS, TASK, two_link_design, two_link_task
 from ucontrol.design import DesignTask, design_cycle
 from ucontrol.design.open_loop_replay import replay_open_loop
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 
 def _normal_jacobian(task: DesignTask, q: np.ndarray) -> np.ndarray:
     robot, contact = task.scene.robot, task.contact

@@ -13,6 +13,8 @@ from ucontrol.contact import Plane, PointContact
 from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 GRAVITY = 9.81  # [m/s²]
 INTEGRATORS = {"moreau_jean": {}, "event_driven": {}, "compliant": {"stiffness": 1e6}}
 

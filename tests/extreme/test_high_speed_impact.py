@@ -12,6 +12,8 @@ from ucontrol.analysis import BouncingBall
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 SPEED = 100.0  # [m/s]
 #: The ball 0.1 m above the ground thrown down at 100 m/s, e = 0.9.
 REFERENCE = BouncingBall(height=0.1, velocity=-SPEED, restitution=0.9)

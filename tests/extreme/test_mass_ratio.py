@@ -13,6 +13,8 @@ from scipy.optimize import brentq
 from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 GRAVITY = 9.81  # [m/s²]
 BLOCK, BEAD = 1000.0, 1e-3  # masses [kg]
 E_GROUND, E_BEAD = 0.8, 0.9  # restitutions of robots/mass_ratio.toml

@@ -13,6 +13,8 @@ from ucontrol.analysis import BouncingBall
 from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 MASS, GRAVITY, DT = 10.0, 9.81, 1e-3  # the table of robots/table_drop.toml
 INTEGRATORS = {"moreau_jean": {}, "event_driven": {}, "compliant": {"stiffness": 1e6}}
 #: Largest foot-height error against the bouncing ball, in [m].

@@ -12,6 +12,8 @@ from ucontrol.analysis import BouncingBall
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 #: Integrators and settings of the extreme cases; compliant at 1e6 N/m.
 INTEGRATORS = {"moreau_jean": {}, "event_driven": {}, "compliant": {"stiffness": 1e6}}
 #: Largest height error against the analytic ball over 3 s, in [m], per integrator.

@@ -11,6 +11,8 @@ import pytest
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 INTEGRATORS = {"moreau_jean": {}, "event_driven": {}, "compliant": {"stiffness": 1e6}}
 
 

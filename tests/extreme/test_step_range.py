@@ -12,6 +12,8 @@ from conftest import ball_scene
 from ucontrol.analysis import BouncingBall
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 STEPS = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2)  # [s]
 STIFFNESS = 1e6  # [N/m], compliant
 #: The ball 1 mm above the ground thrown down at 1 m/s, e = 0.5: impact after 1 ms,

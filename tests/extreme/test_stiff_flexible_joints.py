@@ -17,6 +17,8 @@ from ucontrol.model import FlexibleJoints
 from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import simulate
 
+pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out
+
 STIFFNESS = 1e8  # [N m/rad]
 DT = 1e-3  # [s]
 SETTINGS = [

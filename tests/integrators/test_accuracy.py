@@ -9,6 +9,7 @@ from conftest import ball_scene
 from ucontrol.convergence import run_convergence
 
 
+@pytest.mark.slow
 def test_moreau_jean_is_first_order_on_the_ball() -> None:
     for restitution in (0.9, 0.5):
         study = run_convergence(ball_scene(restitution), integrators=["moreau_jean"])
@@ -17,6 +18,7 @@ def test_moreau_jean_is_first_order_on_the_ball() -> None:
         assert 0.8 <= study.orders()["moreau_jean"] <= 1.2, study.orders()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("restitution", "bound"), [(0.9, 1e-9), (0.5, 1e-8)])
 def test_event_driven_beats_moreau_jean_at_every_tolerance(restitution: float, bound: float):
     study = run_convergence(
@@ -38,6 +40,7 @@ def test_event_driven_beats_moreau_jean_at_every_tolerance(restitution: float, b
     assert "moreau_jean at equal error" in study.to_markdown()
 
 
+@pytest.mark.slow
 def test_compliant_tends_to_the_rigid_ball_as_stiffness_grows() -> None:
     stiffnesses = (1e4, 1e5, 1e6, 1e7)
     study = run_convergence(

@@ -109,6 +109,7 @@ def _residuals(scene: Scene, q: np.ndarray) -> np.ndarray:
     return np.array([np.max(np.abs(bilateral.residuals(row))) for row in q])
 
 
+@pytest.mark.slow
 def test_four_bar_follows_its_one_coordinate_model() -> None:
     duration, errors, residuals = 0.5, [], []
     for h in (1e-3, 1e-4):

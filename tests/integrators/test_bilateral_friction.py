@@ -87,6 +87,7 @@ def _closure(scene: Scene, q: np.ndarray) -> float:
     return max(float(np.max(np.abs(bilateral.residuals(row)))) for row in q)
 
 
+@pytest.mark.slow
 def test_slider_crank_friction_work_equals_the_energy_loss() -> None:
     scene = load_scene(ROBOTS / "slider_crank.toml")
     model = scene.robot.model
@@ -127,6 +128,7 @@ def test_slider_crank_friction_work_equals_the_energy_loss() -> None:
     assert imbalance[0] < 0.05 and imbalance[1] < imbalance[0] / 5
 
 
+@pytest.mark.slow
 def test_four_bar_joint_coulomb_friction_work_equals_the_energy_loss() -> None:
     coulomb = 0.3  # [N m] in the crank joint
     imbalance = []

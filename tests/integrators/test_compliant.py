@@ -69,6 +69,7 @@ def test_hunt_crossley_law_dissipates_less_than_newton(restitution: float) -> No
     assert ratio - restitution < (0.02 if restitution == 0.9 else 0.2)
 
 
+@pytest.mark.slow
 def test_resting_ball_sinks_by_its_weight_over_the_stiffness() -> None:
     stiffness = 1e6  # [N/m]
     log = simulate(
@@ -79,6 +80,7 @@ def test_resting_ball_sinks_by_its_weight_over_the_stiffness() -> None:
     np.testing.assert_allclose(log.impulse[:-1][resting[:-1], 0], MASS * GRAVITY * 1e-3, rtol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["linear", "hunt_crossley"])
 def test_energy_with_the_elastic_part_never_rises(model: str) -> None:
     scene = _compliant(ball_scene(0.9), stiffness=1e6, contact_model=model, rtol=1e-10, atol=1e-12)

@@ -37,6 +37,7 @@ def test_ball_e09_height_error_below_1e9_over_3s() -> None:
     assert np.max(np.abs(log.v[:, 0] - reference.state(log.t)[1])) <= 1e-9
 
 
+@pytest.mark.slow
 def test_ball_e05_height_error_below_1e8_through_accumulation() -> None:
     log, reference, errors = _height_errors(0.5)
     resting = log.t > reference.accumulation_time
@@ -49,6 +50,7 @@ def test_ball_e05_height_error_below_1e8_through_accumulation() -> None:
     np.testing.assert_allclose(log.impulse[:-1][steps, 0], MASS * GRAVITY * 1e-3, rtol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("zeno_velocity", [1e-2, 1e-3])
 def test_zeno_threshold_costs_at_most_the_skipped_bounce_height(zeno_velocity: float) -> None:
     # Impacts rebounding slower than the threshold are plastic: the skipped flights are lower
@@ -60,6 +62,7 @@ def test_zeno_threshold_costs_at_most_the_skipped_bounce_height(zeno_velocity: f
         assert np.max(errors) >= 0.1 * bound
 
 
+@pytest.mark.slow
 def test_fewer_events_with_a_larger_zeno_threshold() -> None:
     events = []
     for zeno_velocity in (1e-2, 1e-5):
@@ -140,6 +143,7 @@ def test_sliding_tip_releases_inside_a_step(two_link_scene: Scene) -> None:
     assert log.gap.min() >= -1e-12
 
 
+@pytest.mark.slow
 def test_arm_drop_agrees_with_fine_moreau_jean(two_link_scene: Scene) -> None:
     event_driven = simulate(_event_driven(two_link_scene), duration=1.5, progress=False)
     fine = simulate(two_link_scene, duration=1.5, dt=1e-4, progress=False).log
@@ -153,6 +157,7 @@ def test_arm_drop_agrees_with_fine_moreau_jean(two_link_scene: Scene) -> None:
     assert event_driven.summary["n_events"] > 0
 
 
+@pytest.mark.slow
 def test_same_controllers_as_moreau_jean(two_link_scene: Scene) -> None:
     q_ref = np.array([1.5, -1.4])
     controller = JointPD(two_link_scene.robot, q_ref=q_ref, kp=200.0, kd=30.0)

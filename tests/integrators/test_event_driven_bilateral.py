@@ -45,6 +45,7 @@ def _velocity_residuals(scene: Scene, q: np.ndarray, v: np.ndarray) -> np.ndarra
     return np.array(rows)
 
 
+@pytest.mark.slow
 def test_four_bar_holds_its_closure_and_energy_for_5_s() -> None:
     scene = _four_bar(integrator=EVENT_DRIVEN)
     log = _run(scene, 5.0)

@@ -15,6 +15,7 @@ import dataclasses
 
 import numpy as np
 import pinocchio as pin
+import pytest
 from conftest import ROBOTS
 
 from ucontrol.scene import Scene
@@ -24,6 +25,7 @@ STIFFNESS = 200.0  # [N m/rad]
 MOTOR_INERTIA = 0.1  # [kg m^2]
 
 
+@pytest.mark.slow
 def test_lzb_on_a_closed_chain_equals_newton() -> None:
     base = Scene.from_toml(ROBOTS / "four_bar_stop.toml")
     logs = {}

@@ -85,6 +85,7 @@ def test_event_driven_follows_spongs_equations_and_keeps_the_energy() -> None:
     assert np.ptp(log.motor_q - log.q) > DEFLECTION  # the springs do work
 
 
+@pytest.mark.slow
 def test_compliant_agrees_with_event_driven() -> None:
     event_driven = simulate(_arm("event_driven")).log
     compliant = simulate(_arm("compliant")).log  # Radau at rtol 1e-8
@@ -95,6 +96,7 @@ def test_compliant_agrees_with_event_driven() -> None:
     assert np.max(np.abs(energy - energy[0])) <= 1e-8 * energy[0]  # measured 5.1e-10
 
 
+@pytest.mark.slow
 def test_moreau_jean_midpoint_converges_to_event_driven_at_second_order() -> None:
     duration = 0.5  # [s]
     reference = simulate(_arm("event_driven", duration=duration, rtol=1e-12, atol=1e-14)).log
@@ -136,6 +138,7 @@ def test_event_driven_impact_leaves_the_motors_alone() -> None:
     assert energy_loss == pytest.approx(0.5 * outcome.impulse[0] * 0.3 * speed, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_event_driven_drop_gains_no_energy_and_the_motors_never_jump() -> None:
     # Sampled every 0.2 ms over the six hardest ground impacts (0.21 to 0.77 s) and four on
     # the wall.

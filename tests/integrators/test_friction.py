@@ -59,6 +59,7 @@ def test_block_on_incline_sticks_iff_tan_alpha_below_mu(
         assert result["relative_error"] <= _ACCELERATION_TOLERANCE, result
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spatial", [False, True], ids=["planar", "spatial"])
 def test_block_at_the_friction_angle_sticks_for_ever(cases, spatial: bool) -> None:
     """At tan α = μ (to round-off) friction at its bound holds the block."""
@@ -66,6 +67,7 @@ def test_block_at_the_friction_angle_sticks_for_ever(cases, spatial: bool) -> No
     assert result["max_speed_if_stuck"] <= 1e-11  # round-off creep only
 
 
+@pytest.mark.slow
 def test_sliding_block_stops_at_the_analytic_time_and_distance(cases) -> None:
     v0 = 1.0  # [m/s]
     t_star, d_star = v0 / (_MU * _G), v0**2 / (2.0 * _MU * _G)
@@ -272,6 +274,7 @@ def test_shipped_friction_scenes_run(name: str) -> None:
     assert summary["energy_increase_at_impacts"] <= 0.0
 
 
+@pytest.mark.slow
 def test_beads_event_driven_and_moreau_jean_agree() -> None:
     """Sphere–sphere contacts in both integrators: Moreau–Jean tends to event-driven as h → 0."""
     scene = load_scene(ROBOTS / "beads.toml")

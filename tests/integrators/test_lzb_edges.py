@@ -9,8 +9,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ucontrol.exceptions import InvalidParameterError, ShapeError
-from ucontrol.integrators.lzb_impact import LINEAR, LZBImpactLaw, lzb_impact_with_friction
+from ucontrol.exceptions import InvalidParameterError, ShapeError, SolverError
+from ucontrol.integrators.lzb_impact import (
+    LINEAR,
+    LZBImpactLaw,
+    lzb_impact,
+    lzb_impact_with_friction,
+)
 
 
 def _chain(n: int) -> np.ndarray:
@@ -25,6 +30,36 @@ def test_a_step_cap_below_one_is_named():
     with pytest.raises(InvalidParameterError, match="max_steps") as caught:
         LZBImpactLaw(max_steps=0)
     assert caught.value.value == 0
+
+
+@pytest.mark.parametrize("kind", ["adaptive", "fixed", "friction", "function"])
+def test_max_steps_caps_every_integration_of_the_law(kind: str) -> None:
+    # three equal balls, the first at 1 m/s: a chain impact of several steps; with friction
+    # the tangential rows are those of a fourth coordinate, decoupled (M diagonal), at rest
+    M, J, v_minus = np.eye(4), np.hstack((_chain(3), np.zeros((2, 1)))), np.eye(4)[0]
+    J_t = np.array([[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
+
+    def solve(max_steps: int) -> tuple[np.ndarray, int]:
+        if kind == "function":
+            result = lzb_impact(M, J, v_minus, restitution=0.9, max_steps=max_steps)
+            return result.v, result.steps
+        law = LZBImpactLaw(
+            restitution=0.9,
+            impulse_step=1e-3 if kind == "fixed" else None,
+            max_steps=max_steps,
+        )
+        if kind == "friction":
+            friction = lzb_impact_with_friction(law, M, J, J_t, v_minus, 0.0)
+            return friction.v, friction.steps
+        result = law.solve(M, J, v_minus)
+        return result.v, result.steps
+
+    v, steps = solve(100_000)
+    assert steps > 2
+    assert sum(v) == pytest.approx(1.0, abs=1e-9)  # momentum of equal masses, v[3] = 0
+    np.testing.assert_array_equal(solve(steps)[0], v)  # the cap itself is allowed
+    with pytest.raises(SolverError, match=r"max_steps = 2|after 2 impulse steps"):
+        solve(2)
 
 
 @pytest.mark.parametrize(

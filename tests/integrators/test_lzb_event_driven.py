@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ucontrol.exceptions import InvalidParameterError
+from ucontrol.exceptions import InvalidParameterError, SimulationError, SolverError
 from ucontrol.scene import Scene, builtin_scene
 from ucontrol.simulate import simulate
 
@@ -50,6 +50,8 @@ def test_one_contact_lzb_is_newtons_law() -> None:
         ({"impact_law": "poisson"}, r"'poisson'"),
         ({"impact_law": "lzb", "lzb_exponent": -1.0}, r"lzb_exponent"),
         ({"impact_law": "lzb", "lzb_impulse_step": 0.0}, r"lzb_impulse_step"),
+        ({"impact_law": "lzb", "lzb_max_steps": 0}, r"lzb_max_steps"),
+        ({"impact_law": "lzb", "lzb_max_steps": 2.5}, r"lzb_max_steps"),
     ],
 )
 def test_impact_law_settings_are_checked(settings: dict[str, Any], match: str) -> None:
@@ -57,6 +59,16 @@ def test_impact_law_settings_are_checked(settings: dict[str, Any], match: str) -
         _scene("newton_cradle", **settings).build_integrator()
 
 
+def test_lzb_max_steps_reaches_the_law_of_the_scene() -> None:
+    # the cradle's impact takes more than 3 solve_ivp steps: the run stops at it, named
+    with pytest.raises(SimulationError, match=r"max_steps = 3") as caught:
+        simulate(_scene("newton_cradle", impact_law="lzb", lzb_max_steps=3), duration=0.05)
+    assert isinstance(caught.value.__cause__, SolverError)
+    law = _scene("newton_cradle", impact_law="lzb", lzb_max_steps=7).build_integrator()
+    assert law.impact_law.max_steps == 7  # type: ignore[attr-defined]
+
+
+@pytest.mark.slow
 def test_lzb_bouncing_ball_comes_to_rest_through_its_accumulation_like_newtons() -> None:
     """With e = 0.5 the rebounds accumulate at t∞ = t1 (1 + 2e / (1 - e)) = 3 t1 = 1.355 s.
 

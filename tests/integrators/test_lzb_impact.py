@@ -186,6 +186,7 @@ def compliant_block(b: float, h: float, v0: np.ndarray, k: float, exponent: floa
     raise AssertionError("compliant block did not release")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("exponent", [LINEAR, HERTZ])
 def test_squat_rocking_block_matches_compliant_block(exponent: float) -> None:
     """Frictionless LZB with two corners (both loaded), e = 1, against the compliant block."""

@@ -30,8 +30,9 @@ from ucontrol.viz.scene_drawing import SceneDrawing
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 #: Fewest robot pixels in a screenshot (the two-link arm covers ~6000 of 480 000).
 MIN_PIXELS = 1500
-#: Each test is bounded: a few browser launches of at most 60 s each, and a meshcat server.
-pytestmark = pytest.mark.timeout(600)
+#: Each test is bounded: a few browser launches of at most 60 s each, and a meshcat server;
+#: slow (`pytest -m "not slow"` leaves them out).
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
 
 
 def _arm_points(scene: Scene, q: np.ndarray, n: int = 6) -> np.ndarray:

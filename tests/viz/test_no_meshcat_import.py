@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 
 PROGRAM = """
@@ -24,6 +26,7 @@ sys.exit(1 if loaded else 0)
 """
 
 
+@pytest.mark.slow
 def test_run_and_plot_without_viewer_never_import_meshcat(tmp_path: Path) -> None:
     completed = subprocess.run(
         [sys.executable, "-c", PROGRAM, str(ROBOTS / "two_link_drop.toml"), str(tmp_path)],

@@ -47,6 +47,7 @@ def test_plain_run_gets_configuration_gaps_forces_and_energy(tmp_path: Path) -> 
     assert sizes["gaps.png"][1] > 2 * sizes["energy.png"][1]
 
 
+@pytest.mark.slow
 def test_phase_machine_run_adds_tracking_lyapunov_and_cycle_figures(
     tracking_run: Path, tmp_path: Path
 ) -> None:
@@ -58,6 +59,7 @@ def test_phase_machine_run_adds_tracking_lyapunov_and_cycle_figures(
     assert all(size[0] > 500 for size in _sizes(paths).values())
 
 
+@pytest.mark.slow
 def test_without_the_scene_the_logged_fields_still_give_the_tracking_figure(
     tracking_run: Path, tmp_path: Path
 ) -> None:

@@ -31,7 +31,11 @@ def add_sweep_parser(commands: Any) -> argparse.ArgumentParser:
         description="Run a campaign file's runs on a local Dask cluster or an existing "
         "scheduler; runs already in --out are skipped.",
     )
-    sweep.add_argument("campaign", type=Path, help="campaign TOML file")
+    sweep.add_argument(
+        "campaign",
+        type=Path,
+        help="campaign TOML file, or the name of a shipped one (ball_restitution_campaign)",
+    )
     sweep.add_argument("--out", type=Path, required=True, help="campaign directory")
     sweep.add_argument(
         "--scheduler",

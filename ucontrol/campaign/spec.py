@@ -147,7 +147,8 @@ def load_campaign(path: str | Path, *, check: bool = True) -> Campaign:
     """Read and check a campaign file.
 
     Args:
-        path: The campaign TOML file.
+        path: The campaign TOML file, or the name of a campaign shipped with ucontrol
+            (``"ball_restitution_campaign"``) that is no file of the working directory.
         check: Build the scene with each swept key and run it for two steps to check keys
             and metrics (the default); False only parses.
 
@@ -160,9 +161,7 @@ def load_campaign(path: str | Path, *, check: bool = True) -> Campaign:
         UnknownMetricError: A metric (or a name in the criterion) does not exist.
         CriterionError: The success criterion is not of the allowed form.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise CampaignFileError(str(path), "the file does not exist")
+    path = _campaign_file(Path(path))
     try:
         table = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
@@ -171,6 +170,26 @@ def load_campaign(path: str | Path, *, check: bool = True) -> Campaign:
     if check:
         check_campaign(campaign)
     return campaign
+
+
+def _campaign_file(path: Path) -> Path:
+    """The campaign file at ``path``, or the shipped campaign of that name.
+
+    Raises:
+        CampaignFileError: Neither exists (the message lists the shipped campaigns).
+    """
+    if path.is_file():
+        return path
+    if path.parent == Path(".") and path.suffix in ("", ".toml"):
+        from ucontrol.scene.builtin_scenes import builtin_campaigns
+
+        shipped = builtin_campaigns()
+        if path.stem in shipped:
+            return shipped[path.stem]
+        raise CampaignFileError(
+            str(path), f"the file does not exist, nor a shipped campaign: {', '.join(shipped)}"
+        )
+    raise CampaignFileError(str(path), "the file does not exist")
 
 
 def parse_campaign(table: Mapping[str, Any], path: Path) -> Campaign:

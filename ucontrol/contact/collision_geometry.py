@@ -3,7 +3,8 @@ r"""Contact constraints between collision shapes, through Pinocchio's geometry m
 Imported and built only when a scene declares a :class:`~ucontrol.contact.CollisionPair`:
 a scene without one loads no geometry model.
 
-The shapes of a link are the ``<collision>`` elements of its URDF (``pin.buildGeomFromUrdf``):
+The shapes of a link are the ``<collision>`` elements of its URDF (``pin.buildGeomFromUrdf``),
+or the colliding ``<geom>`` elements of its MJCF body (``pin.buildGeomFromMJCF``):
 spheres, boxes, cylinders and meshes (a mesh stands for its convex hull; URDF has no capsule
 element). Each pair of shapes gives unilateral constraints of two kinds.
 
@@ -60,7 +61,7 @@ from numpy.typing import NDArray
 
 from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.tangent_basis import cross, tangent_basis
-from ucontrol.exceptions import InvalidParameterError, URDFError
+from ucontrol.exceptions import InvalidParameterError
 from ucontrol.model.robot_model import RobotModel
 
 Vector = NDArray[np.float64]
@@ -126,7 +127,8 @@ class CollisionGeometry:
     """The rows of declared collision pairs, in the order of the pairs.
 
     Args:
-        robot: The robot; its URDF's ``<collision>`` elements are loaded.
+        robot: The robot; its URDF's ``<collision>`` elements (or its MJCF's colliding
+            ``<geom>`` elements) are loaded.
         pairs: The declared pairs.
 
     Attributes:
@@ -137,22 +139,15 @@ class CollisionGeometry:
         geometry_model: Pinocchio's geometry model of the robot's collision shapes.
 
     Raises:
-        URDFError: The URDF's collision elements do not load (a missing mesh file).
-        InvalidParameterError: A pair names a link without ``<collision>`` elements.
+        RobotFileError: The robot file's collision shapes do not load (a missing mesh file).
+        InvalidParameterError: A pair names a link without collision shapes, or the robot
+            was not loaded from a file.
     """
 
     def __init__(self, robot: RobotModel, pairs: Sequence[CollisionPair]) -> None:
         self.robot = robot
         model = robot.model
-        path = robot.urdf_path
-        if path is None:
-            raise InvalidParameterError("robot", robot.name, "a robot loaded from a URDF file")
-        try:
-            geometry_model = pin.buildGeomFromUrdf(
-                model, str(path), pin.COLLISION, package_dirs=[str(path.parent)]
-            )
-        except (ValueError, RuntimeError) as error:
-            raise URDFError(str(path), str(error).splitlines()[0]) from error
+        geometry_model = robot.geometry_model(pin.COLLISION)
         self.geometry_model = geometry_model
         self._geometry_data = pin.GeometryData(geometry_model)
         self._shapes: list[Any] = []
@@ -198,8 +193,8 @@ class CollisionGeometry:
             raise InvalidParameterError(
                 "link",
                 link,
-                f"a link with <collision> elements in {self.robot.urdf_path}; links with "
-                f"some: {sorted(by_link)}",
+                f"a link with collision shapes in {self.robot.urdf_path or self.robot.mjcf_path}"
+                f"; links with some: {sorted(by_link)}",
             )
         return by_link[link]
 

@@ -9,9 +9,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
 
 from ucontrol.exceptions import InfeasibleDesignError
 from ucontrol.output_files import check_output_dir
+
+if TYPE_CHECKING:  # scipy loads with it, for this command only
+    from ucontrol.design.open_loop_replay import ReplayResult
 
 
 def add_design_parser(commands: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
@@ -73,9 +80,10 @@ def run_design(args: argparse.Namespace) -> int:
         table["replay"] = {
             "q_error_rad": replay.q_error,
             "v_error_rad_s": replay.v_error,
-            "impact_time_errors_s": replay.impact_time_errors.tolist(),
+            "impact_time_errors_s": _timed(replay.impact_time_errors),
+            "landing_speeds_m_s": replay.landing_speeds.tolist(),
             "cycle_q_error_rad": run.q_error,
-            "cycle_impact_time_errors_s": run.impact_time_errors.tolist(),
+            "cycle_impact_time_errors_s": _timed(run.impact_time_errors),
         }
     import json
 
@@ -85,7 +93,7 @@ def run_design(args: argparse.Namespace) -> int:
         markdown += (
             "\n## Open-loop replay (event-driven plant, each interval from the design's state)"
             f"\n\n- max |q error|: {table['replay']['q_error_rad']:.3g} rad"
-            f"\n- impact time errors: {table['replay']['impact_time_errors_s']} s\n"
+            f"\n- impact time errors: {_impact_time_errors(replay, task.zeno_velocity)}\n"
         )
     (out / "report.md").write_text(markdown)
     if args.figures:
@@ -96,3 +104,23 @@ def run_design(args: argparse.Namespace) -> int:
         f"written to {out}"
     )
     return 0
+
+
+def _timed(errors: NDArray[np.float64]) -> list[float | None]:
+    """Impact time errors for JSON in [s]: None (null) for a soft landing, never timed."""
+    return [float(error) if np.isfinite(error) else None for error in errors]
+
+
+def _impact_time_errors(replay: ReplayResult, zeno_velocity: float) -> str:
+    """The replay's impact time errors in words, a soft landing's said to be untimed.
+
+    A landing slower than 100 ``zeno_velocity`` has no well-conditioned impact time
+    (:func:`~ucontrol.design.open_loop_replay.replay_open_loop`), so no error is given for it.
+    """
+    words = [
+        f"{error:.3g} s"
+        if np.isfinite(error)
+        else f"not timed (soft landing at {speed:.3g} m/s, below {100 * zeno_velocity:.3g} m/s)"
+        for error, speed in zip(replay.impact_time_errors, replay.landing_speeds, strict=True)
+    ]
+    return "; ".join(words) if words else "no impact"

@@ -514,7 +514,7 @@ def locked_scene(scene: Scene, joints: Any) -> Scene:
     keep = [model.joints[i].idx_q for i in range(1, model.njoints) if model.names[i] not in joints]
     return replace(
         scene,
-        robot=RobotModel(reduced, urdf_path=robot.urdf_path),
+        robot=RobotModel(reduced, urdf_path=robot.urdf_path, mjcf_path=robot.mjcf_path),
         q0=scene.q0[keep],
         v0=scene.v0[keep],
     )

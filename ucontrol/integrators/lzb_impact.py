@@ -111,7 +111,9 @@ class LZBImpactLaw:
         exponent: Elasticity exponents η_j > 0 (1 linear, 1.5 Hertz), shape (m,) or scalar.
         impulse_step: Fixed impulse step ΔP of the primary contact in [N s]; None: adaptive.
         rtol: Relative tolerance of the adaptive integration.
-        max_steps: Cap on the fixed impulse steps.
+        max_steps: Cap on the integration steps of one impact, >= 1: the fixed impulse
+            steps, or the solve_ivp steps of the adaptive integration (with or without
+            friction); beyond it the impact raises :class:`SolverError`.
         gaps: A contact that separated during the impact keeps its opening (s_j < 0, growing
             with ds_j = -u_j dτ) and is compressed again only once the opening has closed, as
             in the stiff limit of the compliant model; False re-compresses it as soon as it
@@ -230,6 +232,7 @@ def lzb_impact(
     exponent: float | Vector = HERTZ,
     impulse_step: float | None = None,
     rtol: float = 1e-13,
+    max_steps: int = LZBImpactLaw.max_steps,
 ) -> LZBImpactResult:
     """One LZB multiple impact; see :class:`LZBImpactLaw` for the arguments."""
     law = LZBImpactLaw(
@@ -238,6 +241,7 @@ def lzb_impact(
         exponent=exponent,
         impulse_step=impulse_step,
         rtol=rtol,
+        max_steps=max_steps,
     )
     return law.solve(M, J, v_minus)
 
@@ -326,7 +330,7 @@ def _solve(
     y = np.concatenate((u_minus / sys.U, np.zeros(4 * m)))
     max_energy = np.zeros(m)
     if impulse_step is None:
-        y, steps, segments, max_energy = _adaptive(sys, y, rtol)
+        y, steps, segments, max_energy = _adaptive(sys, y, rtol, max_steps)
     else:
         dP = impulse_step * sys.d / sys.U  # scaled
         y, steps, segments, max_energy = _fixed(sys, y, dP, max_steps)
@@ -355,7 +359,9 @@ def _finished(sys: _Scaled, y: Vector, tolerance: float) -> bool:
     return bool(np.all(y[m : 2 * m] <= 0.0) and np.all(y[:m] >= -tolerance))
 
 
-def _adaptive(sys: _Scaled, y: Vector, rtol: float) -> tuple[Vector, int, int, Vector]:
+def _adaptive(
+    sys: _Scaled, y: Vector, rtol: float, max_steps: int
+) -> tuple[Vector, int, int, Vector]:
     """Integrate with solve_ivp, restarting at every switch and separation."""
     m = sys.m
     atol = rtol * 1e-2
@@ -404,6 +410,7 @@ def _adaptive(sys: _Scaled, y: Vector, rtol: float) -> tuple[Vector, int, int, V
         if solution.status < 0:
             raise SolverError("lzb", solution.message)
         steps += solution.t.size - 1
+        _check_steps(steps, max_steps)
         max_energy = np.maximum(max_energy, np.max(sys.energy(solution.y[m : 2 * m].T), axis=0))
         y = solution.y[:, -1].copy()
         s, u = y[m : 2 * m], y[:m]
@@ -417,6 +424,14 @@ def _adaptive(sys: _Scaled, y: Vector, rtol: float) -> tuple[Vector, int, int, V
                 "lzb", f"contacts not separated at the end of the horizon (u = {y[:m]})"
             )
     return y, steps, segments, max_energy
+
+
+def _check_steps(steps: int, max_steps: int) -> None:
+    """Raise :class:`SolverError` once an adaptive integration has taken over ``max_steps``."""
+    if steps > max_steps:
+        raise SolverError(
+            "lzb", f"no separation after {steps} solve_ivp steps (max_steps = {max_steps})"
+        )
 
 
 def _fixed(sys: _Scaled, y: Vector, dP: float, max_steps: int) -> tuple[Vector, int, int, Vector]:
@@ -548,7 +563,7 @@ def lzb_impact_with_friction(
     sys = _Scaled(W[:m, :m], w_minus[:m], e, K, eta, law.gaps)
     Ws = W / sys.d
     y = np.concatenate((w_minus / sys.U, np.zeros(4 * m)))  # u_n, u_t, s, P_n, P_t, W_f
-    y, steps, segments = _adaptive_friction(sys, Ws, mu, y, law.rtol)
+    y, steps, segments = _adaptive_friction(sys, Ws, mu, y, law.rtol, int(law.max_steps))
     P = np.concatenate((y[3 * m : 4 * m], y[4 * m : 5 * m])) * sys.U / sys.d  # [N s]
     v_plus = v_minus + Minv_Ht @ P
     w_plus = H @ v_plus
@@ -580,7 +595,7 @@ def _friction_forces(
 
 
 def _adaptive_friction(
-    sys: _Scaled, Ws: Vector, mu: Vector, y: Vector, rtol: float
+    sys: _Scaled, Ws: Vector, mu: Vector, y: Vector, rtol: float, max_steps: int
 ) -> tuple[Vector, int, int]:
     m = sys.m
     atol = rtol * 1e-2
@@ -642,6 +657,7 @@ def _adaptive_friction(
         if solution.status < 0:
             raise SolverError("lzb", solution.message)
         steps += solution.t.size - 1
+        _check_steps(steps, max_steps)
         y = solution.y[:, -1].copy()
         u_n, u_t, s = y[:m], y[m : 2 * m], y[2 * m : 3 * m]
         u_n[np.abs(u_n) <= small] = 0.0

@@ -55,7 +55,7 @@ def perturbed_robot(
         factor = scales.get(joint, 1.0)
         lever = inertia.lever + offsets.get(joint, np.zeros(3))
         model.inertias[joint] = pin.Inertia(inertia.mass * factor, lever, inertia.inertia * factor)
-    return RobotModel(model, floating_base=robot.floating_base, urdf_path=robot.urdf_path)
+    return robot.with_model(model)
 
 
 def _bodies(model: pin.Model) -> dict[str, int]:

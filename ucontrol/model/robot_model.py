@@ -1,4 +1,4 @@
-"""The robot: a Pinocchio model and its data, loaded from URDF."""
+"""The robot: a Pinocchio model and its data, loaded from URDF or MJCF."""
 
 from __future__ import annotations
 
@@ -13,6 +13,8 @@ from ucontrol.exceptions import (
     FrameNotFoundError,
     InvalidParameterError,
     JointNotFoundError,
+    MJCFError,
+    SDFError,
     URDFError,
 )
 
@@ -20,7 +22,7 @@ Vector = NDArray[np.float64]
 
 
 class RobotModel:
-    r"""Rigid multibody dynamics of a robot described by a URDF file.
+    r"""Rigid multibody dynamics of a robot described by a URDF or MJCF file.
 
     Wraps a Pinocchio model and one data buffer. The equations of motion read
 
@@ -34,20 +36,31 @@ class RobotModel:
         model: The Pinocchio model.
         data: The Pinocchio data buffer used by every computation of this object (created on
             first use: integrators and controllers bring their own).
-        name: Robot name from the URDF.
+        name: Robot name from the URDF or MJCF file.
         nq: Configuration size.
         nv: Velocity (tangent space) size.
         nu: Number of actuated velocity coordinates (``nv`` minus the free-flyer's 6).
         actuated: Indices in ``v`` of the actuated coordinates, shape (nu,).
         urdf_path: The URDF file the model was loaded from (its visual geometry is drawn by
             :mod:`ucontrol.viz`), or None for a model built otherwise.
+        mjcf_path: The MJCF file the model was loaded from, or None.
     """
 
     def __init__(
-        self, model: pin.Model, *, floating_base: bool = False, urdf_path: Path | None = None
+        self,
+        model: pin.Model,
+        *,
+        floating_base: bool = False,
+        urdf_path: Path | None = None,
+        mjcf_path: Path | None = None,
     ) -> None:
+        if urdf_path is not None and mjcf_path is not None:
+            raise InvalidParameterError(
+                "mjcf_path", str(mjcf_path), f"None with urdf_path given ({urdf_path})"
+            )
         self.model = model
         self.urdf_path = urdf_path
+        self.mjcf_path = mjcf_path
         self._data: pin.Data | None = None
         self.name = model.name
         self.floating_base = floating_base
@@ -97,10 +110,112 @@ class RobotModel:
             else:
                 model = pin.buildModelFromUrdf(str(path))
         except (ValueError, RuntimeError) as error:
-            raise URDFError(str(path), str(error).splitlines()[0]) from error
-        if gravity is not None:
-            model.gravity.linear = as_vector("gravity", gravity, 3)
+            raise URDFError(str(path), _pinocchio_reason(error)) from error
+        _set_gravity(model, gravity)
         return cls(model, floating_base=floating_base, urdf_path=path.resolve())
+
+    @classmethod
+    def from_mjcf(
+        cls,
+        path: str | Path,
+        *,
+        floating_base: bool = False,
+        gravity: NDArray[np.float64] | None = None,
+    ) -> RobotModel:
+        """Load a robot from an MJCF (MuJoCo XML) file through Pinocchio's MJCF parser.
+
+        Bodies become frames of their names (``<site>`` elements are not read). The file's
+        ``<option gravity>`` is ignored: ``gravity`` sets it, as for a URDF. Equality
+        constraints (``<equality>``) are refused rather than dropped: declare closed chains as
+        the scene's ``[[bilateral]]`` entries. A floating base is the root body's
+        ``<freejoint/>`` (Pinocchio 4.1's MJCF parser ignores the root joint it is given), so
+        ``floating_base`` must say whether the file has one.
+
+        Args:
+            path: Path of the MJCF file.
+            floating_base: The root body has a ``<freejoint/>`` (nq = nv + 1 extra).
+            gravity: Gravity acceleration in the world frame in [m/s²], shape (3,);
+                default (0, 0, -9.81).
+
+        Raises:
+            MJCFError: The file does not exist, is not an MJCF model Pinocchio can read, holds
+                equality constraints, or its root joint disagrees with ``floating_base``.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise MJCFError(str(path), "file does not exist")
+        try:
+            model, constraints = pin.buildModelsFromMJCF(str(path), geometry_types=[])
+        except (ValueError, RuntimeError) as error:
+            raise MJCFError(str(path), _pinocchio_reason(error)) from error
+        if len(constraints) > 0:
+            raise MJCFError(
+                str(path),
+                f"{len(constraints)} equality constraint(s); declare closed chains as "
+                "[[bilateral]] entries of the scene instead",
+            )
+        free = model.njoints > 1 and model.joints[1].shortname() == "JointModelFreeFlyer"
+        if free != floating_base:
+            raise MJCFError(
+                str(path),
+                f"floating_base is {floating_base} but the root body has "
+                f"{'a' if free else 'no'} <freejoint/> (a floating base is declared in the file)",
+            )
+        _set_gravity(model, gravity)
+        return cls(model, floating_base=floating_base, mjcf_path=path.resolve())
+
+    @classmethod
+    def from_sdf(cls, path: str | Path, **_: object) -> RobotModel:
+        """Refuse an SDF file: ucontrol reads robots from URDF and MJCF only.
+
+        The Pinocchio wheel on the package index is built without SDFormat
+        (``pin.WITH_SDFORMAT`` is False); the message says whether the installed one is.
+
+        Raises:
+            SDFError: Always, naming the file and what to use instead.
+        """
+        if getattr(pin, "WITH_SDFORMAT", False):
+            reason = "ucontrol does not read SDF yet (this Pinocchio could)"
+        else:
+            reason = (
+                f"this Pinocchio ({pin.__version__}) has no SDF parser (built without "
+                "SDFormat, pin.WITH_SDFORMAT is False)"
+            )
+        raise SDFError(str(path), f"{reason}; convert the robot to URDF or MJCF")
+
+    def geometry_model(self, kind: pin.GeometryType) -> pin.GeometryModel:
+        """The robot file's collision or visual shapes, attached to this model's frames.
+
+        Args:
+            kind: ``pin.GeometryType.COLLISION`` or ``pin.GeometryType.VISUAL``.
+
+        Raises:
+            InvalidParameterError: The model was not loaded from a file.
+            RobotFileError: The shapes do not load (a missing mesh file); a
+                :class:`URDFError` or :class:`MJCFError`.
+        """
+        if self.urdf_path is not None:
+            path = self.urdf_path
+            package_dirs = [str(folder) for folder in path.parents]  # package:// lookups
+            try:
+                return pin.buildGeomFromUrdf(self.model, str(path), kind, package_dirs=package_dirs)
+            except (ValueError, RuntimeError) as error:
+                raise URDFError(str(path), _pinocchio_reason(error)) from error
+        if self.mjcf_path is not None:
+            try:  # MJCF mesh paths are relative to the file (or its <compiler meshdir>)
+                return pin.buildGeomFromMJCF(self.model, str(self.mjcf_path), kind)
+            except (ValueError, RuntimeError) as error:
+                raise MJCFError(str(self.mjcf_path), _pinocchio_reason(error)) from error
+        raise InvalidParameterError("robot", self.name, "a robot loaded from a URDF or MJCF file")
+
+    def with_model(self, model: pin.Model) -> RobotModel:
+        """A robot of another Pinocchio model (a modified copy) from the same file and base."""
+        return RobotModel(
+            model,
+            floating_base=self.floating_base,
+            urdf_path=self.urdf_path,
+            mjcf_path=self.mjcf_path,
+        )
 
     def with_scaled_inertia(self, factor: float) -> RobotModel:
         """A copy whose link masses and rotational inertias are multiplied by ``factor``.
@@ -117,7 +232,7 @@ class RobotModel:
             model.inertias[i] = pin.Inertia(
                 inertia.mass * factor, inertia.lever, inertia.inertia * factor
             )
-        return RobotModel(model, floating_base=self.floating_base, urdf_path=self.urdf_path)
+        return self.with_model(model)
 
     def with_armature(self, armature: Vector) -> RobotModel:
         """A copy with rotor inertias added to the diagonal of M(q).
@@ -133,7 +248,7 @@ class RobotModel:
             raise InvalidParameterError("armature", armature.tolist(), ">= 0")
         model = self.model.copy()
         model.armature = model.armature + armature
-        return RobotModel(model, floating_base=self.floating_base, urdf_path=self.urdf_path)
+        return self.with_model(model)
 
     @property
     def gravity(self) -> Vector:
@@ -229,3 +344,23 @@ class RobotModel:
         kinetic = pin.computeKineticEnergy(self.model, self.data, q, v)
         potential = pin.computePotentialEnergy(self.model, self.data, q)
         return float(kinetic), float(potential)
+
+
+def _pinocchio_reason(error: Exception) -> str:
+    """The line of a Pinocchio parser's exception that says what is wrong.
+
+    Pinocchio's C++ exceptions read ``From file: ... in function: ... at line: ...
+    message: <reason>``; other exceptions are reduced to their first line.
+    """
+    lines = [line.strip() for line in str(error).splitlines()]
+    for index, line in enumerate(lines):
+        if line.startswith("message:"):
+            following = [text for text in lines[index + 1 :] if text]
+            return line.removeprefix("message:").strip() or next(iter(following), line)
+    return next((line for line in lines if line), type(error).__name__)
+
+
+def _set_gravity(model: pin.Model, gravity: NDArray[np.float64] | None) -> None:
+    """Set the model's gravity in [m/s²] (Pinocchio's default (0, 0, -9.81) when None)."""
+    if gravity is not None:
+        model.gravity.linear = as_vector("gravity", gravity, 3)

@@ -1,4 +1,4 @@
-"""Where a scene's ``urdf`` entry points to."""
+"""Where a scene's ``urdf`` (or ``mjcf``, ``sdf``) entry points to."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def example_robot_data_dir() -> Path:
 
 
 def resolve_urdf(spec: str, base_dir: Path) -> Path:
-    """Absolute path of a URDF named in a scene.
+    """Absolute path of a robot description file (URDF, MJCF, SDF) named in a scene.
 
     Args:
         spec: A path relative to ``base_dir`` (or absolute), or

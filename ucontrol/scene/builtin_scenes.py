@@ -16,6 +16,18 @@ def _folder() -> Path:
     return Path(str(files("ucontrol.robots")))
 
 
+def _has_table(path: Path, table: str) -> bool:
+    """Whether the TOML file declares the top-level ``[table]``."""
+    return any(line.strip() == f"[{table}]" for line in path.read_text().splitlines())
+
+
+def builtin_campaigns() -> dict[str, Path]:
+    """The campaign files shipped with ucontrol (a ``[campaign]`` table), by name."""
+    return {
+        path.stem: path for path in sorted(_folder().glob("*.toml")) if _has_table(path, "campaign")
+    }
+
+
 def builtin_scene(name: str = DEFAULT_SCENE) -> Path:
     """Path of a scene shipped with ucontrol, by its name with or without ``.toml``.
 
@@ -30,24 +42,23 @@ def builtin_scene(name: str = DEFAULT_SCENE) -> Path:
 
 
 def builtin_scenes() -> dict[str, str]:
-    """Each built-in scene's name and the first sentence of its description, sorted by name.
+    """Each built-in scene's name and the whole first sentence of its description, by name.
 
-    Other TOML files shipped beside the scenes (design tasks) are left out: a scene has a
-    ``[robot]`` table.
+    Other TOML files shipped beside the scenes (design tasks, campaigns) are left out: a scene
+    has a ``[robot]`` table.
     """
     scenes = {}
     for path in sorted(_folder().glob("*.toml")):
-        text = path.read_text()
-        if not any(line.strip() == "[robot]" for line in text.splitlines()):
+        if not _has_table(path, "robot"):
             continue
+        text = path.read_text()
         comment = []
         for line in text.splitlines():
             if not line.startswith("#"):
                 break
             comment.append(line.lstrip("#").strip())
         description = " ".join(comment)
-        sentence = description.split(". ")[0].rstrip(".")
-        scenes[path.stem] = sentence if len(sentence) <= 100 else sentence[:99] + "…"
+        scenes[path.stem] = description.split(". ")[0].rstrip(".")
     return scenes
 
 

@@ -137,6 +137,7 @@ def _lzb_law(scene: Scene) -> Any:
         stiffness=np.asarray(settings.lzb_stiffness, dtype=float),
         exponent=np.asarray(settings.lzb_exponent, dtype=float),
         impulse_step=settings.lzb_impulse_step,
+        max_steps=settings.lzb_max_steps,
     )
 
 

@@ -59,6 +59,8 @@ class IntegratorSettings:
         lzb_exponent: Elasticity exponent of the LZB law (1 linear, 1.5 Hertz), one or one per
             constraint.
         lzb_impulse_step: Fixed impulse step of the LZB law in [N s]; None: adaptive.
+        lzb_max_steps: Cap on the integration steps of one LZB impact (fixed impulse steps or
+            adaptive solve_ivp steps), >= 1; beyond it the impact fails (``SolverError``).
         penetration_tolerance: Depth in [m] (or [rad]) beyond which a penetration is reported
             (a :class:`~ucontrol.exceptions.PenetrationWarning` and the summary's
             ``n_penetrations_beyond_tolerance``).
@@ -91,6 +93,7 @@ class IntegratorSettings:
     lzb_stiffness: float | list[float] = 1.0
     lzb_exponent: float | list[float] = 1.5
     lzb_impulse_step: float | None = None
+    lzb_max_steps: int = 100_000
 
     def __post_init__(self) -> None:
         check_contact_solver(self.contact_solver)
@@ -146,6 +149,12 @@ class IntegratorSettings:
                 raise InvalidParameterError(key, value, "a number > 0 or a list of them")
         if self.lzb_impulse_step is not None:
             as_positive("lzb_impulse_step", self.lzb_impulse_step)
+        if (
+            isinstance(self.lzb_max_steps, bool)
+            or not isinstance(self.lzb_max_steps, int)
+            or self.lzb_max_steps < 1
+        ):
+            raise InvalidParameterError("lzb_max_steps", self.lzb_max_steps, "an integer >= 1")
         threshold = as_float("restitution_threshold", self.restitution_threshold)
         if threshold < 0.0:
             raise InvalidParameterError("restitution_threshold", threshold, "a speed >= 0 in [m/s]")

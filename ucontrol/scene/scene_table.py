@@ -7,7 +7,7 @@ unknown keys are an error that names them.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +48,23 @@ _TOP_KEYS = {
     "actuators",
     "joint_friction",
 }
-_ROBOT_KEYS = {"urdf", "floating_base", "q0", "v0", "gravity", "planar_axis", "flexible"}
+_ROBOT_KEYS = {
+    "urdf",
+    "mjcf",
+    "sdf",
+    "floating_base",
+    "q0",
+    "v0",
+    "gravity",
+    "planar_axis",
+    "flexible",
+}
+#: The keys of ``[robot]`` naming its description file, and the loader of each format.
+_ROBOT_FILES: dict[str, Callable[..., RobotModel]] = {
+    "urdf": RobotModel.from_urdf,
+    "mjcf": RobotModel.from_mjcf,
+    "sdf": RobotModel.from_sdf,
+}
 _FLEXIBLE_KEYS = {"joints", "stiffness", "motor_inertia", "damping", "q0", "v0"}
 _SURFACE_KEYS = {"type", "point", "normal", "motion"}
 _MOTION_KEYS = {
@@ -103,6 +119,7 @@ _INTEGRATOR_KEYS = {
     "lzb_stiffness",
     "lzb_exponent",
     "lzb_impulse_step",
+    "lzb_max_steps",
 }
 _REFERENCE_KEYS = {"bouncing_ball": {"type", "contact"}}
 
@@ -118,12 +135,7 @@ def scene_fields(
     check_keys("the scene", table, _TOP_KEYS)
     robot_table = require_key(table, "the scene", "robot")
     check_keys("[robot]", robot_table, _ROBOT_KEYS)
-    gravity = robot_table.get("gravity", [0.0, 0.0, -9.81])
-    robot = RobotModel.from_urdf(
-        resolve_urdf(str(require_key(robot_table, "[robot]", "urdf")), base_dir),
-        floating_base=as_bool("floating_base", robot_table.get("floating_base", False)),
-        gravity=as_vector("gravity", gravity, 3),
-    )
+    robot = _robot(robot_table, base_dir)
     q0 = robot.check_configuration("q0", robot_table.get("q0", robot.neutral()))
     v0 = robot.check_velocity("v0", robot_table.get("v0", np.zeros(robot.nv)))
     flexible_table = robot_table.get("flexible")
@@ -169,6 +181,27 @@ def scene_fields(
         reference=table.get("reference"),
         **_sensors_and_actuators(table),
         joint_friction=_joint_friction(table, robot),
+    )
+
+
+def _robot(robot_table: Mapping[str, Any], base_dir: Path) -> RobotModel:
+    """The robot of the ``[robot]`` table, from the one description file it names.
+
+    Raises:
+        SceneError: The table names no file, or more than one.
+        RobotFileError: The file cannot be read (URDF, MJCF; SDF is refused).
+    """
+    given = [key for key in _ROBOT_FILES if key in robot_table]
+    if len(given) != 1:
+        raise SceneError(
+            f"[robot] needs exactly one of the keys 'urdf', 'mjcf', 'sdf' (the robot's "
+            f"description file), got {given or 'none'}"
+        )
+    key = given[0]
+    return _ROBOT_FILES[key](
+        resolve_urdf(str(robot_table[key]), base_dir),
+        floating_base=as_bool("floating_base", robot_table.get("floating_base", False)),
+        gravity=as_vector("gravity", robot_table.get("gravity", [0.0, 0.0, -9.81]), 3),
     )
 
 
