@@ -7,6 +7,7 @@ names the offending value: never a raw Python exception, never a silent run.
 from __future__ import annotations
 
 import copy
+import math
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -19,6 +20,13 @@ from ucontrol.exceptions import UControlError
 from ucontrol.log import Log
 from ucontrol.scene import Scene, builtin_scene, load_scene
 from ucontrol.simulate import simulate
+from ucontrol.testing import (
+    assert_cycles_complete,
+    assert_force_tracks,
+    assert_lyapunov_decreases,
+    assert_no_energy_gain,
+    assert_penetration_below,
+)
 
 ROBOTS = builtin_scene().parent
 BALL = tomllib.loads((ROBOTS / "ball.toml").read_text())
@@ -182,6 +190,10 @@ def _ball() -> Scene:
     return load_scene("ball")
 
 
+#: A run without steps: the assertions' arguments are checked before the log is read.
+_EMPTY = Log(0, nq=1, nv=1, nu=0, constraint_names=[])
+
+
 API_CASES: list[tuple[str, Callable[[], Any], str]] = [
     ("load_scene(42)", lambda: load_scene(42), "42"),  # type: ignore[arg-type]
     ("load_scene(unknown)", lambda: load_scene("no_such_scene"), "no_such_scene"),
@@ -202,6 +214,13 @@ API_CASES: list[tuple[str, Callable[[], Any], str]] = [
     ),
     ("output NaN", lambda: simulate(_ball(), lambda *a: [NAN], duration=0.01), "nan"),
     ("output text", lambda: simulate(_ball(), lambda *a: "go", duration=0.01), "'go'"),
+    ("penetration limit NaN", lambda: assert_penetration_below(_EMPTY, NAN), "`limit`"),
+    ("penetration limit < 0", lambda: assert_penetration_below(_EMPTY, -1e-3), "-0.001"),
+    ("energy tolerance NaN", lambda: assert_no_energy_gain(_EMPTY, tolerance=NAN), "nan"),
+    ("energy tolerance < 0", lambda: assert_no_energy_gain(_EMPTY, tolerance=-1.0), "-1.0"),
+    ("force within '5%'", lambda: assert_force_tracks(_EMPTY, within="5%"), "'5%'"),  # type: ignore[arg-type]
+    ("lyapunov floor -inf", lambda: assert_lyapunov_decreases(_EMPTY, floor=-math.inf), "-inf"),
+    ("min_cycles 1.5", lambda: assert_cycles_complete(_EMPTY, min_cycles=1.5), "1.5"),  # type: ignore[arg-type]
 ]
 
 

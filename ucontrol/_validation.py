@@ -53,6 +53,14 @@ def as_positive(name: str, value: Any) -> float:
     return number
 
 
+def as_non_negative(name: str, value: Any) -> float:
+    """Return ``value`` as a finite float >= 0, or raise :class:`InvalidParameterError`."""
+    number = as_float(name, value)
+    if number < 0.0:
+        raise InvalidParameterError(name, value, ">= 0")
+    return number
+
+
 def as_float(name: str, value: Any) -> float:
     """Return ``value`` as a finite float, or raise :class:`InvalidParameterError`.
 
