@@ -67,6 +67,8 @@ SCENE_CASES: list[tuple[str, str, Any, str | None]] = [
     ("ball", "robot.q0", [1.0, 2.0], "(1,)"),
     ("ball", "robot.v0", ["a"], None),
     ("ball", "robot.v0", [1.0, 2.0], "(1,)"),
+    ("ball", "robot.v0", [-1e300], "`v0[0]` must be at most 1e+06 in magnitude, got -1e+300"),
+    ("ball", "robot.gravity", [0.0, 0.0, -1e300], "`gravity[2]` must be at most 1e+06"),
     ("ball", "robot.urdf", "missing.urdf", "missing.urdf"),
     ("ball", "robot.urdf", 42, "42"),
     ("ball", "robot.planar_axis", [0.0, 1.0], "(3,)"),
@@ -247,6 +249,18 @@ def test_files_that_are_not_what_they_claim(tmp_path: Path) -> None:
         load_scene(scene)
 
 
+def test_a_key_given_twice_is_named(tmp_path: Path, capsys: Any) -> None:
+    scene = tmp_path / "twice.toml"
+    text = (ROBOTS / "ball.toml").read_text()
+    scene.write_text(f"duration = 2.5\n{text}")
+    line = 1 + text.splitlines().index("duration = 3.0") + 1  # where `duration` comes again
+    with pytest.raises(UControlError, match=rf"line {line}.*the key 'duration' is given twice"):
+        load_scene(scene)
+    assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "'duration' is given twice" in error
+
+
 @pytest.mark.parametrize(
     ("arguments", "text"),
     [
@@ -285,7 +299,7 @@ def test_bad_command_lines_end_in_one_line_and_status_2(
 
 
 def test_the_table_has_at_least_a_hundred_cases() -> None:
-    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13
+    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1
     assert cases >= 100
 
 
@@ -301,7 +315,6 @@ def test_silent_physics_is_made_loud() -> None:
     )
     with pytest.warns(PlasticRedoWarning, match=r"every restitution of the scene is 1"):
         simulate(elastic, duration=1.0)
-    heavy = Scene.from_dict(_set(BALL, "robot.gravity", [0.0, 0.0, -1e300]), base_dir=ROBOTS)
-    with pytest.raises(SimulationError, match=r"non-finite.*t = "):
-        simulate(heavy, duration=0.1)
+    with pytest.raises(SimulationError, match=r"non-finite.*t = "):  # a force of 1e300 N
+        simulate(_ball(), lambda *a: [1e300], duration=0.1)
     assert summary["max_penetration"] == pytest.approx(4.396, abs=1e-3)

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ucontrol._validation import toml_error_message
 from ucontrol.campaign.criterion import Criterion, parse_criterion
 from ucontrol.campaign.distributions import Distribution, parse_distribution
 from ucontrol.campaign.metrics import VERDICTS, Metric, check_metric
@@ -163,10 +164,12 @@ def load_campaign(path: str | Path, *, check: bool = True) -> Campaign:
     path = Path(path)
     if not path.is_file():
         raise CampaignFileError(str(path), "the file does not exist")
+    text = path.read_text()
     try:
-        table = tomllib.loads(path.read_text())
+        table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
-        raise CampaignFileError(str(path), f"not valid TOML: {error}") from error
+        reason = toml_error_message(error, text)
+        raise CampaignFileError(str(path), f"not valid TOML: {reason}") from error
     campaign = parse_campaign(table, path)
     if check:
         check_campaign(campaign)
@@ -188,10 +191,14 @@ def parse_campaign(table: Mapping[str, Any], path: Path) -> Campaign:
         raise CampaignFileError(where, "[campaign] needs `scene` (a file or a built-in name)")
     scene_ref = _scene_ref(where, str(head["scene"]), path)
     scene_path = scene_file(scene_ref)
+    scene_text = scene_path.read_text()
     try:
-        scene_table = tomllib.loads(scene_path.read_text())
+        scene_table = tomllib.loads(scene_text)
     except tomllib.TOMLDecodeError as error:
-        raise CampaignFileError(where, f"scene {str(scene_path)!r} is not valid TOML") from error
+        reason = toml_error_message(error, scene_text)
+        raise CampaignFileError(
+            where, f"scene {str(scene_path)!r} is not valid TOML: {reason}"
+        ) from error
     if "duration" in head:
         scene_table["duration"] = _positive(where, "duration", head["duration"])
     if "dt" in head:
