@@ -261,6 +261,19 @@ def test_a_key_given_twice_is_named(tmp_path: Path, capsys: Any) -> None:
     assert len(error.splitlines()) == 1 and "'duration' is given twice" in error
 
 
+@pytest.mark.parametrize("record", ['{"name": "sweep", "finger', "[1, 2]", "\udcff"])
+def test_a_corrupt_campaign_record_is_named(tmp_path: Path, capsys: Any, record: str) -> None:
+    campaign = tmp_path / "sweep.toml"
+    campaign.write_text('[campaign]\nscene = "ball.toml"\nruns = 1\n')
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "campaign.json").write_bytes(record.encode("utf-8", "surrogateescape"))
+    status = main(["sweep", str(campaign), "--out", str(out), "--no-progress"])
+    error = capsys.readouterr().err.strip()
+    assert status == 2 and len(error.splitlines()) == 1, error
+    assert error.startswith("ucontrol: error: campaign file ") and "campaign.json" in error
+
+
 @pytest.mark.parametrize(
     ("arguments", "text"),
     [
@@ -299,7 +312,7 @@ def test_bad_command_lines_end_in_one_line_and_status_2(
 
 
 def test_the_table_has_at_least_a_hundred_cases() -> None:
-    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1
+    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1 + 3
     assert cases >= 100
 
 

@@ -32,6 +32,7 @@ from ucontrol.campaign.table import (
     PLAN_FILE,
     RUNS_DIR,
     finished_runs,
+    read_campaign,
     write_table,
 )
 from ucontrol.exceptions import (
@@ -190,6 +191,8 @@ def prepare_directory(campaign: Campaign, out: str | Path) -> Path:
     Raises:
         OutputDirectoryError: It cannot be created or written.
         CampaignMismatchError: It already records another campaign.
+        CampaignFileError: Its ``campaign.json`` is not a JSON object (delete it to start
+            again).
     """
     directory = Path(out)
     fingerprint = campaign.fingerprint()
@@ -200,9 +203,8 @@ def prepare_directory(campaign: Campaign, out: str | Path) -> Path:
         probe.unlink()
     except OSError as error:
         raise OutputDirectoryError(str(directory), error.strerror or str(error)) from error
-    record_path = directory / CAMPAIGN_FILE
-    if record_path.is_file():
-        found = json.loads(record_path.read_text()).get("fingerprint", "")
+    if (directory / CAMPAIGN_FILE).is_file():
+        found = str(read_campaign(directory).get("fingerprint", ""))
         if found != fingerprint:
             raise CampaignMismatchError(str(directory), found, fingerprint)
         return directory
