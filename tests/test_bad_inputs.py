@@ -131,6 +131,12 @@ SCENE_CASES: list[tuple[str, str, Any, str | None]] = [
     ("ball", "sensors.force_noise", [1.0, 2.0], None),
     ("ball", "actuators.torque_limit", "max", None),
     ("ball", "actuators.rate_limit", -5.0, None),
+    ("ball", "actuators.rate_limit", 0.0, None),
+    ("ball", "actuators.rate_limit", [2.0, 0.0], None),
+    ("arm", "sensors.position_noise", [0.1, 0.1, 0.1], "`position_noise` must have shape (2,)"),
+    ("arm", "sensors.quantisation", [1e-3], "`quantisation` must have shape (2,), got (1,)"),
+    ("arm", "actuators.torque_limit", [1.0, 2.0, 3.0], "`torque_limit` must have shape (2,)"),
+    ("arm", "actuators.rate_limit", [1.0], "`rate_limit` must have shape (2,), got (1,)"),
     ("arm", "controller", {"type": "joint_pd", "kp": 1.0, "kd": 1.0, "q_ref": "up"}, "'up'"),
     ("arm", "controller", {"type": "joint_pd", "kp": "10", "kd": 1.0}, "'10'"),
     ("arm", "controller", {"type": "joint_pd", "kp": 1, "kd": 1, "gravity_compensation": 0}, "0"),
@@ -216,6 +222,13 @@ API_CASES: list[tuple[str, Callable[[], Any], str]] = [
     ),
     ("output NaN", lambda: simulate(_ball(), lambda *a: [NAN], duration=0.01), "nan"),
     ("output text", lambda: simulate(_ball(), lambda *a: "go", duration=0.01), "'go'"),
+    (
+        "delay of 60 periods in a run of 50",
+        lambda: simulate(
+            Scene.from_dict(_set(BALL, "sensors.delay", 60), base_dir=ROBOTS), duration=0.05
+        ),
+        "`delay` must be fewer control periods than the run holds (50), got 60",
+    ),
     ("penetration limit NaN", lambda: assert_penetration_below(_EMPTY, NAN), "`limit`"),
     ("penetration limit < 0", lambda: assert_penetration_below(_EMPTY, -1e-3), "-0.001"),
     ("energy tolerance NaN", lambda: assert_no_energy_gain(_EMPTY, tolerance=NAN), "nan"),

@@ -110,6 +110,8 @@ def simulate(
     controller = scene.build_controller() if controller is None else controller
     _check_initial_penetration(integrator.constraints, scene.q0)
     n_steps = _step_count(scene, duration, h)
+    if scene.sensors is not None:
+        scene.sensors.check_delay(-(-n_steps // hold))  # control periods of the run
     loop = _ClosedLoop(scene, integrator, controller, n_steps + 1, hold, observer)
     log = loop.log
     lock = None if out_dir is None else OutputLock(out_dir)

@@ -147,6 +147,10 @@ class Scene:
         _check_within_limits(self.robot, self.q0)
         _check_magnitude("v0", self.v0, MAX_VELOCITY)
         _check_magnitude("gravity", self.robot.gravity, MAX_GRAVITY)
+        if self.sensors is not None:
+            self.sensors.check_sizes(self.robot.nv + (0 if flexible is None else flexible.nf))
+        if self.actuators is not None:
+            self.actuators.check_sizes(self.robot.nu)
         check_mass_matrix(self.robot, self.q0)
 
     @property
