@@ -194,6 +194,23 @@ def test_physically_impossible_urdf_inertia_names_the_link(
     )
 
 
+def test_a_robot_without_degree_of_freedom_refuses_constraints(tmp_path: Path, capsys: Any) -> None:
+    urdf = (ROBOTS / "ball.urdf").read_text().replace('type="prismatic"', 'type="fixed"')
+    (tmp_path / "ball.urdf").write_text(urdf)  # nq = nv = 0: the ball is welded in place
+    text = (ROBOTS / "ball.toml").read_text()
+    path = tmp_path / "fixed.toml"
+    path.write_text(text.replace("q0 = [1.1]", "q0 = []").replace("v0 = [0.0]", "v0 = []"))
+    message = "`constraints of robot 'ball'` must be none: the robot has no degree of freedom"
+    with pytest.raises(UControlError, match=message):
+        load_scene(path)
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
+    assert message in capsys.readouterr().err
+    scene = tomllib.loads(path.read_text())
+    del scene["contacts"], scene["reference"]  # without constraints it runs (and stays put)
+    log = simulate(Scene.from_dict(scene, base_dir=tmp_path), duration=0.01).log
+    assert log.q.shape == (11, 0) and len(log.constraint_names) == 0
+
+
 def _ball() -> Scene:
     return load_scene("ball")
 
@@ -325,7 +342,7 @@ def test_bad_command_lines_end_in_one_line_and_status_2(
 
 
 def test_the_table_has_at_least_a_hundred_cases() -> None:
-    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1 + 3
+    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1 + 3 + 1
     assert cases >= 100
 
 
