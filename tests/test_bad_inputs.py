@@ -211,6 +211,38 @@ def test_a_robot_without_degree_of_freedom_refuses_constraints(tmp_path: Path, c
     assert log.q.shape == (11, 0) and len(log.constraint_names) == 0
 
 
+#: OBJ texts of meshes that span no volume (coal's qhull ended the process on them, rc 139).
+FLAT_MESHES = {
+    "square": "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n",
+    "triangle": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    "sliver": "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 1e-12\nf 1 2 3\nf 1 3 4\n",
+}
+
+
+@pytest.mark.parametrize("shape", sorted(FLAT_MESHES))
+def test_a_mesh_without_volume_is_refused(tmp_path: Path, capsys: Any, shape: str) -> None:
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "wedge.obj").write_text(FLAT_MESHES[shape])
+    (tmp_path / "ball.urdf").write_text((ROBOTS / "free_ball_collision.urdf").read_text())
+    scene = (ROBOTS / "ball_mesh_wedge.toml").read_text().replace("free_ball_collision", "ball")
+    (tmp_path / "scene.toml").write_text(scene)
+    assert main(["run", str(tmp_path / "scene.toml"), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "wedge.obj" in error, error
+    assert "`mesh` must be a mesh with a volume" in error and "vertices lie in one plane" in error
+    # the same mesh as the link's <collision> element, the wedge a real one
+    (tmp_path / "meshes" / "flat.obj").write_text(FLAT_MESHES[shape])
+    (tmp_path / "meshes" / "wedge.obj").write_text((ROBOTS / "meshes" / "wedge.obj").read_text())
+    load_scene(tmp_path / "scene.toml")
+    urdf = (tmp_path / "ball.urdf").read_text()
+    sphere = '<collision>\n      <geometry><sphere radius="0.1"/>'
+    assert sphere in urdf
+    mesh = '<collision>\n      <geometry><mesh filename="meshes/flat.obj"/>'
+    (tmp_path / "ball.urdf").write_text(urdf.replace(sphere, mesh))
+    with pytest.raises(UControlError, match=r"vertices lie in one plane.*flat\.obj"):
+        load_scene(tmp_path / "scene.toml")
+
+
 def _ball() -> Scene:
     return load_scene("ball")
 
@@ -342,7 +374,7 @@ def test_bad_command_lines_end_in_one_line_and_status_2(
 
 
 def test_the_table_has_at_least_a_hundred_cases() -> None:
-    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1 + 3 + 1
+    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1 + 3 + 1 + 3
     assert cases >= 100
 
 
