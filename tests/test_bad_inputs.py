@@ -336,6 +336,34 @@ def test_a_corrupt_campaign_record_is_named(tmp_path: Path, capsys: Any, record:
     assert error.startswith("ucontrol: error: campaign file ") and "campaign.json" in error
 
 
+@pytest.mark.timeout(60)  # the plan of either was built in memory: no end in sight
+@pytest.mark.parametrize(
+    ("body", "text"),
+    [
+        (
+            'runs = 1000000000000\n[distributions]\n"robot.q0.0" = { type = "uniform", '
+            "low = 0.2, high = 0.5 }\n",
+            "1000000000000 runs (1 grid cell(s) x `runs` = 1000000000000), more than the 100000",
+        ),
+        (
+            "[grid]\n"
+            + "".join(f'"contacts.0.restitution{i}" = {[0.5] * 200}\n' for i in range(5)),
+            "320000000000 runs (320000000000 grid cell(s) x `runs` = 1)",
+        ),
+    ],
+    ids=["runs", "grid"],
+)
+def test_a_huge_campaign_is_refused_before_it_is_planned(
+    tmp_path: Path, capsys: Any, body: str, text: str
+) -> None:
+    campaign = tmp_path / "huge.toml"
+    campaign.write_text(f'[campaign]\nscene = "ball.toml"\n{body}')
+    assert main(["sweep", str(campaign), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and text in error and "huge.toml" in error, error
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize(
     ("arguments", "text"),
     [
@@ -374,7 +402,7 @@ def test_bad_command_lines_end_in_one_line_and_status_2(
 
 
 def test_the_table_has_at_least_a_hundred_cases() -> None:
-    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1 + 3 + 1 + 3
+    cases = len(SCENE_CASES) + 6 + len(API_CASES) + 4 + 13 + 1 + 3 + 1 + 3 + 2
     assert cases >= 100
 
 

@@ -37,6 +37,9 @@ from ucontrol.exceptions import (
 
 _TOP_KEYS = {"campaign", "grid", "distributions", "metrics"}
 _CAMPAIGN_KEYS = {"name", "scene", "duration", "dt", "seed", "runs", "metrics", "success", "worst"}
+#: Most runs a campaign may hold: its plan (parameters and seed per run) is built in memory
+#: and every run writes one file, so a larger one is refused before it is planned.
+MAX_RUNS = 100_000
 #: Metrics collected when a campaign names none.
 DEFAULT_METRICS = ("max_penetration", "n_impacts", "energy_increase_at_impacts")
 
@@ -59,6 +62,9 @@ class PlannedRun:
 @dataclass(frozen=True)
 class Campaign:
     """A checked campaign.
+
+    Raises:
+        CampaignFileError: It holds more than :data:`MAX_RUNS` runs.
 
     Attributes:
         name: Label (default the campaign file's stem).
@@ -89,6 +95,15 @@ class Campaign:
     worst: str | None = None
     python_path: tuple[str, ...] = ()
     source: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.size > MAX_RUNS:
+            cells = math.prod(len(values) for values in self.grid.values())
+            raise CampaignFileError(
+                str(self.source or self.name),
+                f"{self.size} runs ({cells} grid cell(s) x `runs` = {self.runs}), more than "
+                f"the {MAX_RUNS} a campaign may hold: split it into several campaigns",
+            )
 
     @property
     def parameter_names(self) -> list[str]:
