@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import signal
 import sys
 import time
 import types
@@ -28,6 +29,7 @@ from ucontrol.exceptions import (
     InitialPenetrationError,
     InvalidParameterError,
     PenetrationWarning,
+    PhysicsWarning,
     PlasticRedoWarning,
     ShapeError,
     SimulationError,
@@ -138,20 +140,21 @@ def simulate(
         loop.finish()
         if bar is not None:
             bar.update(n_steps - bar.n)
-        wall_time = time.perf_counter() - start
-        summary = summarize(log, wall_time_s=wall_time, theta=integrator.theta)
-        summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
-        summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
-        _report_physics(scene, log, summary)
+        summary = _run_summary(scene, loop, time.perf_counter() - start, interrupted=None)
         if out_dir is not None:
             log.save(out_dir / "log.npz")
-            text = (json.dumps(summary, indent=2) + "\n").encode()
-            write_atomically(out_dir / "summary.json", lambda stream: _write(stream, text))
+            _write_summary(out_dir, summary)
     except KeyboardInterrupt as interrupt:  # Ctrl-C (or a signal): keep what ran, then stop
         loop.close_row()
         interrupt.time = float(log.t[len(log) - 1]) if len(log) else 0.0  # type: ignore[attr-defined]
         if out_dir is not None:
             interrupt.log_path = str(log.save(out_dir / "log.npz"))  # type: ignore[attr-defined]
+            signum = int(getattr(interrupt, "signum", signal.SIGINT))
+            interrupted = signal.Signals(signum).name
+            with warnings.catch_warnings():  # the one line of the interruption says it all
+                warnings.simplefilter("ignore", PhysicsWarning)
+                summary = _run_summary(scene, loop, time.perf_counter() - start, interrupted)
+            _write_summary(out_dir, summary)
         raise
     except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
         loop.close_row()  # the state at t_k is stored, its step is not: close the row
@@ -419,6 +422,33 @@ class _ClosedLoop:
         self.close_row()
         if self.observer is not None:
             self.observer(self.log)
+
+
+def _run_summary(
+    scene: Scene, loop: _ClosedLoop, wall_time: float, interrupted: str | None
+) -> dict[str, Any]:
+    """The summary of the rows of ``loop.log``, ``interrupted`` by that signal or None.
+
+    Args:
+        scene: The scene run.
+        loop: The closed loop, its last row closed.
+        wall_time: Wall time of the loop in [s].
+        interrupted: The signal's name (``"SIGINT"`` for Ctrl-C) for a run stopped early,
+            None for a run to its end.
+    """
+    log = loop.log
+    summary = summarize(log, wall_time_s=wall_time, theta=loop.integrator.theta)
+    summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
+    summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
+    summary["interrupted"] = interrupted is not None
+    summary["interrupted_by"] = interrupted
+    _report_physics(scene, log, summary)
+    return summary
+
+
+def _write_summary(out_dir: Path, summary: dict[str, Any]) -> None:
+    text = (json.dumps(summary, indent=2) + "\n").encode()
+    write_atomically(out_dir / "summary.json", lambda stream: _write(stream, text))
 
 
 def _write(stream: IO[bytes], data: bytes) -> None:
