@@ -55,6 +55,7 @@ def _run_until_progress(out: Path, progress_steps: int) -> subprocess.Popen[byte
 @pytest.mark.parametrize(
     ("signum", "status"),
     [(signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGINT, 130)],
+    ids=["SIGTERM", "SIGHUP", "SIGINT"],
 )
 def test_a_signal_keeps_the_log_up_to_its_time(
     tmp_path: Path, signum: signal.Signals, status: int
@@ -113,6 +114,7 @@ def _caught_signals(pid: int) -> int:
 @pytest.mark.parametrize(
     ("signum", "status"),
     [(signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGINT, 130)],
+    ids=["SIGTERM", "SIGHUP", "SIGINT"],
 )
 def test_a_signal_at_start_up_ends_in_one_line(
     tmp_path: Path, signum: signal.Signals, status: int
@@ -158,3 +160,35 @@ print(status, seen)
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=DEADLINE_S
     )
     assert done.stdout.strip().splitlines()[-1] == "0 [[True, True]]", done.stderr
+
+
+#: The tests that send SIGINT to a child, run by a pytest that ignores SIGINT.
+SIGINT_TESTS = (
+    "tests/test_signals.py::test_a_signal_keeps_the_log_up_to_its_time[SIGINT]",
+    "tests/test_signals.py::test_a_signal_at_start_up_ends_in_one_line[SIGINT]",
+    "tests/campaign/test_interrupt.py::"
+    "test_signal_writes_the_table_and_a_rerun_completes_every_run_once[SIGINT]",
+)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_the_sigint_tests_pass_when_pytest_ignores_sigint() -> None:
+    """``trap '' INT`` as a shell gives a background job; exec keeps the ignored signal."""
+    root = Path(__file__).resolve().parents[1]
+    shell = "trap '' INT; exec \"$@\""
+    check = "import signal; print(signal.getsignal(signal.SIGINT) == signal.SIG_IGN)"
+    python = [sys.executable, "-c", check]
+    ignored = subprocess.run(
+        ["sh", "-c", shell, "sh", *python], capture_output=True, text=True, timeout=60
+    )
+    assert ignored.stdout.strip() == "True"  # SIGINT ignored: as the pytest below starts
+    pytest_run = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *SIGINT_TESTS]
+    done = subprocess.run(
+        ["sh", "-c", shell, "sh", *pytest_run],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=840,
+    )
+    assert done.returncode == 0 and "3 passed" in done.stdout, done.stdout[-3000:]
