@@ -17,6 +17,7 @@ from ucontrol.campaign import (
     load_campaign,
     run_campaign,
 )
+from ucontrol.campaign.runner import CLUSTER_SETTINGS
 from ucontrol.campaign.table import check_formats, finished_runs
 from ucontrol.exceptions import OptionalDependencyError
 from ucontrol.scene import Scene, builtin_scene
@@ -61,7 +62,7 @@ def client():
     import dask
     from distributed import Client, LocalCluster
 
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+    with dask.config.set(CLUSTER_SETTINGS):  # as run_campaign's own local cluster
         cluster = LocalCluster(
             n_workers=2,
             threads_per_worker=1,
@@ -237,11 +238,40 @@ def test_killed_worker_run_is_retried_once_then_recorded(client, tmp_path):
     killed = table.loc["run-00001"]
     assert killed["status"] == "killed" and "KilledWorker" in killed["error"]
     assert not killed["success"]
-    # every other run ended: completed, or recorded killed if it shared the dying worker
+    # every other run completed: a worker holds only the run it executes
     for run_id in ("run-00000", "run-00002"):
-        assert table.loc[run_id, "status"] in ("ok", "killed")
+        assert table.loc[run_id, "status"] == "ok"
     assert set(finished_runs(tmp_path / "always")) == set(table.index)
     assert np.isnan(killed["wall_time_s"])
+
+
+@pytest.mark.timeout(300)  # a lost worker stalled the campaign: bounded, not timed
+def test_one_worker_killed_twice_takes_only_its_run(tmp_path):
+    """The run that kills its worker, twice, is recorded killed; the others all complete.
+
+    One worker, in the local cluster run_campaign starts itself.
+    """
+    body = """
+        [campaign]
+        scene = "ball.toml"
+        duration = 0.05
+
+        [metrics]
+        q0 = "kill_metrics:kill_flagged"
+
+        [grid]
+        "robot.q0.0" = [0.12, 0.13, 0.171, 0.15, 0.16, 0.17, 0.18, 0.19]
+        """
+    path = _campaign(tmp_path, body, "one_worker.toml", "kill_metrics")
+    outcome = run_campaign(load_campaign(path), tmp_path / "out", workers=1, progress=False)
+    assert (outcome.total, outcome.ran, outcome.failed) == (8, 8, 1)
+    assert not outcome.interrupted
+    table = load(tmp_path / "out").set_index("run_id")
+    assert table.loc["run-00002", "status"] == "killed"
+    assert "2 different workers" in table.loc["run-00002", "error"]
+    others = table.drop(index="run-00002")
+    assert len(others) == 7 and (others["status"] == "ok").all()
+    np.testing.assert_allclose(others["q0"], [0.12, 0.13, 0.15, 0.16, 0.17, 0.18, 0.19])
 
 
 def test_runs_on_an_existing_scheduler_by_address(client, tmp_path):

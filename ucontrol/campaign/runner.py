@@ -47,6 +47,14 @@ OK, ERROR, KILLED = "ok", "error", "killed"
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 #: Seconds allowed to connect to a scheduler given by address.
 CONNECT_TIMEOUT_S = 5.0
+#: Dask settings of the local cluster. A run whose worker dies is tried once more on a fresh
+#: worker, then recorded as killed; each worker holds only the run it executes (with dask's
+#: default saturation, 1.1, a single-threaded worker also holds the next run, and its death
+#: counted against both: a run that kills its worker twice took an innocent one with it).
+CLUSTER_SETTINGS = {
+    "distributed.scheduler.allowed-failures": 1,
+    "distributed.scheduler.worker-saturation": 1.0,
+}
 
 
 @dataclass(frozen=True)
@@ -312,8 +320,7 @@ def _client(client: Any, scheduler: str | None, workers: int | None, pending: in
     from distributed import Client, LocalCluster
 
     n = max(1, min(workers or os.cpu_count() or 1, pending))
-    # a run whose worker dies is tried once more on a fresh worker, then recorded as killed
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+    with dask.config.set(CLUSTER_SETTINGS):
         cluster = LocalCluster(
             n_workers=n,
             threads_per_worker=1,
