@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from ucontrol.cli import main
@@ -421,3 +422,34 @@ def test_silent_physics_is_made_loud() -> None:
     with pytest.raises(SimulationError, match=r"non-finite.*t = "):  # a force of 1e300 N
         simulate(_ball(), lambda *a: [1e300], duration=0.1)
     assert summary["max_penetration"] == pytest.approx(4.396, abs=1e-3)
+
+
+def test_closed_chains_that_fail_are_made_loud(tmp_path: Path) -> None:
+    from ucontrol.exceptions import (
+        BilateralResidualWarning,
+        EnergyGainWarning,
+        SolverIterationCapWarning,
+    )
+
+    four_bar = load_scene("four_bar")  # no actuator, no contact: only the steps add energy
+    with pytest.warns(EnergyGainWarning, match=r"rose by 15\.\d+ J .* without any impact"):
+        with pytest.warns(BilateralResidualWarning, match=r"'coupler_end=rocker_end\[0\]'"):
+            result = simulate(four_bar, dt=0.1)
+    energy, summary = result.log.energy, result.summary
+    rise = np.max(energy - np.minimum.accumulate(energy))  # [J] from its lowest point before
+    assert summary["energy_gain_without_impacts"] == pytest.approx(rise, rel=1e-12)
+    assert summary["energy_gain_bound"] == pytest.approx(1e-2 * (1.0 + np.abs(energy).max()))
+    residual = max(np.abs(four_bar.constraints.bilateral.residuals(q)).max() for q in result.log.q)
+    assert summary["max_bilateral_residual"] == residual > 1e-6
+    # the two-link arm stretched, its end pinned 1 m from the shoulder: a singular closure
+    urdf = (ROBOTS / "two_link.urdf").read_text().replace('upper="-0.0001"', 'upper="3.14"')
+    pin = '<link name="pin"/><joint name="pin_joint" type="fixed"><parent link="base"/>'
+    pin += '<child link="pin"/><origin xyz="1 0 0"/></joint></robot>'
+    (tmp_path / "arm.urdf").write_text(urdf.replace("</robot>", pin))
+    table = _set(_set(ARM, "robot.urdf", str(tmp_path / "arm.urdf")), "robot.q0", [0.0, 0.0])
+    del table["contacts"], table["stops"], table["surfaces"], table["controller"]
+    table["bilateral"] = [{"type": "point", "frame": "end_effector", "other_frame": "pin"}]
+    pinned = Scene.from_dict(table, base_dir=ROBOTS)
+    with pytest.warns(SolverIterationCapWarning, match=r"cap \(5000\) in 49 of 50 solves"):
+        log = simulate(pinned, duration=0.05).log
+    assert int(np.sum(log.solver_iterations == 5000)) == 49

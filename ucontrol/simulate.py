@@ -23,9 +23,13 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
+from ucontrol.analysis.energy_balance import step_work
+from ucontrol.analysis.impacts import impact_mask
 from ucontrol.analysis.summary import summarize
 from ucontrol.control.controller import ContactState, Controller, LoggingController
 from ucontrol.exceptions import (
+    BilateralResidualWarning,
+    EnergyGainWarning,
     InitialPenetrationError,
     InvalidParameterError,
     PenetrationWarning,
@@ -33,13 +37,16 @@ from ucontrol.exceptions import (
     PlasticRedoWarning,
     ShapeError,
     SimulationError,
+    SolverIterationCapWarning,
     UControlError,
 )
-from ucontrol.log import SOLVED, UNSOLVED, Log
+from ucontrol.log import NO_SOLVE, SOLVED, UNSOLVED, Log
 from ucontrol.output_files import OutputLock, check_output_dir, write_atomically
 from ucontrol.scene import Scene
+from ucontrol.scene.scene import BILATERAL_TOLERANCE
 
 if TYPE_CHECKING:
+    from ucontrol.contact.bilateral import BilateralSet
     from ucontrol.contact.constraint_set import ConstraintSet
     from ucontrol.plant import Integrator, PlantEvaluation, StepOutcome
 
@@ -49,6 +56,11 @@ PENETRATION_TOLERANCE = 1e-9
 PROGRESS_MIN_STEPS = 20_000
 #: With an output directory, the log is rewritten at least this often, in [s] of wall time.
 CHECKPOINT_PERIOD_S = 10.0
+#: Largest rise of the energy over steps without impact, net of the actuators' work, as a
+#: fraction of 1 J + the largest absolute energy of the run; beyond it a run warns
+#: (:class:`~ucontrol.exceptions.EnergyGainWarning`). The built-in scenes stay below 2e-3
+#: (``four_bar``, ``free_ball`` at their dt; docs/outputs.md).
+ENERGY_GAIN_BOUND = 1e-2
 
 
 @dataclass(frozen=True)
@@ -518,12 +530,73 @@ def _report_physics(scene: Scene, log: Log, summary: dict[str, Any]) -> None:
                 float(log.t[row]),
                 tolerance,
             ),
-            stacklevel=3,
+            stacklevel=4,
         )
     restitutions = scene.constraints.restitution
     plastic = summary.get("n_plastic_steps", 0)
     if plastic and restitutions.size and np.all(restitutions == 1.0):
-        warnings.warn(PlasticRedoWarning(plastic), stacklevel=3)
+        warnings.warn(PlasticRedoWarning(plastic), stacklevel=4)
+    _report_energy_gain(log, summary)
+    if scene.constraints.bilateral is not None:
+        _report_bilateral(scene.constraints.bilateral, log, summary)
+    if summary.get("integrator") == "moreau_jean":
+        _report_iteration_cap(scene.integrator.max_iter, log, summary)
+
+
+def _report_energy_gain(log: Log, summary: dict[str, Any]) -> None:
+    r"""The largest rise of the energy, net of the actuators' work, over steps without impact.
+
+    The gains :math:`E_{k+1} - E_k - W_k` of the steps without impact are accumulated and
+    the largest rise of that sum (after its lowest point before) is compared with
+    :data:`ENERGY_GAIN_BOUND` :math:`(1 + \max_k |E_k|)` [J].
+    """
+    steps = max(len(log) - 1, 0)
+    gain = np.diff(log.energy[: steps + 1]) - step_work(log)  # [J] per step
+    gain[impact_mask(log)[:steps].any(axis=1)] = 0.0
+    accumulated = np.concatenate(([0.0], np.cumsum(gain)))
+    low = np.minimum.accumulate(accumulated)
+    end = int(np.argmax(accumulated - low))
+    rise = float(accumulated[end] - low[end])
+    bound = ENERGY_GAIN_BOUND * (1.0 + float(np.max(np.abs(log.energy), initial=0.0)))
+    summary["energy_gain_without_impacts"] = rise
+    summary["energy_gain_bound"] = bound
+    if rise > bound:
+        start = int(np.flatnonzero(accumulated[: end + 1] == low[end])[-1])
+        warnings.warn(
+            EnergyGainWarning(rise, float(log.t[start]), float(log.t[end]), bound), stacklevel=5
+        )
+
+
+def _report_bilateral(bilateral: BilateralSet, log: Log, summary: dict[str, Any]) -> None:
+    """The largest residual :math:`|h(q)|` of the bilateral constraints over the samples."""
+    residuals = np.abs(np.array([bilateral.residuals(q) for q in log.q]))  # (N, rows)
+    beyond = residuals.max(axis=1, initial=0.0) > BILATERAL_TOLERANCE
+    summary["max_bilateral_residual"] = float(residuals.max(initial=0.0))
+    summary["n_bilateral_residuals_beyond_tolerance"] = int(beyond.sum())
+    if beyond.any():
+        row, column = np.unravel_index(int(np.argmax(residuals)), residuals.shape)
+        name = bilateral.names[column]
+        warnings.warn(
+            BilateralResidualWarning(
+                name, float(residuals[row, column]), float(log.t[row]), BILATERAL_TOLERANCE
+            ),
+            stacklevel=5,
+        )
+
+
+def _report_iteration_cap(cap: int, log: Log, summary: dict[str, Any]) -> None:
+    """Frictionless Moreau–Jean solves that reached ``[integrator] max_iter``."""
+    solves = log.solver_status != NO_SOLVE
+    frictionless = solves & (log.solver_outer_iterations == 0)
+    capped = np.flatnonzero(frictionless & (log.solver_iterations >= cap))
+    summary["n_solves_at_iteration_cap"] = int(capped.size)
+    if capped.size:
+        warnings.warn(
+            SolverIterationCapWarning(
+                int(capped.size), int(solves.sum()), cap, float(log.t[capped[0]])
+            ),
+            stacklevel=5,
+        )
 
 
 def _hold_steps(control_period: float, h: float) -> int:
