@@ -24,18 +24,28 @@ from ucontrol.log import Log
 
 #: Bound on each wait for the child, in [s] (a loaded machine imports slowly).
 DEADLINE_S = 120.0
+#: Each signal that ends a run, with the exit status it gives (128 + its number).
+EACH_SIGNAL = pytest.mark.parametrize(
+    ("signum", "status"),
+    [(signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGINT, 130)],
+    ids=["SIGTERM", "SIGHUP", "SIGINT"],
+)
 
 
-def _run_until_progress(out: Path, progress_steps: int) -> subprocess.Popen[bytes]:
-    """`ucontrol run ball` for 1000 s simulated, once its progress bar passed N steps."""
-    command = ["run", "ball", "--duration", "1000", "--out", str(out), "--dt", "1e-3"]
+def _start(arguments: list[str], progress: str = "--progress") -> subprocess.Popen[bytes]:
+    """``python -m ucontrol.cli ARGUMENTS`` in a session of its own, its output piped."""
     with sigint_default():  # Ctrl-C reaches it when pytest ignores SIGINT too
-        child = subprocess.Popen(
-            [sys.executable, "-m", "ucontrol.cli", *command, "--progress"],
+        return subprocess.Popen(
+            [sys.executable, "-m", "ucontrol.cli", *arguments, progress],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             start_new_session=True,
         )
+
+
+def _run_until_progress(out: Path, progress_steps: int) -> subprocess.Popen[bytes]:
+    """`ucontrol run ball` for 1000 s simulated, once its progress bar passed N steps."""
+    child = _start(["run", "ball", "--duration", "1000", "--out", str(out), "--dt", "1e-3"])
     assert child.stderr is not None
     seen, end = b"", time.monotonic() + DEADLINE_S
     while time.monotonic() < end:  # tqdm reports every 1000 steps: "2.00k/1.00M"
@@ -52,11 +62,7 @@ def _run_until_progress(out: Path, progress_steps: int) -> subprocess.Popen[byte
     pytest.fail(f"the run did not start within {DEADLINE_S} s: {seen[-500:]!r}")
 
 
-@pytest.mark.parametrize(
-    ("signum", "status"),
-    [(signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGINT, 130)],
-    ids=["SIGTERM", "SIGHUP", "SIGINT"],
-)
+@EACH_SIGNAL
 def test_a_signal_keeps_the_log_up_to_its_time(
     tmp_path: Path, signum: signal.Signals, status: int
 ) -> None:
@@ -111,23 +117,13 @@ def _caught_signals(pid: int) -> int:
 
 
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs Linux /proc")
-@pytest.mark.parametrize(
-    ("signum", "status"),
-    [(signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGINT, 130)],
-    ids=["SIGTERM", "SIGHUP", "SIGINT"],
-)
+@EACH_SIGNAL
 def test_a_signal_at_start_up_ends_in_one_line(
     tmp_path: Path, signum: signal.Signals, status: int
 ) -> None:
     """Sent as soon as the command handles SIGTERM, i.e. while it still imports."""
     command = ["run", "ball", "--duration", "1000", "--out", str(tmp_path / "out")]
-    with sigint_default():
-        child = subprocess.Popen(
-            [sys.executable, "-m", "ucontrol.cli", *command, "--no-progress"],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            start_new_session=True,
-        )
+    child = _start(command, "--no-progress")
     try:
         end = time.monotonic() + DEADLINE_S
         while not _caught_signals(child.pid) >> (signal.SIGTERM - 1) & 1:

@@ -206,20 +206,23 @@ def test_parquet_without_pyarrow_is_a_typed_error():
         check_formats(("csv", "parquet"))
 
 
+#: Runs whose metric kills the worker at q0 = 0.137 (once) and 0.171 (every time).
+KILL_CAMPAIGN = """
+    [campaign]
+    scene = "ball.toml"
+    duration = 0.05
+
+    [metrics]
+    q0 = "kill_metrics:kill_flagged"
+
+    [grid]
+    "robot.q0.0" = [VALUES]
+    """
+
+
 def test_killed_worker_run_is_retried_once_then_recorded(client, tmp_path):
-    body = """
-        [campaign]
-        scene = "ball.toml"
-        duration = 0.05
-
-        [metrics]
-        q0 = "kill_metrics:kill_flagged"
-
-        [grid]
-        "robot.q0.0" = [VALUES]
-        """
     once = _campaign(
-        tmp_path, body.replace("VALUES", "0.12, 0.137, 0.15"), "once.toml", "kill_metrics"
+        tmp_path, KILL_CAMPAIGN.replace("VALUES", "0.12, 0.137, 0.15"), "once.toml", "kill_metrics"
     )
     outcome = run_campaign(load_campaign(once), tmp_path / "once", client=client)
     assert (tmp_path / "killed-once").exists()  # the worker did die once
@@ -230,7 +233,10 @@ def test_killed_worker_run_is_retried_once_then_recorded(client, tmp_path):
     assert outcome.total == 3
 
     always = _campaign(
-        tmp_path, body.replace("VALUES", "0.12, 0.171, 0.15"), "always.toml", "kill_metrics"
+        tmp_path,
+        KILL_CAMPAIGN.replace("VALUES", "0.12, 0.171, 0.15"),
+        "always.toml",
+        "kill_metrics",
     )
     run_campaign(load_campaign(always), tmp_path / "always", client=client)
     table = load(tmp_path / "always").set_index("run_id")
@@ -251,18 +257,10 @@ def test_one_worker_killed_twice_takes_only_its_run(tmp_path):
 
     One worker, in the local cluster run_campaign starts itself.
     """
-    body = """
-        [campaign]
-        scene = "ball.toml"
-        duration = 0.05
-
-        [metrics]
-        q0 = "kill_metrics:kill_flagged"
-
-        [grid]
-        "robot.q0.0" = [0.12, 0.13, 0.171, 0.15, 0.16, 0.17, 0.18, 0.19]
-        """
-    path = _campaign(tmp_path, body, "one_worker.toml", "kill_metrics")
+    values = "0.12, 0.13, 0.171, 0.15, 0.16, 0.17, 0.18, 0.19"
+    path = _campaign(
+        tmp_path, KILL_CAMPAIGN.replace("VALUES", values), "one_worker.toml", "kill_metrics"
+    )
     outcome = run_campaign(load_campaign(path), tmp_path / "out", workers=1, progress=False)
     assert (outcome.total, outcome.ran, outcome.failed) == (8, 8, 1)
     assert not outcome.interrupted
