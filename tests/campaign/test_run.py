@@ -272,6 +272,28 @@ def test_one_worker_killed_twice_takes_only_its_run(tmp_path):
     np.testing.assert_allclose(others["q0"], [0.12, 0.13, 0.15, 0.16, 0.17, 0.18, 0.19])
 
 
+@pytest.mark.timeout(120)  # it waited for a worker forever
+def test_a_campaign_without_workers_stops_after_the_timeout(tmp_path):
+    """Every worker gone (a scheduler whose workers died): interrupted with the reason."""
+    from distributed import Client, LocalCluster
+
+    path = _campaign(tmp_path, KILL_CAMPAIGN.replace("VALUES", "0.12, 0.13"), "none.toml")
+    cluster = LocalCluster(n_workers=0, processes=True, dashboard_address=":0")
+    try:
+        with Client(cluster) as no_workers:
+            outcome = run_campaign(
+                load_campaign(path, check=False),
+                tmp_path / "out",
+                client=no_workers,
+                worker_timeout=1.0,
+            )
+    finally:
+        cluster.close()
+    assert outcome.interrupted and (outcome.total, outcome.ran, outcome.signum) == (2, 0, None)
+    assert outcome.reason == "no Dask worker connected for 1 s with 2 run(s) pending"
+    assert load(tmp_path / "out").empty  # the table is written, empty: resume runs both
+
+
 def test_runs_on_an_existing_scheduler_by_address(client, tmp_path):
     """``--scheduler ADDRESS``: a client of its own connects, runs, and brings records back."""
     path = _campaign(
