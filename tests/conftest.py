@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib.util
+import signal
 import sys
 import textwrap
+from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -40,6 +43,25 @@ def load_experiment(name: str) -> ModuleType:
     sys.modules[module_name] = module  # dataclasses look their module up while being created
     spec.loader.exec_module(module)
     return module
+
+
+@contextlib.contextmanager
+def sigint_default() -> Iterator[None]:
+    """SIGINT handled (not ignored) in this process while a child is started.
+
+    A child inherits an ignored SIGINT through exec (pytest started as a background job); a
+    handled one is reset to its default, where Python installs its KeyboardInterrupt: then
+    Ctrl-C reaches the child, as in a terminal.
+    """
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is not signal.SIG_IGN:
+        yield
+        return
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def ball_scene(restitution: float, **changes: object) -> Scene:

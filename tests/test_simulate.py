@@ -98,7 +98,8 @@ def test_cli_reports_an_interrupt_in_one_line(monkeypatch, capsys) -> None:
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "simulate", interrupted)
+    # the command imports simulate when it runs (its signals are handled first)
+    monkeypatch.setattr(sys.modules["ucontrol.simulate"], "simulate", interrupted)
     assert cli.main(["run", str(ROBOTS / "ball.toml"), "--out", "unused"]) == 130
     assert capsys.readouterr().err.strip() == (
         "ucontrol: interrupted by SIGINT; nothing was written"

@@ -115,6 +115,19 @@ def test_energy_gain_names_the_impact_and_the_gain(ball, tmp_path):
     assert "'ball/ground'" in str(error)
 
 
+def test_a_nan_in_the_log_fails_instead_of_passing(ball, tmp_path):
+    log = _copy(ball.log, tmp_path)
+    k = int(np.flatnonzero(log.impulse[:-1, 0] > 0.0)[0])  # the first impact step
+    log._arrays["gap"][k + 1, 0] = np.nan
+    with pytest.raises(RunAssertionError, match="penetrates nan") as caught:
+        assert_penetration_below(log, 1.0)
+    assert caught.value.time == log.t[k + 1]
+    log._arrays["energy"][k + 1] = np.nan
+    with pytest.raises(RunAssertionError, match="adds nan J") as caught:
+        assert_no_energy_gain(log, tolerance=1.0)
+    assert caught.value.time == log.t[k]
+
+
 def test_lyapunov_rise_names_both_cycles(arm, tmp_path):
     log = _copy(arm.log, tmp_path)
     rows = _tau0_rows(log)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from typing import Any
 
@@ -50,6 +51,14 @@ def as_positive(name: str, value: Any) -> float:
     number = as_float(name, value)
     if not number > 0.0:
         raise InvalidParameterError(name, value, "> 0")
+    return number
+
+
+def as_non_negative(name: str, value: Any) -> float:
+    """Return ``value`` as a finite float >= 0, or raise :class:`InvalidParameterError`."""
+    number = as_float(name, value)
+    if number < 0.0:
+        raise InvalidParameterError(name, value, ">= 0")
     return number
 
 
@@ -149,3 +158,24 @@ def table_type(section: str, table: Any, keys: Mapping[str, set[str]], what: str
         raise NotFoundError(what, str(kind), list(keys))
     check_keys(section, table, keys[kind])
     return str(kind)
+
+
+def toml_error_message(error: ValueError, text: str) -> str:
+    """The message of a ``tomllib.TOMLDecodeError`` with the line it points at.
+
+    A key or table given twice is named (tomllib says only "Cannot overwrite a value").
+
+    Args:
+        error: The error ``tomllib.loads(text)`` raised.
+        text: The TOML text.
+    """
+    found = re.search(r"at line (\d+), column \d+", str(error))
+    lines = text.splitlines()
+    if found is None or not 1 <= int(found.group(1)) <= len(lines):
+        return str(error)
+    line = lines[int(found.group(1)) - 1].strip()
+    message = f"{error}: {line!r}"
+    if str(error).startswith("Cannot overwrite a value"):
+        name = line.strip("[]") if line.startswith("[") else line.partition("=")[0].strip()
+        message += f" (the key {name!r} is given twice)"
+    return message

@@ -22,16 +22,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ucontrol import __version__, convergence
-from ucontrol.bench import bench_closed_loop, bench_scene, closed_loop_markdown
-from ucontrol.campaign.command import add_sweep_parser, is_campaign, plot_campaign, run_sweep
-from ucontrol.campaign.overrides import scene_with_overrides
-from ucontrol.design.command import add_design_parser, run_design
+from ucontrol import __version__
 from ucontrol.exceptions import OptionalDependencyError, UControlError
 from ucontrol.output_files import check_output_dir, check_output_file
-from ucontrol.saved_run import SavedRun
-from ucontrol.scene import INTEGRATORS, Scene, builtin_scenes, load_scene
-from ucontrol.simulate import simulate
 
 #: Scene benchmarked by ``ucontrol bench`` without a scene argument: four redundant feet on a
 #: table, which Pinocchio's ADMM and PGS solve too.
@@ -41,11 +34,18 @@ _SCENES_WIDTH = 100
 _SCENE_HELP = "scene TOML file or built-in scene name (default: the built-in default scene)"
 
 if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
+    from ucontrol.scene import Scene
     from ucontrol.viz.live_viewer import LiveViewer
     from ucontrol.viz.meshcat_server import MeshcatServer
 
 
 def _parser() -> argparse.ArgumentParser:
+    # Pinocchio, scipy and dask come with these: imported once the signals are handled (main)
+    from ucontrol import convergence
+    from ucontrol.campaign.command import add_sweep_parser
+    from ucontrol.design.command import add_design_parser
+    from ucontrol.scene import INTEGRATORS
+
     parser = argparse.ArgumentParser(
         prog="ucontrol", description="Robots under unilateral constraints: simulate and control."
     )
@@ -236,6 +236,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def _scenes(args: argparse.Namespace) -> int:
     """Print each scene's name and its description's first sentence, wrapped, never cut."""
+    from ucontrol.scene import builtin_scenes
+
     for name, summary in builtin_scenes().items():
         print(
             textwrap.fill(
@@ -250,6 +252,10 @@ def _scenes(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from ucontrol.campaign.overrides import scene_with_overrides
+    from ucontrol.scene import load_scene
+    from ucontrol.simulate import simulate
+
     scene = scene_with_overrides(args.scene, args.set) if args.set else load_scene(args.scene)
     if args.integrator is not None:
         settings = dataclasses.replace(scene.integrator, name=args.integrator)
@@ -297,6 +303,8 @@ def _view(args: argparse.Namespace) -> int:
         return _export(args)
     if args.html is not None:
         check_output_file("--html", args.html)
+    from ucontrol.saved_run import SavedRun
+
     run = SavedRun.load(args.directory, args.scene)
     scene = run.require_scene()
     from ucontrol.viz.meshcat_server import MeshcatServer
@@ -338,6 +346,9 @@ def _export(args: argparse.Namespace) -> int:
 def _plot(args: argparse.Namespace) -> int:
     out = args.out if args.out is not None else args.directory / "figures"
     check_output_dir("--out", out)
+    from ucontrol.campaign.command import is_campaign, plot_campaign
+    from ucontrol.saved_run import SavedRun
+
     if is_campaign(args.directory):  # a campaign's figures: success rates, distributions
         for path in plot_campaign(args.directory, out):
             print(f"wrote {path}")
@@ -370,6 +381,9 @@ def _wait_for_interrupt() -> None:
 
 
 def _convergence(args: argparse.Namespace) -> int:
+    from ucontrol import convergence
+    from ucontrol.scene import load_scene
+
     scene = load_scene(args.scene)
     out = args.out if args.out is not None else Path("runs") / scene.name / "convergence"
     check_output_dir("--out", out)
@@ -390,6 +404,9 @@ def _convergence(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
+    from ucontrol.bench import bench_closed_loop, bench_scene, closed_loop_markdown
+    from ucontrol.scene import load_scene
+
     if args.scene is None:
         print(f"benchmarking the built-in scene {BENCH_SCENE} (it has the Pinocchio comparison)")
     if args.out is not None:
@@ -421,16 +438,18 @@ class _Signalled(KeyboardInterrupt):
         self.signum = signum
 
 
-def _interrupt_on_signals() -> dict[int, Any]:
-    """Make SIGTERM and SIGHUP raise :class:`_Signalled`; returns the previous handlers."""
+def _interrupt_on_signals(previous: dict[int, Any]) -> None:
+    """Make SIGTERM and SIGHUP raise :class:`_Signalled`, the handlers replaced in ``previous``.
+
+    Filled as it goes, ``previous`` holds what to restore also when a signal lands in between.
+    """
 
     def interrupt(signum: int, frame: Any) -> None:
         raise _Signalled(signum)
 
-    previous: dict[int, Any] = {}
     for signum in (signal.SIGTERM, signal.SIGHUP):
-        previous[signum] = signal.signal(signum, interrupt)
-    return previous
+        previous[signum] = signal.getsignal(signum)
+        signal.signal(signum, interrupt)
 
 
 def _restore_signals(previous: dict[int, Any]) -> None:
@@ -438,11 +457,28 @@ def _restore_signals(previous: dict[int, Any]) -> None:
         signal.signal(signum, handler)
 
 
+def _sweep(args: argparse.Namespace) -> int:
+    from ucontrol.campaign.command import run_sweep
+
+    return run_sweep(args)
+
+
+def _design(args: argparse.Namespace) -> int:
+    from ucontrol.design.command import run_design
+
+    return run_design(args)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``ucontrol`` command; returns the exit status."""
-    args = _parser().parse_args(argv)
-    previous = _interrupt_on_signals()
+    """Entry point of the ``ucontrol`` command; returns the exit status.
+
+    SIGTERM and SIGHUP are handled like Ctrl-C from the start, before the modules that take
+    seconds to import: a signal then ends the command in one line, never a traceback.
+    """
+    previous: dict[int, Any] = {}
     try:
+        _interrupt_on_signals(previous)
+        args = _parser().parse_args(argv)
         commands = {
             "run": _run,
             "convergence": _convergence,
@@ -450,8 +486,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "view": _view,
             "plot": _plot,
             "scenes": _scenes,
-            "sweep": run_sweep,
-            "design": run_design,
+            "sweep": _sweep,
+            "design": _design,
         }
         return commands[args.command](args)
     except UControlError as error:

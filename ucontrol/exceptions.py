@@ -529,6 +529,78 @@ class PlasticRedoWarning(PhysicsWarning):
         )
 
 
+class EnergyGainWarning(PhysicsWarning):
+    """The energy rose, net of the actuators' work, over steps without any impact.
+
+    Only numerical error adds energy there (a step too large for the dynamics, a projection
+    onto closed chains): the figure is the largest rise of the accumulated gain.
+
+    Attributes:
+        gain: The rise in [J].
+        start: When it began, in [s].
+        end: When it peaked, in [s].
+        bound: The bound it exceeds, in [J].
+    """
+
+    def __init__(self, gain: float, start: float, end: float, bound: float) -> None:
+        self.gain = gain
+        self.start = start
+        self.end = end
+        self.bound = bound
+        super().__init__(
+            f"the energy rose by {gain:.4g} J net of the actuators' work from t = {start:.6g} s "
+            f"to t = {end:.6g} s without any impact, beyond the bound {bound:.4g} J (a smaller "
+            "dt reduces it)"
+        )
+
+
+class BilateralResidualWarning(PhysicsWarning):
+    """A bilateral constraint h(q) = 0 was left unsolved beyond the tolerance.
+
+    Attributes:
+        constraint: The bilateral constraint's name.
+        residual: The largest :math:`|h(q)|` in [m] (or [rad]).
+        time: When it happened, in [s].
+        tolerance: The tolerance in [m] (or [rad]).
+    """
+
+    def __init__(self, constraint: str, residual: float, time: float, tolerance: float) -> None:
+        self.constraint = constraint
+        self.residual = residual
+        self.time = time
+        self.tolerance = tolerance
+        super().__init__(
+            f"bilateral constraint {constraint!r} left unsolved by {residual:.4g} at "
+            f"t = {time:.6g} s, beyond the tolerance {tolerance:.4g} (a singular closed chain, "
+            "or a step too large for it)"
+        )
+
+
+class SolverIterationCapWarning(PhysicsWarning):
+    """The contact solver reached its iteration cap in some steps (solved or not).
+
+    A frictionless problem that needs the cap is degenerate: redundant or singular rows, e.g.
+    a closed chain at a singular configuration; each such step costs the cap's iterations.
+
+    Attributes:
+        steps: Steps whose solve reached the cap.
+        solves: Steps with a contact solve.
+        cap: The cap (``[integrator] max_iter``).
+        time: The first such step's time in [s].
+    """
+
+    def __init__(self, steps: int, solves: int, cap: int, time: float) -> None:
+        self.steps = steps
+        self.solves = solves
+        self.cap = cap
+        self.time = time
+        super().__init__(
+            f"the contact solver reached its iteration cap ({cap}) in {steps} of {solves} "
+            f"solves, the first at t = {time:.6g} s: degenerate rows (redundant constraints, a "
+            "closed chain at a singular configuration) that each cost the whole cap"
+        )
+
+
 class VideoError(UControlError):
     """A video of a run could not be written (ffmpeg missing or failing).
 

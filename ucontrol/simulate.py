@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import signal
 import sys
 import time
 import types
@@ -22,22 +23,30 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
+from ucontrol.analysis.energy_balance import step_work
+from ucontrol.analysis.impacts import impact_mask
 from ucontrol.analysis.summary import summarize
 from ucontrol.control.controller import ContactState, Controller, LoggingController
 from ucontrol.exceptions import (
+    BilateralResidualWarning,
+    EnergyGainWarning,
     InitialPenetrationError,
     InvalidParameterError,
     PenetrationWarning,
+    PhysicsWarning,
     PlasticRedoWarning,
     ShapeError,
     SimulationError,
+    SolverIterationCapWarning,
     UControlError,
 )
-from ucontrol.log import SOLVED, UNSOLVED, Log
+from ucontrol.log import NO_SOLVE, SOLVED, UNSOLVED, Log
 from ucontrol.output_files import OutputLock, check_output_dir, write_atomically
 from ucontrol.scene import Scene
+from ucontrol.scene.scene import BILATERAL_TOLERANCE
 
 if TYPE_CHECKING:
+    from ucontrol.contact.bilateral import BilateralSet
     from ucontrol.contact.constraint_set import ConstraintSet
     from ucontrol.plant import Integrator, PlantEvaluation, StepOutcome
 
@@ -47,6 +56,11 @@ PENETRATION_TOLERANCE = 1e-9
 PROGRESS_MIN_STEPS = 20_000
 #: With an output directory, the log is rewritten at least this often, in [s] of wall time.
 CHECKPOINT_PERIOD_S = 10.0
+#: Largest rise of the energy over steps without impact, net of the actuators' work, as a
+#: fraction of 1 J + the largest absolute energy of the run; beyond it a run warns
+#: (:class:`~ucontrol.exceptions.EnergyGainWarning`). The built-in scenes stay below 2e-3
+#: (``four_bar``, ``free_ball`` at their dt; docs/outputs.md).
+ENERGY_GAIN_BOUND = 1e-2
 
 
 @dataclass(frozen=True)
@@ -110,6 +124,8 @@ def simulate(
     controller = scene.build_controller() if controller is None else controller
     _check_initial_penetration(integrator.constraints, scene.q0)
     n_steps = _step_count(scene, duration, h)
+    if scene.sensors is not None:
+        scene.sensors.check_delay(-(-n_steps // hold))  # control periods of the run
     loop = _ClosedLoop(scene, integrator, controller, n_steps + 1, hold, observer)
     log = loop.log
     lock = None if out_dir is None else OutputLock(out_dir)
@@ -132,20 +148,21 @@ def simulate(
         loop.finish()
         if bar is not None:
             bar.update(n_steps - bar.n)
-        wall_time = time.perf_counter() - start
-        summary = summarize(log, wall_time_s=wall_time, theta=integrator.theta)
-        summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
-        summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
-        _report_physics(scene, log, summary)
+        summary = _run_summary(scene, loop, time.perf_counter() - start, interrupted=None)
         if out_dir is not None:
             log.save(out_dir / "log.npz")
-            text = (json.dumps(summary, indent=2) + "\n").encode()
-            write_atomically(out_dir / "summary.json", lambda stream: _write(stream, text))
+            _write_summary(out_dir, summary)
     except KeyboardInterrupt as interrupt:  # Ctrl-C (or a signal): keep what ran, then stop
         loop.close_row()
         interrupt.time = float(log.t[len(log) - 1]) if len(log) else 0.0  # type: ignore[attr-defined]
         if out_dir is not None:
             interrupt.log_path = str(log.save(out_dir / "log.npz"))  # type: ignore[attr-defined]
+            signum = int(getattr(interrupt, "signum", signal.SIGINT))
+            interrupted = signal.Signals(signum).name
+            with warnings.catch_warnings():  # the one line of the interruption says it all
+                warnings.simplefilter("ignore", PhysicsWarning)
+                summary = _run_summary(scene, loop, time.perf_counter() - start, interrupted)
+            _write_summary(out_dir, summary)
         raise
     except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
         loop.close_row()  # the state at t_k is stored, its step is not: close the row
@@ -362,6 +379,33 @@ class _ClosedLoop:
             self.observer(self.log)
 
 
+def _run_summary(
+    scene: Scene, loop: _ClosedLoop, wall_time: float, interrupted: str | None
+) -> dict[str, Any]:
+    """The summary of the rows of ``loop.log``, ``interrupted`` by that signal or None.
+
+    Args:
+        scene: The scene run.
+        loop: The closed loop, its last row closed.
+        wall_time: Wall time of the loop in [s].
+        interrupted: The signal's name (``"SIGINT"`` for Ctrl-C) for a run stopped early,
+            None for a run to its end.
+    """
+    log = loop.log
+    summary = summarize(log, wall_time_s=wall_time, theta=loop.integrator.theta)
+    summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
+    summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
+    summary["interrupted"] = interrupted is not None
+    summary["interrupted_by"] = interrupted
+    _report_physics(scene, log, summary)
+    return summary
+
+
+def _write_summary(out_dir: Path, summary: dict[str, Any]) -> None:
+    text = (json.dumps(summary, indent=2) + "\n").encode()
+    write_atomically(out_dir / "summary.json", lambda stream: _write(stream, text))
+
+
 def _write(stream: IO[bytes], data: bytes) -> None:
     stream.write(data)
 
@@ -429,12 +473,73 @@ def _report_physics(scene: Scene, log: Log, summary: dict[str, Any]) -> None:
                 float(log.t[row]),
                 tolerance,
             ),
-            stacklevel=3,
+            stacklevel=4,
         )
     restitutions = scene.constraints.restitution
     plastic = summary.get("n_plastic_steps", 0)
     if plastic and restitutions.size and np.all(restitutions == 1.0):
-        warnings.warn(PlasticRedoWarning(plastic), stacklevel=3)
+        warnings.warn(PlasticRedoWarning(plastic), stacklevel=4)
+    _report_energy_gain(log, summary)
+    if scene.constraints.bilateral is not None:
+        _report_bilateral(scene.constraints.bilateral, log, summary)
+    if summary.get("integrator") == "moreau_jean":
+        _report_iteration_cap(scene.integrator.max_iter, log, summary)
+
+
+def _report_energy_gain(log: Log, summary: dict[str, Any]) -> None:
+    r"""The largest rise of the energy, net of the actuators' work, over steps without impact.
+
+    The gains :math:`E_{k+1} - E_k - W_k` of the steps without impact are accumulated and
+    the largest rise of that sum (after its lowest point before) is compared with
+    :data:`ENERGY_GAIN_BOUND` :math:`(1 + \max_k |E_k|)` [J].
+    """
+    steps = max(len(log) - 1, 0)
+    gain = np.diff(log.energy[: steps + 1]) - step_work(log)  # [J] per step
+    gain[impact_mask(log)[:steps].any(axis=1)] = 0.0
+    accumulated = np.concatenate(([0.0], np.cumsum(gain)))
+    low = np.minimum.accumulate(accumulated)
+    end = int(np.argmax(accumulated - low))
+    rise = float(accumulated[end] - low[end])
+    bound = ENERGY_GAIN_BOUND * (1.0 + float(np.max(np.abs(log.energy), initial=0.0)))
+    summary["energy_gain_without_impacts"] = rise
+    summary["energy_gain_bound"] = bound
+    if rise > bound:
+        start = int(np.flatnonzero(accumulated[: end + 1] == low[end])[-1])
+        warnings.warn(
+            EnergyGainWarning(rise, float(log.t[start]), float(log.t[end]), bound), stacklevel=5
+        )
+
+
+def _report_bilateral(bilateral: BilateralSet, log: Log, summary: dict[str, Any]) -> None:
+    """The largest residual :math:`|h(q)|` of the bilateral constraints over the samples."""
+    residuals = np.abs(np.array([bilateral.residuals(q) for q in log.q]))  # (N, rows)
+    beyond = residuals.max(axis=1, initial=0.0) > BILATERAL_TOLERANCE
+    summary["max_bilateral_residual"] = float(residuals.max(initial=0.0))
+    summary["n_bilateral_residuals_beyond_tolerance"] = int(beyond.sum())
+    if beyond.any():
+        row, column = np.unravel_index(int(np.argmax(residuals)), residuals.shape)
+        name = bilateral.names[column]
+        warnings.warn(
+            BilateralResidualWarning(
+                name, float(residuals[row, column]), float(log.t[row]), BILATERAL_TOLERANCE
+            ),
+            stacklevel=5,
+        )
+
+
+def _report_iteration_cap(cap: int, log: Log, summary: dict[str, Any]) -> None:
+    """Frictionless Moreau–Jean solves that reached ``[integrator] max_iter``."""
+    solves = log.solver_status != NO_SOLVE
+    frictionless = solves & (log.solver_outer_iterations == 0)
+    capped = np.flatnonzero(frictionless & (log.solver_iterations >= cap))
+    summary["n_solves_at_iteration_cap"] = int(capped.size)
+    if capped.size:
+        warnings.warn(
+            SolverIterationCapWarning(
+                int(capped.size), int(solves.sum()), cap, float(log.t[capped[0]])
+            ),
+            stacklevel=5,
+        )
 
 
 def _hold_steps(control_period: float, h: float) -> int:

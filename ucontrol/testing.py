@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ucontrol._validation import as_int, as_non_negative
 from ucontrol.analysis.cycles import CYCLE_FIELDS, cycle_events
 from ucontrol.analysis.energy_balance import step_work
 from ucontrol.analysis.impacts import impact_mask
@@ -77,7 +78,9 @@ def assert_cycles_complete(run: Any, *, min_cycles: int = 1) -> None:
     Raises:
         RunAssertionError: Naming the first incomplete cycle, its :math:`\tau_0`, the contact
             and the missing event; or the number of cycles found.
+        InvalidParameterError: ``min_cycles`` is not a whole number >= 0.
     """
+    min_cycles = as_int("min_cycles", min_cycles, low=0)
     log = _phase_log(run, "assert_cycles_complete")
     cycles = cycle_events(log)
     if len(cycles) < min_cycles:
@@ -122,7 +125,9 @@ def assert_force_tracks(run: Any, *, within: float) -> None:
     Raises:
         RunAssertionError: Naming the cycle, the contact, the middle of the window in [s] and
             the error.
+        InvalidParameterError: ``within`` is not a finite number >= 0.
     """
+    within = as_non_negative("within", within)
     log = _phase_log(run, "assert_force_tracks")
     contacts = log.metadata.get("controller_contacts", [])
     events = cycle_events(log)
@@ -155,7 +160,9 @@ def assert_no_energy_gain(run: Any, *, tolerance: float = 1e-6) -> None:
     Raises:
         RunAssertionError: Naming the time of the impact, the constraint, its cycle (phase
             machines) and the gain in [J].
+        InvalidParameterError: ``tolerance`` is not a finite number >= 0.
     """
+    tolerance = as_non_negative("tolerance", tolerance)
     log = _log(run)
     steps = max(len(log) - 1, 0)
     impacts = impact_mask(log)[:steps]
@@ -163,8 +170,8 @@ def assert_no_energy_gain(run: Any, *, tolerance: float = 1e-6) -> None:
     if rows.size == 0:
         return
     gain = log.energy[rows + 1] - log.energy[rows] - step_work(log)[rows]  # [J]
-    worst = int(np.argmax(gain))
-    if gain[worst] > tolerance:
+    worst = int(np.argmax(gain))  # the first NaN, if any: a NaN gain fails
+    if not gain[worst] <= tolerance:
         k = int(rows[worst])
         constraint = log.constraint_names[int(np.flatnonzero(impacts[k])[0])]
         cycle = _cycle_of(log, k)
@@ -195,7 +202,11 @@ def assert_lyapunov_decreases(
 
     Raises:
         RunAssertionError: Naming the cycle, :math:`\tau_0^{k+1}` and both values of V.
+        InvalidParameterError: ``floor`` or ``omega_rise`` is not a finite number >= 0.
     """
+    floor = as_non_negative("floor", floor)
+    if omega_rise is not None:
+        omega_rise = as_non_negative("omega_rise", omega_rise)
     log = _phase_log(run, "assert_lyapunov_decreases")
     cycles = weak_stability(log).cycles
     for before, after in itertools.pairwise(cycles):
@@ -226,17 +237,23 @@ def assert_lyapunov_decreases(
 def assert_penetration_below(run: Any, limit: float) -> None:
     """Every gap stays above ``-limit`` (penetration below ``limit``, in [m] or [rad]).
 
+    Args:
+        run: A SimulationResult or Log.
+        limit: Deepest penetration accepted, >= 0, in [m] (contacts) or [rad] (stops).
+
     Raises:
         RunAssertionError: Naming the constraint, the time, the cycle (phase machines) and
             the deepest penetration.
+        InvalidParameterError: ``limit`` is not a finite number >= 0.
     """
+    limit = as_non_negative("limit", limit)
     log = _log(run)
     gap = log.gap
     if gap.size == 0:
         return
-    k, j = np.unravel_index(int(np.argmin(gap)), gap.shape)
+    k, j = np.unravel_index(int(np.argmin(gap)), gap.shape)  # the first NaN, if any
     depth = float(-gap[k, j])
-    if depth >= limit:
+    if not depth < limit:
         cycle = _cycle_of(log, int(k))
         where = "" if cycle is None else f"cycle {cycle}, "
         raise RunAssertionError(

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import sigint_default
 
 from ucontrol.campaign import load
 
@@ -34,13 +35,14 @@ TIMEOUT_S = 120.0
 def _start(path: Path, out: Path) -> subprocess.Popen[str]:
     """``python -m ucontrol.campaign`` in its own process group (one local worker)."""
     command = [sys.executable, "-m", "ucontrol.campaign", str(path), "--out", str(out)]
-    return subprocess.Popen(
-        [*command, "--workers", "1", "--no-progress"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        start_new_session=True,
-    )
+    with sigint_default():  # Ctrl-C reaches it when pytest ignores SIGINT too
+        return subprocess.Popen(
+            [*command, "--workers", "1", "--no-progress"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            start_new_session=True,
+        )
 
 
 def _finish(process: subprocess.Popen[str]) -> tuple[int, str]:

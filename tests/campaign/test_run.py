@@ -17,6 +17,7 @@ from ucontrol.campaign import (
     load_campaign,
     run_campaign,
 )
+from ucontrol.campaign.runner import CLUSTER_SETTINGS
 from ucontrol.campaign.table import check_formats, finished_runs
 from ucontrol.exceptions import OptionalDependencyError
 from ucontrol.scene import Scene, builtin_scene
@@ -61,7 +62,7 @@ def client():
     import dask
     from distributed import Client, LocalCluster
 
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+    with dask.config.set(CLUSTER_SETTINGS):  # as run_campaign's own local cluster
         cluster = LocalCluster(
             n_workers=2,
             threads_per_worker=1,
@@ -205,21 +206,24 @@ def test_parquet_without_pyarrow_is_a_typed_error():
         check_formats(("csv", "parquet"))
 
 
+#: Runs whose metric kills the worker at q0 = 0.137 (once) and 0.171 (every time).
+KILL_CAMPAIGN = """
+    [campaign]
+    scene = "ball.toml"
+    duration = 0.05
+
+    [metrics]
+    q0 = "kill_metrics:kill_flagged"
+
+    [grid]
+    "robot.q0.0" = [VALUES]
+    """
+
+
 @pytest.mark.slow
 def test_killed_worker_run_is_retried_once_then_recorded(client, tmp_path):
-    body = """
-        [campaign]
-        scene = "ball.toml"
-        duration = 0.05
-
-        [metrics]
-        q0 = "kill_metrics:kill_flagged"
-
-        [grid]
-        "robot.q0.0" = [VALUES]
-        """
     once = _campaign(
-        tmp_path, body.replace("VALUES", "0.12, 0.137, 0.15"), "once.toml", "kill_metrics"
+        tmp_path, KILL_CAMPAIGN.replace("VALUES", "0.12, 0.137, 0.15"), "once.toml", "kill_metrics"
     )
     outcome = run_campaign(load_campaign(once), tmp_path / "once", client=client)
     assert (tmp_path / "killed-once").exists()  # the worker did die once
@@ -230,7 +234,10 @@ def test_killed_worker_run_is_retried_once_then_recorded(client, tmp_path):
     assert outcome.total == 3
 
     always = _campaign(
-        tmp_path, body.replace("VALUES", "0.12, 0.171, 0.15"), "always.toml", "kill_metrics"
+        tmp_path,
+        KILL_CAMPAIGN.replace("VALUES", "0.12, 0.171, 0.15"),
+        "always.toml",
+        "kill_metrics",
     )
     run_campaign(load_campaign(always), tmp_path / "always", client=client)
     table = load(tmp_path / "always").set_index("run_id")
@@ -238,11 +245,54 @@ def test_killed_worker_run_is_retried_once_then_recorded(client, tmp_path):
     killed = table.loc["run-00001"]
     assert killed["status"] == "killed" and "KilledWorker" in killed["error"]
     assert not killed["success"]
-    # every other run ended: completed, or recorded killed if it shared the dying worker
+    # every other run completed: a worker holds only the run it executes
     for run_id in ("run-00000", "run-00002"):
-        assert table.loc[run_id, "status"] in ("ok", "killed")
+        assert table.loc[run_id, "status"] == "ok"
     assert set(finished_runs(tmp_path / "always")) == set(table.index)
     assert np.isnan(killed["wall_time_s"])
+
+
+@pytest.mark.timeout(300)  # a lost worker stalled the campaign: bounded, not timed
+def test_one_worker_killed_twice_takes_only_its_run(tmp_path):
+    """The run that kills its worker, twice, is recorded killed; the others all complete.
+
+    One worker, in the local cluster run_campaign starts itself.
+    """
+    values = "0.12, 0.13, 0.171, 0.15, 0.16, 0.17, 0.18, 0.19"
+    path = _campaign(
+        tmp_path, KILL_CAMPAIGN.replace("VALUES", values), "one_worker.toml", "kill_metrics"
+    )
+    outcome = run_campaign(load_campaign(path), tmp_path / "out", workers=1, progress=False)
+    assert (outcome.total, outcome.ran, outcome.failed) == (8, 8, 1)
+    assert not outcome.interrupted
+    table = load(tmp_path / "out").set_index("run_id")
+    assert table.loc["run-00002", "status"] == "killed"
+    assert "2 different workers" in table.loc["run-00002", "error"]
+    others = table.drop(index="run-00002")
+    assert len(others) == 7 and (others["status"] == "ok").all()
+    np.testing.assert_allclose(others["q0"], [0.12, 0.13, 0.15, 0.16, 0.17, 0.18, 0.19])
+
+
+@pytest.mark.timeout(120)  # it waited for a worker forever
+def test_a_campaign_without_workers_stops_after_the_timeout(tmp_path):
+    """Every worker gone (a scheduler whose workers died): interrupted with the reason."""
+    from distributed import Client, LocalCluster
+
+    path = _campaign(tmp_path, KILL_CAMPAIGN.replace("VALUES", "0.12, 0.13"), "none.toml")
+    cluster = LocalCluster(n_workers=0, processes=True, dashboard_address=":0")
+    try:
+        with Client(cluster) as no_workers:
+            outcome = run_campaign(
+                load_campaign(path, check=False),
+                tmp_path / "out",
+                client=no_workers,
+                worker_timeout=1.0,
+            )
+    finally:
+        cluster.close()
+    assert outcome.interrupted and (outcome.total, outcome.ran, outcome.signum) == (2, 0, None)
+    assert outcome.reason == "no Dask worker connected for 1 s with 2 run(s) pending"
+    assert load(tmp_path / "out").empty  # the table is written, empty: resume runs both
 
 
 def test_runs_on_an_existing_scheduler_by_address(client, tmp_path):

@@ -9,14 +9,14 @@ the pipe from its parent).
 
 from __future__ import annotations
 
-import contextlib
 import queue
 import re
 import signal
 import subprocess
 import threading
 import time
-from collections.abc import Iterator
+
+from conftest import sigint_default
 
 from ucontrol.viz.browser_screenshot import kill_group
 
@@ -24,24 +24,6 @@ from ucontrol.viz.browser_screenshot import kill_group
 LINE_TIMEOUT = 120.0
 #: Longest wait for a child to end after Ctrl-C, in [s].
 EXIT_TIMEOUT = 60.0
-
-
-@contextlib.contextmanager
-def _sigint_default() -> Iterator[None]:
-    """SIGINT handled (not ignored) in this process while a child is started.
-
-    A child inherits an ignored SIGINT through exec; a handled one is reset to its default,
-    where Python installs its KeyboardInterrupt.
-    """
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is not signal.SIG_IGN:
-        yield
-        return
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 class Child:
@@ -52,7 +34,7 @@ class Child:
     """
 
     def __init__(self, command: list[str]) -> None:
-        with _sigint_default():
+        with sigint_default():
             self.process = subprocess.Popen(
                 command,
                 stdin=subprocess.DEVNULL,

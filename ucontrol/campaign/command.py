@@ -96,7 +96,8 @@ def run_sweep(args: argparse.Namespace) -> int:
     print(f"wrote {', '.join(str(path) for path in outcome.tables)}")
     if outcome.interrupted:
         missing = outcome.total - outcome.skipped - outcome.ran
-        print(f"interrupted: {missing} runs left; run the same command again to finish")
+        why = "" if outcome.reason is None else f" ({outcome.reason})"
+        print(f"interrupted{why}: {missing} runs left; run the same command again to finish")
         return 128 + outcome.signum if outcome.signum is not None else INTERRUPTED
     return 0
 

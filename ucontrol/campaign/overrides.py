@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ucontrol._validation import toml_error_message
 from ucontrol.exceptions import ParameterKeyError
 
 
@@ -177,10 +178,12 @@ def scene_with_overrides(scene: str | Path | None, assignments: Sequence[str]) -
         path = builtin_scene(scene)
     else:
         raise SceneError(f"scene file {str(scene)!r} does not exist")
+    text = path.read_text()
     try:
-        table = tomllib.loads(path.read_text())
+        table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
-        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {error}") from error
+        reason = toml_error_message(error, text)
+        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {reason}") from error
     overrides = dict(parse_assignment(text) for text in assignments)
     result = Scene.from_dict(
         apply_overrides(table, overrides), base_dir=path.parent, default_name=path.stem

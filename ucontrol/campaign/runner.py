@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ucontrol._validation import as_positive
 from ucontrol.campaign.criterion import parse_criterion
 from ucontrol.campaign.metrics import Metric
 from ucontrol.campaign.overrides import apply_overrides
@@ -32,6 +33,7 @@ from ucontrol.campaign.table import (
     PLAN_FILE,
     RUNS_DIR,
     finished_runs,
+    read_campaign,
     write_table,
 )
 from ucontrol.exceptions import (
@@ -46,6 +48,19 @@ OK, ERROR, KILLED = "ok", "error", "killed"
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 #: Seconds allowed to connect to a scheduler given by address.
 CONNECT_TIMEOUT_S = 5.0
+#: Longest wait in [s] with no Dask worker connected while runs are pending: then the
+#: campaign stops as interrupted (the runs left run on resume) instead of waiting forever.
+NO_WORKER_TIMEOUT_S = 60.0
+#: Period in [s] of the check for finished runs and connected workers.
+_POLL_S = 0.1
+#: Dask settings of the local cluster. A run whose worker dies is tried once more on a fresh
+#: worker, then recorded as killed; each worker holds only the run it executes (with dask's
+#: default saturation, 1.1, a single-threaded worker also holds the next run, and its death
+#: counted against both: a run that kills its worker twice took an innocent one with it).
+CLUSTER_SETTINGS = {
+    "distributed.scheduler.allowed-failures": 1,
+    "distributed.scheduler.worker-saturation": 1.0,
+}
 
 
 @dataclass(frozen=True)
@@ -62,6 +77,7 @@ class CampaignOutcome:
             runs cancelled by a scheduler that went away); the same call again runs the rest.
         tables: The table files written.
         signum: The signal that stopped it (SIGINT for Ctrl-C), or None.
+        reason: Why it stopped early, when no signal did (e.g. no worker left), or None.
     """
 
     directory: Path
@@ -72,6 +88,7 @@ class CampaignOutcome:
     interrupted: bool
     tables: list[Path]
     signum: int | None = None
+    reason: str | None = None
 
 
 def run_task(task: Mapping[str, Any]) -> dict[str, Any]:
@@ -131,6 +148,7 @@ def run_campaign(
     client: Any = None,
     formats: tuple[str, ...] = ("csv",),
     progress: bool | None = None,
+    worker_timeout: float = NO_WORKER_TIMEOUT_S,
 ) -> CampaignOutcome:
     """Run the runs of ``campaign`` not yet in ``out`` and write the campaign table.
 
@@ -144,6 +162,8 @@ def run_campaign(
         client: An existing ``distributed.Client`` to use instead (not closed here).
         formats: Table formats, ``"csv"`` and/or ``"parquet"``.
         progress: Show a progress bar; default only when stderr is a terminal.
+        worker_timeout: Longest wait in [s] with no worker connected while runs are pending;
+            then the campaign stops as interrupted, with the reason.
 
     Raises:
         OutputDirectoryError: ``out`` cannot be created or written.
@@ -153,20 +173,24 @@ def run_campaign(
     from ucontrol.campaign.table import check_formats
 
     check_formats(formats)
+    worker_timeout = as_positive("worker_timeout", worker_timeout)
     directory = prepare_directory(campaign, out)
     plan = campaign.plan()
     done = finished_runs(directory)
     pending = [run for run in plan if run.run_id not in done]
     skipped = len(plan) - len(pending)
     ran = failed = 0
-    interrupted, signum = False, None
+    interrupted, signum, reason = False, None, None
     if pending:
         with _signals():  # installed first: a SIGTERM while the cluster starts is handled too
             try:
                 with _client(client, scheduler, workers, len(pending)) as dask_client:
                     bar = _progress_bar(len(plan), skipped, progress)
                     try:
-                        for record in _results(dask_client, campaign, pending):
+                        for record in _results(dask_client, campaign, pending, worker_timeout):
+                            if isinstance(record, str):  # no worker left: stop
+                                reason = record
+                                break
                             write_record(directory, record)
                             ran += 1
                             failed += record["status"] != OK
@@ -181,7 +205,9 @@ def run_campaign(
                 signum = int(getattr(interrupt, "signum", signal.SIGINT))
         interrupted = interrupted or ran < len(pending)  # e.g. runs cancelled with a scheduler
     tables = write_table(directory, formats)
-    return CampaignOutcome(directory, len(plan), skipped, ran, failed, interrupted, tables, signum)
+    return CampaignOutcome(
+        directory, len(plan), skipped, ran, failed, interrupted, tables, signum, reason
+    )
 
 
 def prepare_directory(campaign: Campaign, out: str | Path) -> Path:
@@ -190,6 +216,8 @@ def prepare_directory(campaign: Campaign, out: str | Path) -> Path:
     Raises:
         OutputDirectoryError: It cannot be created or written.
         CampaignMismatchError: It already records another campaign.
+        CampaignFileError: Its ``campaign.json`` is not a JSON object (delete it to start
+            again).
     """
     directory = Path(out)
     fingerprint = campaign.fingerprint()
@@ -200,9 +228,8 @@ def prepare_directory(campaign: Campaign, out: str | Path) -> Path:
         probe.unlink()
     except OSError as error:
         raise OutputDirectoryError(str(directory), error.strerror or str(error)) from error
-    record_path = directory / CAMPAIGN_FILE
-    if record_path.is_file():
-        found = json.loads(record_path.read_text()).get("fingerprint", "")
+    if (directory / CAMPAIGN_FILE).is_file():
+        found = str(read_campaign(directory).get("fingerprint", ""))
         if found != fingerprint:
             raise CampaignMismatchError(str(directory), found, fingerprint)
         return directory
@@ -247,10 +274,14 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S) -> Any:
         raise SchedulerUnreachableError(address, str(error) or type(error).__name__) from error
 
 
-def _results(client: Any, campaign: Campaign, pending: list[Any]) -> Iterator[dict[str, Any]]:
-    """Submit the pending runs and yield each record as its run ends."""
-    from distributed import as_completed
+def _results(
+    client: Any, campaign: Campaign, pending: list[Any], worker_timeout: float
+) -> Iterator[dict[str, Any] | str]:
+    """Submit the pending runs and yield each record as its run ends.
 
+    When no worker has been connected for ``worker_timeout`` seconds, the reason is yielded
+    (a text) instead, and the runs left are cancelled.
+    """
     tag = campaign.fingerprint()[:10]
     tasks = [
         {
@@ -269,7 +300,10 @@ def _results(client: Any, campaign: Campaign, pending: list[Any]) -> Iterator[di
     futures = client.map(run_task, tasks, key=keys, pure=False)
     by_key = {future.key: (task, future) for task, future in zip(tasks, futures, strict=True)}
     try:
-        for future in as_completed(futures):
+        for future in _as_completed(client, futures, worker_timeout):
+            if isinstance(future, str):
+                yield future
+                return
             task, _ = by_key[future.key]
             if future.status == "cancelled":  # lost with the scheduler: run again on resume
                 continue
@@ -293,6 +327,32 @@ def _results(client: Any, campaign: Campaign, pending: list[Any]) -> Iterator[di
         client.cancel([f for _, f in by_key.values() if not f.done()])
 
 
+def _as_completed(client: Any, futures: list[Any], worker_timeout: float) -> Iterator[Any]:
+    """The futures as they complete; a text instead once no worker came for too long."""
+    from distributed import as_completed
+
+    completed = as_completed(futures)
+    last_worker = time.monotonic()
+    while not completed.is_empty():
+        if completed.has_ready():
+            for future in completed.next_batch(block=False):
+                if future.status in ("pending", "lost"):  # its result died with a worker
+                    completed.add(future)
+                else:
+                    yield future
+            continue
+        now = time.monotonic()
+        if client.scheduler_info(n_workers=1)["workers"]:
+            last_worker = now
+        elif now - last_worker > worker_timeout:
+            yield (
+                f"no Dask worker connected for {worker_timeout:g} s with "
+                f"{completed.count()} run(s) pending"
+            )
+            return
+        time.sleep(_POLL_S)
+
+
 @contextmanager
 def _client(client: Any, scheduler: str | None, workers: int | None, pending: int) -> Iterator[Any]:
     """The given client, a client of ``scheduler``, or a new LocalCluster's."""
@@ -310,8 +370,7 @@ def _client(client: Any, scheduler: str | None, workers: int | None, pending: in
     from distributed import Client, LocalCluster
 
     n = max(1, min(workers or os.cpu_count() or 1, pending))
-    # a run whose worker dies is tried once more on a fresh worker, then recorded as killed
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+    with dask.config.set(CLUSTER_SETTINGS):
         cluster = LocalCluster(
             n_workers=n,
             threads_per_worker=1,

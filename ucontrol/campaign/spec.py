@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ucontrol._validation import toml_error_message
 from ucontrol.campaign.criterion import Criterion, parse_criterion
 from ucontrol.campaign.distributions import Distribution, parse_distribution
 from ucontrol.campaign.metrics import VERDICTS, Metric, check_metric
@@ -36,6 +37,9 @@ from ucontrol.exceptions import (
 
 _TOP_KEYS = {"campaign", "grid", "distributions", "metrics"}
 _CAMPAIGN_KEYS = {"name", "scene", "duration", "dt", "seed", "runs", "metrics", "success", "worst"}
+#: Most runs a campaign may hold: its plan (parameters and seed per run) is built in memory
+#: and every run writes one file, so a larger one is refused before it is planned.
+MAX_RUNS = 100_000
 #: Metrics collected when a campaign names none.
 DEFAULT_METRICS = ("max_penetration", "n_impacts", "energy_increase_at_impacts")
 
@@ -58,6 +62,9 @@ class PlannedRun:
 @dataclass(frozen=True)
 class Campaign:
     """A checked campaign.
+
+    Raises:
+        CampaignFileError: It holds more than :data:`MAX_RUNS` runs.
 
     Attributes:
         name: Label (default the campaign file's stem).
@@ -88,6 +95,15 @@ class Campaign:
     worst: str | None = None
     python_path: tuple[str, ...] = ()
     source: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.size > MAX_RUNS:
+            cells = math.prod(len(values) for values in self.grid.values())
+            raise CampaignFileError(
+                str(self.source or self.name),
+                f"{self.size} runs ({cells} grid cell(s) x `runs` = {self.runs}), more than "
+                f"the {MAX_RUNS} a campaign may hold: split it into several campaigns",
+            )
 
     @property
     def parameter_names(self) -> list[str]:
@@ -162,10 +178,12 @@ def load_campaign(path: str | Path, *, check: bool = True) -> Campaign:
         CriterionError: The success criterion is not of the allowed form.
     """
     path = _campaign_file(Path(path))
+    text = path.read_text()
     try:
-        table = tomllib.loads(path.read_text())
+        table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
-        raise CampaignFileError(str(path), f"not valid TOML: {error}") from error
+        reason = toml_error_message(error, text)
+        raise CampaignFileError(str(path), f"not valid TOML: {reason}") from error
     campaign = parse_campaign(table, path)
     if check:
         check_campaign(campaign)
@@ -207,10 +225,14 @@ def parse_campaign(table: Mapping[str, Any], path: Path) -> Campaign:
         raise CampaignFileError(where, "[campaign] needs `scene` (a file or a built-in name)")
     scene_ref = _scene_ref(where, str(head["scene"]), path)
     scene_path = scene_file(scene_ref)
+    scene_text = scene_path.read_text()
     try:
-        scene_table = tomllib.loads(scene_path.read_text())
+        scene_table = tomllib.loads(scene_text)
     except tomllib.TOMLDecodeError as error:
-        raise CampaignFileError(where, f"scene {str(scene_path)!r} is not valid TOML") from error
+        reason = toml_error_message(error, scene_text)
+        raise CampaignFileError(
+            where, f"scene {str(scene_path)!r} is not valid TOML: {reason}"
+        ) from error
     if "duration" in head:
         scene_table["duration"] = _positive(where, "duration", head["duration"])
     if "dt" in head:

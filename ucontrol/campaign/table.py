@@ -19,7 +19,12 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ucontrol.exceptions import CampaignError, InvalidParameterError, OptionalDependencyError
+from ucontrol.exceptions import (
+    CampaignError,
+    CampaignFileError,
+    InvalidParameterError,
+    OptionalDependencyError,
+)
 
 CAMPAIGN_FILE = "campaign.json"
 PLAN_FILE = "plan.csv"
@@ -46,11 +51,17 @@ def read_campaign(directory: str | Path) -> dict[str, Any]:
 
     Raises:
         CampaignError: The directory is not a campaign's.
+        CampaignFileError: Its ``campaign.json`` is not a JSON object (truncated, edited).
     """
     path = Path(directory, CAMPAIGN_FILE)
     if not path.is_file():
         raise CampaignError(f"{str(directory)!r} is not a campaign directory (no {CAMPAIGN_FILE})")
-    content: dict[str, Any] = json.loads(path.read_text())
+    try:
+        content = json.loads(path.read_text())
+    except (OSError, ValueError) as error:  # ValueError: JSONDecodeError, UnicodeDecodeError
+        raise CampaignFileError(str(path), f"not readable as JSON: {error}") from error
+    if not isinstance(content, dict):
+        raise CampaignFileError(str(path), f"not a JSON object, got {type(content).__name__}")
     return content
 
 

@@ -73,6 +73,9 @@ BROAD_PHASE_MARGIN = 0.05
 GJK_TOLERANCE = 1e-12
 #: Points on each rim of a cylinder against a halfspace.
 CYLINDER_RIM_POINTS = 16
+#: Thinnest mesh, relative to its largest extent, whose convex hull is built (qhull, through
+#: coal, crashes the process on vertices in one plane instead of raising).
+MESH_FLATNESS = 1e-9
 #: Time step in [s] (at unit speed) of the fourth-order central difference of a witness
 #: row's normal velocity along the flow (:meth:`CollisionGeometry.drift`).
 WITNESS_DRIFT_STEP = 3e-5
@@ -155,8 +158,7 @@ class CollisionGeometry:
         for index, item in enumerate(geometry_model.geometryObjects):
             shape = item.geometry
             if isinstance(shape, coal.BVHModelBase):  # a mesh stands for its convex hull
-                shape.buildConvexHull(True, "Qt")
-                shape = shape.convex
+                shape = _convex_hull(shape, item.meshPath or item.name)
             shape.computeLocalAABB()
             self._shapes.append(shape)
             by_link.setdefault(model.frames[item.parentFrame].name, []).append(index)
@@ -720,6 +722,34 @@ def _environment_shape(shape: EnvironmentShape) -> tuple[Any, float, Vector]:
     return coal.Halfspace(shape.normal, float(shape.normal @ shape.position)), np.inf, np.zeros(3)
 
 
+def _convex_hull(mesh: Any, path: str) -> Any:
+    """The convex hull (``coal.ConvexBase``) of a loaded mesh (``coal.BVHModelBase``).
+
+    Qhull, through coal, ends the process on vertices that span no volume, so they are
+    refused first: fewer than four, or all within :data:`MESH_FLATNESS` of one plane.
+
+    Raises:
+        InvalidParameterError: The mesh spans no volume, naming ``path``, the number of
+            vertices and the thickness.
+    """
+    vertices = np.asarray(mesh.vertices(), dtype=float).reshape(-1, 3)
+    thickness = extent = 0.0
+    if vertices.shape[0] >= 4:
+        centred = vertices - vertices.mean(axis=0)
+        axes = np.linalg.svd(centred, full_matrices=False)[2]  # principal directions
+        spans = np.ptp(centred @ axes.T, axis=0)  # [m] along each, widest first
+        thickness, extent = float(spans[2]), float(spans[0])
+    if not thickness > MESH_FLATNESS * extent:  # also fewer than four vertices: 0 > 0
+        raise InvalidParameterError(
+            "mesh",
+            path,
+            f"a mesh with a volume (its convex hull stands for it); its {vertices.shape[0]} "
+            f"vertices lie in one plane (thickness {thickness:.3g} m across {extent:.3g} m)",
+        )
+    mesh.buildConvexHull(True, "Qt")
+    return mesh.convex
+
+
 def load_mesh_hull(path: str, scale: Vector) -> Any:
     """The convex hull (``coal.ConvexBase``) of the mesh file ``path``, scaled by ``scale``.
 
@@ -733,13 +763,12 @@ def load_mesh_hull(path: str, scale: Vector) -> Any:
     """
     try:
         mesh = coal.MeshLoader().load(path, np.asarray(scale, dtype=float))
-        mesh.buildConvexHull(True, "Qt")
     except (ValueError, RuntimeError) as error:
         lines = [line.strip() for line in str(error).splitlines() if line.strip()]
         reason = next((line for line in lines if line.startswith("message:")), str(error))
         raise InvalidParameterError(
             "mesh", path, f"a mesh file coal can load (STL, OBJ, DAE); {reason}"
         ) from error
-    hull = mesh.convex
+    hull = _convex_hull(mesh, path)
     hull.computeLocalAABB()
     return hull

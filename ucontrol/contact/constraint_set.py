@@ -85,8 +85,9 @@ class ConstraintSet:
         size: Number of constraints n.
 
     Raises:
-        InvalidParameterError: A stop is on a joint with more than one degree of freedom, or
-            a plane contact of a planar robot has a normal out of the plane of motion.
+        InvalidParameterError: A stop is on a joint with more than one degree of freedom, a
+            plane contact of a planar robot has a normal out of the plane of motion, or the
+            robot has no degree of freedom (nv = 0) but constraints.
     """
 
     def __init__(
@@ -99,6 +100,19 @@ class ConstraintSet:
         collision_pairs: Sequence[CollisionPair] = (),
         bilateral: Sequence[BilateralConstraint] = (),
     ) -> None:
+        declared = {
+            "contacts": len(contacts),
+            "stops": len(stops),
+            "sphere_contacts": len(sphere_contacts),
+            "collision_pairs": len(collision_pairs),
+            "bilateral": len(bilateral),
+        }
+        if robot.nv == 0 and any(declared.values()):  # nothing can move against them
+            raise InvalidParameterError(
+                f"constraints of robot {robot.name!r}",
+                {kind: n for kind, n in declared.items() if n},
+                "none: the robot has no degree of freedom (nv = 0)",
+            )
         self.robot = robot
         self.bilateral = BilateralSet(robot, bilateral) if bilateral else None
         self.collision_pairs = tuple(collision_pairs)

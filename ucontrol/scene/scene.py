@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol._validation import as_positive, as_vector
+from ucontrol._validation import as_positive, as_vector, toml_error_message
 from ucontrol.contact.bilateral import BilateralConstraint
 from ucontrol.contact.collision_pair import CollisionPair
 from ucontrol.contact.constraint_set import ConstraintSet
@@ -145,6 +145,12 @@ class Scene:
         object.__setattr__(self, "_constraints", constraints)
         check_inertias(self.robot)
         _check_within_limits(self.robot, self.q0)
+        _check_magnitude("v0", self.v0, MAX_VELOCITY)
+        _check_magnitude("gravity", self.robot.gravity, MAX_GRAVITY)
+        if self.sensors is not None:
+            self.sensors.check_sizes(self.robot.nv + (0 if flexible is None else flexible.nf))
+        if self.actuators is not None:
+            self.actuators.check_sizes(self.robot.nu)
         check_mass_matrix(self.robot, self.q0)
 
     @property
@@ -189,13 +195,16 @@ class Scene:
         if not path.is_file():
             raise SceneError(f"scene file {str(path)!r} does not exist")
         try:
-            table = tomllib.loads(path.read_text(encoding="utf-8"))
+            text = path.read_text(encoding="utf-8")
         except UnicodeDecodeError as error:
             raise SceneError(f"scene file {str(path)!r} is not UTF-8 text: {error}") from error
         except OSError as error:
             raise SceneError(f"scene file {str(path)!r} cannot be read: {error}") from error
+        try:
+            table = tomllib.loads(text)
         except tomllib.TOMLDecodeError as error:
-            raise SceneError(f"scene file {str(path)!r} is not valid TOML: {error}") from error
+            reason = toml_error_message(error, text)
+            raise SceneError(f"scene file {str(path)!r} is not valid TOML: {reason}") from error
         scene = cls.from_dict(table, base_dir=path.parent, default_name=path.stem)
         return replace(scene, source=path.resolve())
 
@@ -220,6 +229,19 @@ class Scene:
 BILATERAL_TOLERANCE = 1e-6
 #: Largest magnitude of an initial coordinate without joint limits, in [rad] or [m].
 MAX_COORDINATE = 1e6
+#: Largest magnitude of an initial velocity coordinate, in [rad/s] or [m/s].
+MAX_VELOCITY = 1e6
+#: Largest magnitude of a gravity component, in [m/s²] (1e5 g).
+MAX_GRAVITY = 1e6
+
+
+def _check_magnitude(name: str, values: NDArray[np.float64], bound: float) -> None:
+    """Every entry of ``values`` at most ``bound`` in magnitude (larger ones overflow a step)."""
+    worst = int(np.argmax(np.abs(values))) if values.size else 0
+    if values.size and abs(values[worst]) > bound:
+        raise InvalidParameterError(
+            f"{name}[{worst}]", float(values[worst]), f"at most {bound:g} in magnitude"
+        )
 
 
 def _check_within_limits(robot: RobotModel, q0: NDArray[np.float64]) -> None:

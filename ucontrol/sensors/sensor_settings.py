@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_float, as_vector, check_keys
-from ucontrol.exceptions import InvalidParameterError
+from ucontrol.exceptions import InvalidParameterError, ShapeError
 
 #: How the controller's velocity is obtained (see :class:`SensorSettings`).
 VELOCITY_SOURCES = ("true", "difference", "observer")
@@ -42,6 +42,12 @@ def _non_negative(name: str, value: Any) -> float | NDArray[np.float64]:
     if isinstance(value, bool) or not np.all(array >= 0.0):
         raise InvalidParameterError(name, value, "a number >= 0 or a list of them")
     return float(array) if array.ndim == 0 else array
+
+
+def _check_size(name: str, value: float | NDArray[np.float64] | None, size: int) -> None:
+    """A vector ``value`` has ``size`` entries (a number or None applies to all)."""
+    if isinstance(value, np.ndarray) and value.shape != (size,):
+        raise ShapeError(name, (size,), value.shape)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,6 +107,27 @@ class SensorSettings:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise InvalidParameterError("seed", self.seed, "a whole number >= 0")
 
+    def check_sizes(self, n_measured: int) -> None:
+        """Each per-coordinate vector holds ``n_measured`` values (nv, + nf motors).
+
+        Raises:
+            ShapeError: ``position_noise`` or ``quantisation`` has another length.
+        """
+        _check_size("position_noise", self.position_noise, n_measured)
+        _check_size("quantisation", self.quantisation, n_measured)
+
+    def check_delay(self, periods: int) -> None:
+        """The delay is shorter than a run of ``periods`` control periods.
+
+        Raises:
+            InvalidParameterError: ``delay`` >= ``periods`` (the controller would only ever
+                see the initial measurement).
+        """
+        if self.delay >= periods:
+            raise InvalidParameterError(
+                "delay", self.delay, f"fewer control periods than the run holds ({periods})"
+            )
+
     @classmethod
     def from_table(cls, table: Mapping[str, Any]) -> SensorSettings:
         """The settings of a ``[sensors]`` table (keys as the attributes)."""
@@ -131,7 +158,22 @@ class ActuatorSettings:
                 self, "torque_limit", _non_negative("torque_limit", self.torque_limit)
             )
         if self.rate_limit is not None:
-            object.__setattr__(self, "rate_limit", _non_negative("rate_limit", self.rate_limit))
+            rate_limit = _non_negative("rate_limit", self.rate_limit)
+            if not np.all(np.asarray(rate_limit) > 0.0):  # 0 would hold every torque at 0
+                raise InvalidParameterError(
+                    "rate_limit", self.rate_limit, "a number > 0 or a list of them"
+                )
+            object.__setattr__(self, "rate_limit", rate_limit)
+
+    def check_sizes(self, nu: int) -> None:
+        """Each per-input vector holds ``nu`` values.
+
+        Raises:
+            ShapeError: ``torque_limit`` or ``rate_limit`` has another length.
+        """
+        if not isinstance(self.torque_limit, str):
+            _check_size("torque_limit", self.torque_limit, nu)
+        _check_size("rate_limit", self.rate_limit, nu)
 
     @classmethod
     def from_table(cls, table: Mapping[str, Any]) -> ActuatorSettings:
