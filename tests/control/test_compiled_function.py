@@ -14,13 +14,11 @@ import numpy as np
 import pytest
 
 from ucontrol.control.controller import ContactState
-from ucontrol.model import native_call
+from ucontrol.model import compiled_function, native_call
+from ucontrol.model.compile_cache import CACHE_ENV, build_library, cache_dir
 from ucontrol.model.compiled_function import (
-    CACHE_ENV,
     NO_COMPILE_ENV,
     CompiledFunction,
-    build_library,
-    cache_dir,
     compilation_disabled,
 )
 from ucontrol.scene import Scene
@@ -123,7 +121,7 @@ def test_runner_through_ctypes_without_the_extension(tmp_path, monkeypatch):
     """Without the extension (no Python headers), runner() calls through ctypes: same values."""
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
-    monkeypatch.setattr(native_call, "native_runner", lambda *args: None)
+    monkeypatch.setattr(compiled_function, "native_runner", lambda *args: None)
     function = CompiledFunction(_function())
     run = function.runner()
     assert function.compiled and type(run).__name__ == "function"

@@ -7,13 +7,10 @@ casadi's Python interface, most of it converting numbers to and from ``casadi.DM
 (``casadi.CodeGenerator``), compiles it with the system C compiler into a shared library and
 calls it through ``ctypes`` on preallocated numpy buffers (about 1 µs per call).
 
-- Cache: ``$UCONTROL_CACHE_DIR`` or ``$XDG_CACHE_HOME/ucontrol`` or ``~/.cache/ucontrol``,
-  sub-directory ``casadi``; one library per Function, named by the SHA-256 of the Function's
-  serialized form, the casadi version and the compiler command, so a changed law is rebuilt
-  and an unchanged one never is.
-- Concurrency: the build of an entry holds an exclusive ``fcntl`` lock on its lock file, and
-  the library is written under a temporary name then renamed (atomic on POSIX): concurrent
-  processes (tests, dask workers) build it once and never load a partial file.
+- Cache: one library per Function in the cache of :mod:`ucontrol.model.compile_cache`, named
+  by the SHA-256 of the Function's serialized form, the casadi version and the compiler
+  command, so a changed law is rebuilt and an unchanged one never is; built once by
+  concurrent processes, never loaded partial.
 - Fallback: without a C compiler, when compilation or loading fails, or with the environment
   variable ``UCONTROL_NO_COMPILE=1``, the same interface calls the casadi Function itself
   (same results to round-off; slower). ``$CC`` chooses the compiler (default ``cc``).
@@ -25,21 +22,19 @@ flattened); the outputs are densified at construction.
 from __future__ import annotations
 
 import ctypes
-import fcntl
 import functools
-import hashlib
 import logging
 import os
-import shlex
-import shutil
 import subprocess
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from ucontrol.model.compile_cache import build_library, compiler_command
+from ucontrol.model.native_call import native_runner
 
 if TYPE_CHECKING:  # casadi is imported by the functions that build (compilation_possible: not)
     import casadi as ca
@@ -48,24 +43,8 @@ Vector = NDArray[np.float64]
 
 #: Set to 1 to use the casadi virtual machine instead of compiled code.
 NO_COMPILE_ENV = "UCONTROL_NO_COMPILE"
-#: Overrides the cache directory.
-CACHE_ENV = "UCONTROL_CACHE_DIR"
-#: Compiler flags (optimisation level chosen for build time: the laws are a few thousand lines).
-CFLAGS = ("-O1", "-fPIC", "-shared")
-#: Seconds a build may take before it is abandoned for the fallback.
-BUILD_TIMEOUT_S = 300.0
 
 _logger = logging.getLogger(__name__)
-
-
-def cache_dir() -> Path:
-    """Directory holding the compiled libraries."""
-    root = os.environ.get(CACHE_ENV)
-    if root:
-        return Path(root) / "casadi"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg) if xdg else Path.home() / ".cache"
-    return base / "ucontrol" / "casadi"
 
 
 def compilation_disabled() -> bool:
@@ -82,7 +61,7 @@ def compilation_possible() -> bool:
     if compilation_disabled():
         return False
     try:
-        _compiler()
+        compiler_command()
     except OSError:
         return False
     return True
@@ -173,8 +152,6 @@ class CompiledFunction:
 
     def _bound_runner(self, owner: object) -> Callable[[], None]:
         """The compiled call on the bound buffers, natively where possible; keeps ``owner``."""
-        from ucontrol.model.native_call import native_runner
-
         native = native_runner(
             self._entry,
             ctypes.addressof(self._arg),
@@ -284,13 +261,6 @@ def _densified(function: ca.Function) -> ca.Function:
     return ca.Function(function.name(), symbols, [ca.densify(o) for o in outputs])
 
 
-def _compiler() -> list[str]:
-    command = shlex.split(os.environ.get("CC", "cc"))
-    if not command or shutil.which(command[0]) is None:
-        raise OSError(f"no C compiler ({' '.join(command) or 'CC empty'})")
-    return command
-
-
 def _build(function: ca.Function) -> Path:
     """Path of the compiled library of ``function``, built (once) if absent."""
     import casadi as ca
@@ -302,45 +272,3 @@ def _build(function: ca.Function) -> Path:
 
     key = function.serialize() + ca.CasadiMeta.version()
     return build_library(function.name(), key, source)
-
-
-def build_library(
-    stem: str, key: str, source: str | Callable[[], str], flags: tuple[str, ...] = ()
-) -> Path:
-    """Path of the shared library compiled from C ``source``, built (once) into the cache.
-
-    Args:
-        stem: Start of the library's file name.
-        key: What the library depends on besides the compiler command (hashed into the name).
-        source: The C source, or a callable returning it (called only to build).
-        flags: Compiler flags after :data:`CFLAGS`.
-
-    Raises:
-        OSError: No C compiler.
-        subprocess.SubprocessError: The compilation failed or timed out.
-    """
-    compiler = _compiler()
-    digest = hashlib.sha256((key + " ".join([*compiler, *CFLAGS, *flags])).encode()).hexdigest()[
-        :24
-    ]
-    directory = cache_dir()
-    directory.mkdir(parents=True, exist_ok=True)
-    library = directory / f"{stem}_{digest}.so"
-    if library.is_file():
-        return library
-    with open(directory / f"{library.name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # one builder; the others wait, then find it built
-        if library.is_file():
-            return library
-        with tempfile.TemporaryDirectory(dir=directory) as work:
-            path = Path(work) / f"{stem}.c"
-            path.write_text(source if isinstance(source, str) else source())
-            target = Path(work) / library.name
-            subprocess.run(
-                [*compiler, *CFLAGS, *flags, "-o", str(target), str(path), "-lm"],
-                check=True,
-                capture_output=True,
-                timeout=BUILD_TIMEOUT_S,
-            )
-            os.replace(target, library)  # atomic: readers see no partial library
-    return library

@@ -26,6 +26,8 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
+from ucontrol.model.compile_cache import build_library
+
 _logger = logging.getLogger(__name__)
 
 #: Name of the extension module (its ``PyInit_`` symbol).
@@ -141,8 +143,6 @@ def native_runner(
 @functools.cache
 def _extension() -> ModuleType | None:
     """The extension module, built into the cache on first use; None where it cannot be."""
-    from ucontrol.model.compiled_function import build_library
-
     include = Path(sysconfig.get_paths()["include"])
     if not (include / "Python.h").is_file():
         _logger.info("no Python headers at %s: compiled calls through ctypes", include)
