@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from ucontrol.control.controller import ContactState
+from ucontrol.exceptions import CompiledCallError
 from ucontrol.model import compiled_function, native_call
 from ucontrol.model.compile_cache import CACHE_ENV, build_library, cache_dir
 from ucontrol.model.compiled_function import (
@@ -80,7 +81,7 @@ def test_native_runner_equals_the_ctypes_call_and_keeps_its_buffers(tmp_path, mo
 
 
 def test_native_runner_raises_on_a_nonzero_status(tmp_path, monkeypatch):
-    """A compiled entry returning a status other than 0 raises a RuntimeError naming it."""
+    """A compiled entry returning a status other than 0 raises a CompiledCallError naming it."""
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     if native_call._extension() is None:
         pytest.skip("native call extension unavailable")
@@ -95,8 +96,25 @@ def test_native_runner_raises_on_a_nonzero_status(tmp_path, monkeypatch):
         entry, address, address, work.ctypes.data, work.ctypes.data, library, "failing"
     )
     assert run is not None
-    with pytest.raises(RuntimeError, match="failing returned 3"):
+    with pytest.raises(CompiledCallError, match="'failing' failed: returned status 3") as raised:
         run()
+    assert raised.value.function == "failing" and raised.value.failure == "returned status 3"
+
+
+def test_a_failing_call_in_casadis_virtual_machine_is_a_compiled_call_error():
+    """A casadi error (a root finder without a root) becomes a one-line CompiledCallError."""
+    x, p = ca.SX.sym("x"), ca.SX.sym("p")
+    residual = ca.Function("residual", [x, p], [x**2 + 1.0 + p])  # a root only for p <= -1
+    roots = ca.rootfinder("no_root", "newton", residual, {"error_on_fail": True})
+    function = CompiledFunction(roots, compile=False)
+    (root,) = function(np.array([0.5]), np.array([-2.0]))
+    np.testing.assert_allclose(root, [1.0], rtol=0.0, atol=_TOLERANCE)  # x**2 = 1
+    run = function.runner()
+    function.input_view(1)[...] = 0.0
+    for call in (run, lambda: function(None, None)):
+        with pytest.raises(CompiledCallError, match=r"'no_root' failed: .*rootfinder") as raised:
+            call()
+        assert raised.value.function == "no_root" and "\n" not in str(raised.value)
 
 
 @pytest.mark.parametrize("compile", [True, False])

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.exceptions import CompiledCallError
 from ucontrol.model.compile_cache import build_library, compiler_command
 from ucontrol.model.native_call import native_runner
 
@@ -114,15 +115,22 @@ class CompiledFunction:
         order; it is read column-major as casadi does), or None for an input already written
         in place into :meth:`input_buffer`. The arrays returned are buffers reused by the next
         call: copy what must be kept.
+
+        Raises:
+            CompiledCallError: The compiled code returned a non-zero status, or casadi's
+                virtual machine raised (e.g. an embedded root finder that failed).
         """
         buffers, views = self._in_buffers, self._in_views
         for i, x in enumerate(inputs):
             if x is not None:
                 views[i][...] = x
         if not self.compiled:
-            values: Any = self.function(
-                *(b.reshape(shape, order="F") for b, shape in zip(buffers, self._in_shapes))
-            )
+            try:
+                values: Any = self.function(
+                    *(b.reshape(shape, order="F") for b, shape in zip(buffers, self._in_shapes))
+                )
+            except RuntimeError as error:  # casadi's, e.g. an embedded solver that failed
+                raise CompiledCallError(self.name, str(error)) from error
             if self.function.n_out() == 1:
                 values = (values,)
             for out, value in zip(self._outputs, values, strict=True):
@@ -139,7 +147,8 @@ class CompiledFunction:
         :mod:`ucontrol.model.native_call` builds, ``ctypes`` (a call of the compiled library
         then costs about 50 ns besides its arithmetic, against 0.6 µs); without the compiled
         library it runs the casadi Function as :meth:`__call__` does. The runner keeps this
-        object alive.
+        object alive, and raises :class:`~ucontrol.exceptions.CompiledCallError` as
+        :meth:`__call__` does.
         """
         if not self.compiled:
             nothing = (None,) * len(self._in_buffers)
@@ -245,9 +254,9 @@ class CompiledFunction:
 
 
 def _check(name: str, status: int) -> None:
-    """A compiled call's casadi status: 0, or a :class:`RuntimeError`."""
+    """A compiled call's casadi status: 0, or a :class:`CompiledCallError`."""
     if status != 0:
-        raise RuntimeError(f"compiled casadi function {name} returned {status}")
+        raise CompiledCallError(name, f"returned status {status}")
 
 
 def _densified(function: ca.Function) -> ca.Function:
