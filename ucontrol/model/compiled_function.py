@@ -1,11 +1,12 @@
 r"""Casadi Functions compiled to C, cached on disk, with the casadi virtual machine as fallback.
 
 A law written as a casadi expression (the flexible-joint law, the link reference of
-:class:`~ucontrol.control.FlexibleBrogliatoController`) costs some 30 µs per call through
-casadi's Python interface, most of it converting numbers to and from ``casadi.DM``.
+:class:`~ucontrol.control.FlexibleBrogliatoController`) called through casadi's Python
+interface spends most of each call converting numbers to and from ``casadi.DM``.
 :class:`CompiledFunction` generates the C code of the Function once
 (``casadi.CodeGenerator``), compiles it with the system C compiler into a shared library and
-calls it through ``ctypes`` on preallocated numpy buffers (about 1 µs per call).
+calls it on preallocated numpy buffers, without conversions (the figures are in
+docs/benchmarks.md, "Compiled laws: cache and fallback").
 
 - Cache: one library per Function in the cache of :mod:`ucontrol.model.compile_cache`, named
   by the SHA-256 of the Function's serialized form, the casadi version and the compiler
@@ -145,10 +146,10 @@ class CompiledFunction:
         The call writes :meth:`output_buffer` and returns nothing. For hot loops: it skips
         :meth:`__call__`'s handling of arguments and results and, where the extension of
         :mod:`ucontrol.model.native_call` builds, ``ctypes`` (a call of the compiled library
-        then costs about 50 ns besides its arithmetic, against 0.6 µs); without the compiled
-        library it runs the casadi Function as :meth:`__call__` does. The runner keeps this
-        object alive, and raises :class:`~ucontrol.exceptions.CompiledCallError` as
-        :meth:`__call__` does.
+        is then one builtin call besides its arithmetic, without ctypes' conversions);
+        without the compiled library it runs the casadi Function as :meth:`__call__` does.
+        The runner keeps this object alive, and raises
+        :class:`~ucontrol.exceptions.CompiledCallError` as :meth:`__call__` does.
         """
         if not self.compiled:
             nothing = (None,) * len(self._in_buffers)
@@ -247,7 +248,7 @@ class CompiledFunction:
         self._iw = self._iw_buffer.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong))
         self._w = self._w_buffer.ctypes.data_as(double_p)
         # No argtypes: ctypes passes the pointer arrays as they are and 0 as a C int
-        # (converting the arguments through argtypes costs 1.2 µs a call, against 0.35 µs).
+        # (argtypes would convert and check all five arguments at every call).
         call.argtypes = None
         self._call = functools.partial(call, self._arg, self._res, self._iw, self._w, 0)
         self._run_bound = self._bound_runner(owner=None)  # owned by self: no cycle

@@ -1,12 +1,13 @@
 r"""A compiled casadi call as a Python builtin without arguments: the call without ctypes.
 
-Through ``ctypes``, calling a compiled casadi Function on bound buffers costs about 0.5 µs of
-Python-to-C conversion, about as much as the arithmetic of the small laws and rows in the
-closed loop, which makes several such calls per step. This module builds, once per Python and
-compiler, a small CPython extension (about 60 lines of C, cached beside the compiled laws)
-whose :func:`native_runner` wraps the C entry point of a compiled Function and its bound
-argument, result and work arrays into a builtin function of no arguments: one call costs a
-Python builtin call (about 50 ns) plus the Function's own work.
+Through ``ctypes``, calling a compiled casadi Function on bound buffers converts its five
+arguments from Python to C at every call, work of the order of the arithmetic of the small laws
+and rows of the closed loop, which makes several such calls per step. This module builds, once
+per Python and compiler, a small CPython extension (about 60 lines of C, cached beside the
+compiled laws) whose :func:`native_runner` wraps the C entry point of a compiled Function and
+its bound argument, result and work arrays into a builtin function of no arguments: one call is
+one Python builtin call, without conversions, plus the Function's own work (measured in
+docs/benchmarks.md, "Compiled laws: cache and fallback").
 
 Where the extension cannot be built (no Python headers, no compiler, a failed build),
 :func:`native_runner` returns None and callers keep the ``ctypes`` call (with
