@@ -41,10 +41,10 @@ import pinocchio as pin
 
 from ucontrol.analysis.impacts import impact_mask
 from ucontrol.control.desired_cycle import ContactPhase, NominalPath
-from ucontrol.control.impedance_table import impedance_from_table
 from ucontrol.control.path_table import path_from_table
 from ucontrol.log import Log
 from ucontrol.scene import Scene
+from ucontrol.scene.impedance_table import impedance_from_table
 from ucontrol.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]

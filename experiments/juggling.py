@@ -31,9 +31,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ucontrol.analysis.poincare import finite_difference_jacobian
-from ucontrol.control.juggling_controller import juggling_from_table
 from ucontrol.log import Log
 from ucontrol.scene import Scene
+from ucontrol.scene.juggling_table import juggling_from_table
 from ucontrol.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,9 +16,16 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.scene import Scene, load_scene
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
+#: Marks a test of what only compiled code does (a fast path, a compiled law's shortcut): it is
+#: skipped where that code does not exist, with UCONTROL_NO_COMPILE=1 or without a C compiler.
+needs_compiled_code = pytest.mark.skipif(
+    not compilation_possible(),
+    reason="checks compiled code, which UCONTROL_NO_COMPILE=1 (or no C compiler) turns off",
+)
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 #: The tracking scenes of the phase-machine controller (robots/ names), frictionless.
 TRACKING_SCENES = (

@@ -1,7 +1,8 @@
 """The package's layers: no import circles, and lower layers never import higher ones.
 
-Only imports run when a module is loaded count (module level, outside ``if TYPE_CHECKING``);
-an import inside a function is a deliberate lazy import of an optional or heavy part.
+Every import counts: at module level, type-only ones (under ``if TYPE_CHECKING:``), lazy ones
+inside functions, and ``import_module("ucontrol....")`` calls. A lazy import of a higher layer
+is still a dependency on it, and a type-only circle still ties two modules into one.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ LAYERS = {
     "design": 11,
     "campaign": 11,
     "convergence": 11,
+    "scene_maps": 11,
     "bench": 11,
     "viz": 12,
     "cli": 13,
@@ -47,28 +49,24 @@ def _module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def _load_time_imports(path: Path) -> set[str]:
-    """The ucontrol modules ``path`` imports when it is loaded."""
-    tree = ast.parse(path.read_text())
+def _imports(path: Path) -> set[str]:
+    """The ucontrol modules ``path`` imports, wherever the import statement stands."""
     found: set[str] = set()
-
-    def visit(statements: list[ast.stmt]) -> None:
-        for node in statements:
-            if isinstance(node, ast.If):
-                test = ast.unparse(node.test)
-                if "TYPE_CHECKING" not in test:
-                    visit(node.body)
-                visit(node.orelse)
-            elif isinstance(node, ast.Try):
-                visit(node.body)
-            elif isinstance(node, ast.Import):
-                found.update(a.name for a in node.names if a.name.startswith("ucontrol"))
-            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("ucontrol"):
-                assert node.module is not None
-                found.add(node.module)
-                found.update(f"{node.module}.{a.name}" for a in node.names)
-
-    visit(tree.body)
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.startswith("ucontrol"))
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("ucontrol"):
+            assert node.module is not None and node.level == 0
+            found.add(node.module)
+            found.update(f"{node.module}.{a.name}" for a in node.names)
+        elif (
+            isinstance(node, ast.Call)
+            and ast.unparse(node.func).endswith("import_module")
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and str(node.args[0].value).startswith("ucontrol")
+        ):
+            found.add(str(node.args[0].value))
     return found
 
 
@@ -76,12 +74,14 @@ def _graph() -> dict[str, set[str]]:
     modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
     graph = {}
     for name, path in modules.items():
-        imported = _load_time_imports(path) - {name, "ucontrol"}
+        imported = _imports(path) - {name, "ucontrol"}
         graph[name] = {m for m in imported if m in modules}
     return graph
 
 
 def _layer(module: str) -> int:
+    if module.endswith(".__main__"):  # a package's `python -m` entry point: the top layer
+        return LAYERS["__main__"]
     top = module.split(".")[1] if "." in module else ""
     if top not in LAYERS:
         pytest.fail(f"{module}: its part {top!r} has no layer in tests/test_layers.py")
@@ -127,14 +127,22 @@ def test_no_import_circles() -> None:
     assert not cycles, "import circles:\n" + "\n".join(" -> ".join(c) for c in cycles)
 
 
-def test_the_checker_sees_a_circle_and_an_upward_import(tmp_path: Path) -> None:
-    """The two checks above are not vacuous: the parser finds load-time imports."""
+def test_the_checker_sees_every_kind_of_import(tmp_path: Path) -> None:
+    """The two checks above are not vacuous: module-level, type-only and lazy imports count."""
     module = tmp_path / "m.py"
     module.write_text(
         "from typing import TYPE_CHECKING\n"
+        "from importlib import import_module\n"
         "from ucontrol.simulate import simulate\n"
         "if TYPE_CHECKING:\n    from ucontrol.cli import main\n"
-        "def f():\n    from ucontrol.viz import replay\n"
+        "def f():\n    import ucontrol.viz\n    return import_module('ucontrol.bench')\n"
     )
-    assert _load_time_imports(module) == {"ucontrol.simulate", "ucontrol.simulate.simulate"}
+    assert _imports(module) == {
+        "ucontrol.simulate",
+        "ucontrol.simulate.simulate",
+        "ucontrol.cli",
+        "ucontrol.cli.main",
+        "ucontrol.viz",
+        "ucontrol.bench",
+    }
     assert _layer("ucontrol.simulate") > _layer("ucontrol.model.robot_model")

@@ -265,6 +265,24 @@ class IntegrationError(UControlError):
         super().__init__(f"{integrator} cannot advance ({time:.6g} s into the step): {reason}")
 
 
+class CompiledCallError(UControlError):
+    """A call of a casadi Function (compiled to C, or in casadi's virtual machine) failed.
+
+    Raised by :class:`ucontrol.model.compiled_function.CompiledFunction` and its runners;
+    :func:`ucontrol.simulate` stops the run with a :class:`SimulationError` that keeps the log
+    up to the failing step.
+
+    Attributes:
+        function: Name of the casadi Function.
+        failure: What failed: the non-zero status the compiled code returned, or casadi's error.
+    """
+
+    def __init__(self, function: str, failure: str) -> None:
+        self.function = function
+        self.failure = " ".join(failure.split())  # casadi's errors span lines: one line
+        super().__init__(f"casadi function {function!r} failed: {self.failure}")
+
+
 class RunNotFoundError(UControlError):
     """A directory is not the output of a run: it holds no ``log.npz``.
 

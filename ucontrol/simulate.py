@@ -43,7 +43,7 @@ from ucontrol.exceptions import (
 from ucontrol.log import NO_SOLVE, SOLVED, UNSOLVED, Log
 from ucontrol.output_files import OutputLock, check_output_dir, write_atomically
 from ucontrol.scene import Scene
-from ucontrol.scene.scene import BILATERAL_TOLERANCE
+from ucontrol.scene.scene_data import BILATERAL_TOLERANCE
 
 if TYPE_CHECKING:
     from ucontrol.contact.bilateral import BilateralSet

@@ -267,6 +267,7 @@ def test_scene_stroboscopic_map_converges_to_the_oscillator_map() -> None:
 
     from tests.conftest import ROBOTS
     from ucontrol.scene import Scene
+    from ucontrol.scene_maps import scene_stroboscopic_map
 
     w = 2.4
     found = oscillator_fixed_point(w, np.array([-1.0, 0.1]))
@@ -277,9 +278,7 @@ def test_scene_stroboscopic_map_converges_to_the_oscillator_map() -> None:
     errors = []
     for steps in (500, 1000):
         settings = dataclasses.replace(scene.integrator, dt=period / steps)
-        P = pc.scene_stroboscopic_map(
-            dataclasses.replace(scene, integrator=settings), forcing, period
-        )
+        P = scene_stroboscopic_map(dataclasses.replace(scene, integrator=settings), forcing, period)
         errors.append(np.max(np.abs(P(found.z) - found.z)))
     assert errors[1] < 0.7 * errors[0]  # first order in h (zero-order hold)
     assert errors[1] < 1e-2

@@ -21,7 +21,6 @@ from conftest import ROBOTS, load_experiment
 from ucontrol.control.controller import ContactState
 from ucontrol.control.desired_cycle import ContactPhase
 from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
-from ucontrol.control.impedance_table import impedance_from_table
 from ucontrol.control.segment_path import SegmentPath
 from ucontrol.exceptions import (
     InvalidParameterError,
@@ -33,6 +32,7 @@ from ucontrol.exceptions import (
     UnknownKeyError,
 )
 from ucontrol.scene import Scene
+from ucontrol.scene.impedance_table import impedance_from_table
 from ucontrol.simulate import simulate
 
 pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out

@@ -14,14 +14,12 @@ import numpy as np
 import pytest
 
 from tests.conftest import ROBOTS
-from ucontrol.analysis.poincare import finite_difference_jacobian, scene_impact_map
-from ucontrol.control.juggling_controller import (
-    JugglingController,
-    JugglingSettings,
-    juggling_from_table,
-)
+from ucontrol.analysis.poincare import finite_difference_jacobian
+from ucontrol.control.juggling_controller import JugglingController, JugglingSettings
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, UnknownKeyError
 from ucontrol.scene import Scene
+from ucontrol.scene.juggling_table import juggling_from_table
+from ucontrol.scene_maps import scene_impact_map
 from ucontrol.simulate import simulate
 
 pytestmark = pytest.mark.slow  # long runs: `pytest -m "not slow"` leaves them out

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import needs_compiled_code
 
 from ucontrol.contact import compiled_rows as compiled_rows_module
 from ucontrol.contact.compiled_rows import compiled_rows, qualifies
@@ -18,6 +19,7 @@ def _random_state(robot, rng):  # type: ignore[no-untyped-def]
     return q, rng.normal(size=robot.nv)
 
 
+@needs_compiled_code
 @pytest.mark.parametrize("name", ["two_link_one_constraint", "panda_table"])
 def test_rows_equal_pinocchio_and_finite_differences(name: str, rng: np.random.Generator) -> None:
     scene = load_scene(name)
@@ -45,6 +47,7 @@ def test_rows_equal_pinocchio_and_finite_differences(name: str, rng: np.random.G
             np.testing.assert_allclose(derivative, values.rows[:, j], rtol=0, atol=1e-8)
 
 
+@needs_compiled_code
 @pytest.mark.parametrize("armature", [None, (0.3, 0.7)])
 def test_rows_with_dynamics_fill_m_and_h_as_pinocchio(armature, rng: np.random.Generator) -> None:
     """A small robot's rows with the dynamics: M, h and the energies of computeAllTerms."""
@@ -70,6 +73,7 @@ def test_rows_with_dynamics_fill_m_and_h_as_pinocchio(armature, rng: np.random.G
     assert not compiled_rows(panda.constraints, dynamics=True).dynamics
 
 
+@needs_compiled_code
 def test_values_are_fresh_arrays() -> None:
     scene = load_scene("two_link_one_constraint")
     rows = compiled_rows(scene.constraints)
@@ -95,6 +99,7 @@ def test_sets_that_do_not_qualify_keep_the_pinocchio_path() -> None:
 
 
 @pytest.mark.slow
+@needs_compiled_code  # without it both runs would be interpreted
 def test_closed_loop_without_compiler_equals_compiled_to_round_off(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

@@ -12,15 +12,15 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import needs_compiled_code
 
 from ucontrol.control.controller import ContactState
-from ucontrol.model import native_call
+from ucontrol.exceptions import CompiledCallError
+from ucontrol.model import compiled_function, native_call
+from ucontrol.model.compile_cache import CACHE_ENV, build_library, cache_dir
 from ucontrol.model.compiled_function import (
-    CACHE_ENV,
     NO_COMPILE_ENV,
     CompiledFunction,
-    build_library,
-    cache_dir,
     compilation_disabled,
 )
 from ucontrol.scene import Scene
@@ -82,7 +82,7 @@ def test_native_runner_equals_the_ctypes_call_and_keeps_its_buffers(tmp_path, mo
 
 
 def test_native_runner_raises_on_a_nonzero_status(tmp_path, monkeypatch):
-    """A compiled entry returning a status other than 0 raises a RuntimeError naming it."""
+    """A compiled entry returning a status other than 0 raises a CompiledCallError naming it."""
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     if native_call._extension() is None:
         pytest.skip("native call extension unavailable")
@@ -97,8 +97,25 @@ def test_native_runner_raises_on_a_nonzero_status(tmp_path, monkeypatch):
         entry, address, address, work.ctypes.data, work.ctypes.data, library, "failing"
     )
     assert run is not None
-    with pytest.raises(RuntimeError, match="failing returned 3"):
+    with pytest.raises(CompiledCallError, match="'failing' failed: returned status 3") as raised:
         run()
+    assert raised.value.function == "failing" and raised.value.failure == "returned status 3"
+
+
+def test_a_failing_call_in_casadis_virtual_machine_is_a_compiled_call_error():
+    """A casadi error (a root finder without a root) becomes a one-line CompiledCallError."""
+    x, p = ca.SX.sym("x"), ca.SX.sym("p")
+    residual = ca.Function("residual", [x, p], [x**2 + 1.0 + p])  # a root only for p <= -1
+    roots = ca.rootfinder("no_root", "newton", residual, {"error_on_fail": True})
+    function = CompiledFunction(roots, compile=False)
+    (root,) = function(np.array([0.5]), np.array([-2.0]))
+    np.testing.assert_allclose(root, [1.0], rtol=0.0, atol=_TOLERANCE)  # x**2 = 1
+    run = function.runner()
+    function.input_view(1)[...] = 0.0
+    for call in (run, lambda: function(None, None)):
+        with pytest.raises(CompiledCallError, match=r"'no_root' failed: .*rootfinder") as raised:
+            call()
+        assert raised.value.function == "no_root" and "\n" not in str(raised.value)
 
 
 @pytest.mark.parametrize("compile", [True, False])
@@ -123,7 +140,7 @@ def test_runner_through_ctypes_without_the_extension(tmp_path, monkeypatch):
     """Without the extension (no Python headers), runner() calls through ctypes: same values."""
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
-    monkeypatch.setattr(native_call, "native_runner", lambda *args: None)
+    monkeypatch.setattr(compiled_function, "native_runner", lambda *args: None)
     function = CompiledFunction(_function())
     run = function.runner()
     assert function.compiled and type(run).__name__ == "function"
@@ -151,6 +168,7 @@ def test_compiled_function_matches_analytic_values(tmp_path, monkeypatch):
 
 def test_cache_is_built_once_by_concurrent_builders(tmp_path, monkeypatch):
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
     with ThreadPoolExecutor(max_workers=3) as pool:
         functions = list(pool.map(lambda _: CompiledFunction(_function()), range(3)))
     assert all(f.compiled for f in functions)
@@ -242,7 +260,7 @@ def test_symbolic_kinematics_of_the_law_equal_pinocchios():
     controller = scene.build_controller()
     robot, frame = controller.robot, controller.task.frame
     kinematics = _symbolic_kinematics(robot, frame)
-    assert kinematics is not None and controller._configuration_input is not None
+    assert kinematics is not None
     model, data, frame_id = robot.model, pin.Data(robot.model), robot.frame_id(frame)
     lwa = pin.LOCAL_WORLD_ALIGNED
     generator = np.random.default_rng(4)
@@ -258,7 +276,13 @@ def test_symbolic_kinematics_of_the_law_equal_pinocchios():
         np.testing.assert_allclose(dJ, dJ_pin, atol=1e-13)
     panda = Scene.from_toml(ROBOTS / "panda_table.toml").build_controller()
     assert _symbolic_kinematics(panda.robot, panda.task.frame) is None  # nv = 7: Pinocchio's
-    assert panda._configuration_input is None
+
+
+@needs_compiled_code
+def test_only_a_small_robots_compiled_law_takes_the_symbolic_kinematics():
+    two_link = Scene.from_toml(ROBOTS / "two_link_one_constraint.toml").build_controller()
+    panda = Scene.from_toml(ROBOTS / "panda_table.toml").build_controller()
+    assert two_link._configuration_input is not None and panda._configuration_input is None
 
 
 def test_gains_and_stiffness_are_parameters_of_one_library(tmp_path, monkeypatch):

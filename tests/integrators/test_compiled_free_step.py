@@ -10,11 +10,13 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import TRACKING_SCENES
+from conftest import TRACKING_SCENES, needs_compiled_code
 
 from ucontrol.integrators.step_stages import StepMemory
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.scene import load_scene
+
+pytestmark = needs_compiled_code  # every test compares a compiled path with the reference
 
 #: (scene, with viscous joint friction): the steps that use the compiled free step.
 CASES = [

@@ -13,6 +13,7 @@ import tomllib
 
 import numpy as np
 import pytest
+from conftest import needs_compiled_code
 
 from ucontrol.integrators import step_stages
 from ucontrol.scene import Scene, builtin_scene
@@ -80,7 +81,7 @@ def test_the_siconos_law_runs_no_guard(build) -> None:  # type: ignore[no-untype
     assert _largest_impact_gain(result) > 1e-3
 
 
-@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("compiled", [pytest.param(True, marks=needs_compiled_code), False])
 def test_without_the_guard_the_one_row_step_gains_energy(
     compiled: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -2,8 +2,8 @@ r"""Gaps, normal velocities and normal Jacobian rows of every constraint in one 
 
 :meth:`ConstraintSet.evaluate <ucontrol.contact.constraint_set.ConstraintSet.evaluate>` and
 :meth:`~ucontrol.contact.constraint_set.ConstraintSet.jacobian` read Pinocchio's data one
-contact at a time: a frame placement, a frame velocity and a frame Jacobian per contact, each a
-Python call of about 1 µs, most of a Moreau–Jean step with a few contacts. For a fixed-base robot
+contact at a time: a frame placement, a frame velocity and a frame Jacobian per contact, three
+Python calls per contact, most of a Moreau–Jean step with a few contacts. For a fixed-base robot
 of revolute and prismatic joints whose constraints are point contacts against fixed planes and
 joint stops, :class:`ConstraintRows` writes the same quantities as one casadi Function of
 (q, v), compiled to C (:class:`~ucontrol.model.compiled_function.CompiledFunction`):

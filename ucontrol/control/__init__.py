@@ -19,13 +19,11 @@ from ucontrol.control.desired_cycle import (
 )
 from ucontrol.control.friction_compensation import FrictionCompensation
 from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
-from ucontrol.control.impedance_table import impedance_from_table
 from ucontrol.control.joint_pd import JointPD
 from ucontrol.control.juggling_controller import (
     ArmJugglingController,
     JugglingController,
     JugglingSettings,
-    juggling_from_table,
 )
 from ucontrol.control.path_reach import check_reach
 from ucontrol.control.path_table import PATH_TYPES, path_from_table
@@ -70,8 +68,6 @@ __all__ = [
     "TaskState",
     "ZeroTorque",
     "check_reach",
-    "impedance_from_table",
-    "juggling_from_table",
     "path_from_table",
     "read_designed_cycle",
 ]

@@ -1,19 +1,17 @@
 r"""Casadi Functions compiled to C, cached on disk, with the casadi virtual machine as fallback.
 
 A law written as a casadi expression (the flexible-joint law, the link reference of
-:class:`~ucontrol.control.FlexibleBrogliatoController`) costs some 30 µs per call through
-casadi's Python interface, most of it converting numbers to and from ``casadi.DM``.
+:class:`~ucontrol.control.FlexibleBrogliatoController`) called through casadi's Python
+interface spends most of each call converting numbers to and from ``casadi.DM``.
 :class:`CompiledFunction` generates the C code of the Function once
 (``casadi.CodeGenerator``), compiles it with the system C compiler into a shared library and
-calls it through ``ctypes`` on preallocated numpy buffers (about 1 µs per call).
+calls it on preallocated numpy buffers, without conversions (the figures are in
+docs/benchmarks.md, "Compiled laws: cache and fallback").
 
-- Cache: ``$UCONTROL_CACHE_DIR`` or ``$XDG_CACHE_HOME/ucontrol`` or ``~/.cache/ucontrol``,
-  sub-directory ``casadi``; one library per Function, named by the SHA-256 of the Function's
-  serialized form, the casadi version and the compiler command, so a changed law is rebuilt
-  and an unchanged one never is.
-- Concurrency: the build of an entry holds an exclusive ``fcntl`` lock on its lock file, and
-  the library is written under a temporary name then renamed (atomic on POSIX): concurrent
-  processes (tests, dask workers) build it once and never load a partial file.
+- Cache: one library per Function in the cache of :mod:`ucontrol.model.compile_cache`, named
+  by the SHA-256 of the Function's serialized form, the casadi version and the compiler
+  command, so a changed law is rebuilt and an unchanged one never is; built once by
+  concurrent processes, never loaded partial.
 - Fallback: without a C compiler, when compilation or loading fails, or with the environment
   variable ``UCONTROL_NO_COMPILE=1``, the same interface calls the casadi Function itself
   (same results to round-off; slower). ``$CC`` chooses the compiler (default ``cc``).
@@ -25,21 +23,20 @@ flattened); the outputs are densified at construction.
 from __future__ import annotations
 
 import ctypes
-import fcntl
 import functools
-import hashlib
 import logging
 import os
-import shlex
-import shutil
 import subprocess
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from ucontrol.exceptions import CompiledCallError
+from ucontrol.model.compile_cache import build_library, compiler_command
+from ucontrol.model.native_call import native_runner
 
 if TYPE_CHECKING:  # casadi is imported by the functions that build (compilation_possible: not)
     import casadi as ca
@@ -48,24 +45,8 @@ Vector = NDArray[np.float64]
 
 #: Set to 1 to use the casadi virtual machine instead of compiled code.
 NO_COMPILE_ENV = "UCONTROL_NO_COMPILE"
-#: Overrides the cache directory.
-CACHE_ENV = "UCONTROL_CACHE_DIR"
-#: Compiler flags (optimisation level chosen for build time: the laws are a few thousand lines).
-CFLAGS = ("-O1", "-fPIC", "-shared")
-#: Seconds a build may take before it is abandoned for the fallback.
-BUILD_TIMEOUT_S = 300.0
 
 _logger = logging.getLogger(__name__)
-
-
-def cache_dir() -> Path:
-    """Directory holding the compiled libraries."""
-    root = os.environ.get(CACHE_ENV)
-    if root:
-        return Path(root) / "casadi"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg) if xdg else Path.home() / ".cache"
-    return base / "ucontrol" / "casadi"
 
 
 def compilation_disabled() -> bool:
@@ -82,7 +63,7 @@ def compilation_possible() -> bool:
     if compilation_disabled():
         return False
     try:
-        _compiler()
+        compiler_command()
     except OSError:
         return False
     return True
@@ -135,15 +116,22 @@ class CompiledFunction:
         order; it is read column-major as casadi does), or None for an input already written
         in place into :meth:`input_buffer`. The arrays returned are buffers reused by the next
         call: copy what must be kept.
+
+        Raises:
+            CompiledCallError: The compiled code returned a non-zero status, or casadi's
+                virtual machine raised (e.g. an embedded root finder that failed).
         """
         buffers, views = self._in_buffers, self._in_views
         for i, x in enumerate(inputs):
             if x is not None:
                 views[i][...] = x
         if not self.compiled:
-            values: Any = self.function(
-                *(b.reshape(shape, order="F") for b, shape in zip(buffers, self._in_shapes))
-            )
+            try:
+                values: Any = self.function(
+                    *(b.reshape(shape, order="F") for b, shape in zip(buffers, self._in_shapes))
+                )
+            except RuntimeError as error:  # casadi's, e.g. an embedded solver that failed
+                raise CompiledCallError(self.name, str(error)) from error
             if self.function.n_out() == 1:
                 values = (values,)
             for out, value in zip(self._outputs, values, strict=True):
@@ -158,9 +146,10 @@ class CompiledFunction:
         The call writes :meth:`output_buffer` and returns nothing. For hot loops: it skips
         :meth:`__call__`'s handling of arguments and results and, where the extension of
         :mod:`ucontrol.model.native_call` builds, ``ctypes`` (a call of the compiled library
-        then costs about 50 ns besides its arithmetic, against 0.6 µs); without the compiled
-        library it runs the casadi Function as :meth:`__call__` does. The runner keeps this
-        object alive.
+        is then one builtin call besides its arithmetic, without ctypes' conversions);
+        without the compiled library it runs the casadi Function as :meth:`__call__` does.
+        The runner keeps this object alive, and raises
+        :class:`~ucontrol.exceptions.CompiledCallError` as :meth:`__call__` does.
         """
         if not self.compiled:
             nothing = (None,) * len(self._in_buffers)
@@ -173,8 +162,6 @@ class CompiledFunction:
 
     def _bound_runner(self, owner: object) -> Callable[[], None]:
         """The compiled call on the bound buffers, natively where possible; keeps ``owner``."""
-        from ucontrol.model.native_call import native_runner
-
         native = native_runner(
             self._entry,
             ctypes.addressof(self._arg),
@@ -261,16 +248,16 @@ class CompiledFunction:
         self._iw = self._iw_buffer.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong))
         self._w = self._w_buffer.ctypes.data_as(double_p)
         # No argtypes: ctypes passes the pointer arrays as they are and 0 as a C int
-        # (converting the arguments through argtypes costs 1.2 µs a call, against 0.35 µs).
+        # (argtypes would convert and check all five arguments at every call).
         call.argtypes = None
         self._call = functools.partial(call, self._arg, self._res, self._iw, self._w, 0)
         self._run_bound = self._bound_runner(owner=None)  # owned by self: no cycle
 
 
 def _check(name: str, status: int) -> None:
-    """A compiled call's casadi status: 0, or a :class:`RuntimeError`."""
+    """A compiled call's casadi status: 0, or a :class:`CompiledCallError`."""
     if status != 0:
-        raise RuntimeError(f"compiled casadi function {name} returned {status}")
+        raise CompiledCallError(name, f"returned status {status}")
 
 
 def _densified(function: ca.Function) -> ca.Function:
@@ -284,13 +271,6 @@ def _densified(function: ca.Function) -> ca.Function:
     return ca.Function(function.name(), symbols, [ca.densify(o) for o in outputs])
 
 
-def _compiler() -> list[str]:
-    command = shlex.split(os.environ.get("CC", "cc"))
-    if not command or shutil.which(command[0]) is None:
-        raise OSError(f"no C compiler ({' '.join(command) or 'CC empty'})")
-    return command
-
-
 def _build(function: ca.Function) -> Path:
     """Path of the compiled library of ``function``, built (once) if absent."""
     import casadi as ca
@@ -302,45 +282,3 @@ def _build(function: ca.Function) -> Path:
 
     key = function.serialize() + ca.CasadiMeta.version()
     return build_library(function.name(), key, source)
-
-
-def build_library(
-    stem: str, key: str, source: str | Callable[[], str], flags: tuple[str, ...] = ()
-) -> Path:
-    """Path of the shared library compiled from C ``source``, built (once) into the cache.
-
-    Args:
-        stem: Start of the library's file name.
-        key: What the library depends on besides the compiler command (hashed into the name).
-        source: The C source, or a callable returning it (called only to build).
-        flags: Compiler flags after :data:`CFLAGS`.
-
-    Raises:
-        OSError: No C compiler.
-        subprocess.SubprocessError: The compilation failed or timed out.
-    """
-    compiler = _compiler()
-    digest = hashlib.sha256((key + " ".join([*compiler, *CFLAGS, *flags])).encode()).hexdigest()[
-        :24
-    ]
-    directory = cache_dir()
-    directory.mkdir(parents=True, exist_ok=True)
-    library = directory / f"{stem}_{digest}.so"
-    if library.is_file():
-        return library
-    with open(directory / f"{library.name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # one builder; the others wait, then find it built
-        if library.is_file():
-            return library
-        with tempfile.TemporaryDirectory(dir=directory) as work:
-            path = Path(work) / f"{stem}.c"
-            path.write_text(source if isinstance(source, str) else source())
-            target = Path(work) / library.name
-            subprocess.run(
-                [*compiler, *CFLAGS, *flags, "-o", str(target), str(path), "-lm"],
-                check=True,
-                capture_output=True,
-                timeout=BUILD_TIMEOUT_S,
-            )
-            os.replace(target, library)  # atomic: readers see no partial library
-    return library

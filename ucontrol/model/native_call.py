@@ -1,12 +1,13 @@
 r"""A compiled casadi call as a Python builtin without arguments: the call without ctypes.
 
-Through ``ctypes``, calling a compiled casadi Function on bound buffers costs about 0.5 µs of
-Python-to-C conversion, about as much as the arithmetic of the small laws and rows in the
-closed loop, which makes several such calls per step. This module builds, once per Python and
-compiler, a small CPython extension (about 60 lines of C, cached beside the compiled laws)
-whose :func:`native_runner` wraps the C entry point of a compiled Function and its bound
-argument, result and work arrays into a builtin function of no arguments: one call costs a
-Python builtin call (about 50 ns) plus the Function's own work.
+Through ``ctypes``, calling a compiled casadi Function on bound buffers converts its five
+arguments from Python to C at every call, work of the order of the arithmetic of the small laws
+and rows of the closed loop, which makes several such calls per step. This module builds, once
+per Python and compiler, a small CPython extension (about 60 lines of C, cached beside the
+compiled laws) whose :func:`native_runner` wraps the C entry point of a compiled Function and
+its bound argument, result and work arrays into a builtin function of no arguments: one call is
+one Python builtin call, without conversions, plus the Function's own work (measured in
+docs/benchmarks.md, "Compiled laws: cache and fallback").
 
 Where the extension cannot be built (no Python headers, no compiler, a failed build),
 :func:`native_runner` returns None and callers keep the ``ctypes`` call (with
@@ -25,6 +26,9 @@ import sysconfig
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
+
+from ucontrol.exceptions import CompiledCallError
+from ucontrol.model.compile_cache import build_library
 
 _logger = logging.getLogger(__name__)
 
@@ -45,6 +49,7 @@ typedef struct {
     double *w;
     PyObject *owner; /* keeps the buffers behind the pointers alive */
     PyObject *name;
+    PyObject *error; /* error(name, failure) -> the exception raised on a non-zero status */
 } runner_t;
 
 static const char *CAPSULE = "ucontrol.native_call.runner";
@@ -54,6 +59,7 @@ static void runner_free(PyObject *capsule) {
     if (r == NULL) return;
     Py_XDECREF(r->owner);
     Py_XDECREF(r->name);
+    Py_XDECREF(r->error);
     PyMem_Free(r);
 }
 
@@ -62,8 +68,13 @@ static PyObject *run(PyObject *capsule, PyObject *unused) {
     if (r == NULL) return NULL;
     int status = r->entry(r->arg, r->res, r->iw, r->w, 0);
     if (status != 0) {
-        PyErr_Format(PyExc_RuntimeError, "compiled casadi function %U returned %d", r->name,
-                     status);
+        PyObject *failure = PyUnicode_FromFormat("returned status %d", status);
+        if (failure == NULL) return NULL;
+        PyObject *error = PyObject_CallFunctionObjArgs(r->error, r->name, failure, NULL);
+        Py_DECREF(failure);
+        if (error == NULL) return NULL;
+        PyErr_SetObject((PyObject *)Py_TYPE(error), error);
+        Py_DECREF(error);
         return NULL;
     }
     Py_RETURN_NONE;
@@ -74,8 +85,8 @@ static PyMethodDef run_def = {"run", run, METH_NOARGS,
 
 static PyObject *make_runner(PyObject *module, PyObject *args) {
     unsigned long long entry, arg, res, iw, w;
-    PyObject *owner, *name;
-    if (!PyArg_ParseTuple(args, "KKKKKOU", &entry, &arg, &res, &iw, &w, &owner, &name))
+    PyObject *owner, *name, *error;
+    if (!PyArg_ParseTuple(args, "KKKKKOUO", &entry, &arg, &res, &iw, &w, &owner, &name, &error))
         return NULL;
     if (entry == 0 || arg == 0 || res == 0 || iw == 0 || w == 0) {
         PyErr_SetString(PyExc_ValueError, "null pointer");
@@ -90,12 +101,15 @@ static PyObject *make_runner(PyObject *module, PyObject *args) {
     r->w = (double *)(uintptr_t)w;
     Py_INCREF(owner);
     Py_INCREF(name);
+    Py_INCREF(error);
     r->owner = owner;
     r->name = name;
+    r->error = error;
     PyObject *capsule = PyCapsule_New(r, CAPSULE, runner_free);
     if (capsule == NULL) {
         Py_DECREF(owner);
         Py_DECREF(name);
+        Py_DECREF(error);
         PyMem_Free(r);
         return NULL;
     }
@@ -106,7 +120,7 @@ static PyObject *make_runner(PyObject *module, PyObject *args) {
 
 static PyMethodDef methods[] = {
     {"make_runner", make_runner, METH_VARARGS,
-     "make_runner(entry, arg, res, iw, w, owner, name): a builtin of no arguments."},
+     "make_runner(entry, arg, res, iw, w, owner, name, error): a builtin of no arguments."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module_def = {PyModuleDef_HEAD_INIT, "_ucontrol_native_call",
@@ -129,20 +143,23 @@ def native_runner(
         iw: Address of its integer work array (``long long``).
         w: Address of its real work array.
         owner: Object kept alive as long as the runner is (the holder of those buffers).
-        name: The Function's name, for the error of a non-zero status (a RuntimeError).
+        name: The Function's name, for the error of a non-zero status.
+
+    The runner raises :class:`~ucontrol.exceptions.CompiledCallError` when the entry returns
+    a non-zero status.
     """
     module = _extension()
     if module is None:
         return None
-    runner: Callable[[], None] = module.make_runner(entry, arg, res, iw, w, owner, name)
+    runner: Callable[[], None] = module.make_runner(
+        entry, arg, res, iw, w, owner, name, CompiledCallError
+    )
     return runner
 
 
 @functools.cache
 def _extension() -> ModuleType | None:
     """The extension module, built into the cache on first use; None where it cannot be."""
-    from ucontrol.model.compiled_function import build_library
-
     include = Path(sysconfig.get_paths()["include"])
     if not (include / "Python.h").is_file():
         _logger.info("no Python headers at %s: compiled calls through ctypes", include)

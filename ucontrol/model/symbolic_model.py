@@ -34,9 +34,9 @@ from ucontrol.exceptions import InvalidParameterError
 from ucontrol.model.robot_model import RobotModel
 
 #: Largest nv for which the compiled symbolic terms (M, C, h, a frame's kinematics) beat
-#: Pinocchio's recursive algorithms: measured C(q, v) and a frame's position, Jacobian and
-#: its time variation in 0.06 µs against 1.1 µs at nv = 2, but 12.8 µs against 3.5 µs at
-#: nv = 7 (the Christoffel terms grow as nv³ in the C code).
+#: Pinocchio's recursive algorithms: measured faster at nv = 2 and slower at nv = 7, where the
+#: Christoffel terms, which grow as nv³ in the C code, dominate (docs/benchmarks.md, sixth
+#: round).
 SMALL_ROBOT_MAX_NV = 3
 
 #: Supported Pinocchio joint types: (kind, axis in the joint frame; None: read it from the joint).

@@ -18,18 +18,18 @@ from ucontrol.control.controller import Controller
 from ucontrol.control.controller_table import CYCLE_KEYS, tracked_contacts
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.friction_compensation import FrictionCompensation
-from ucontrol.control.impedance_table import IMPEDANCE_KEYS, impedance_from_table
 from ucontrol.control.joint_pd import JointPD
-from ucontrol.control.juggling_controller import JUGGLING_KEYS, juggling_from_table
 from ucontrol.control.path_table import cycle_from_table
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import NotFoundError, SceneError
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.model_uncertainty import perturbed_robot
+from ucontrol.scene.impedance_table import IMPEDANCE_KEYS, impedance_from_table
+from ucontrol.scene.juggling_table import JUGGLING_KEYS, juggling_from_table
 
 if TYPE_CHECKING:
-    from ucontrol.scene.scene import Scene
+    from ucontrol.scene.scene_data import SceneData
 
 _BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
 _CONTROLLER_KEYS = {
@@ -78,7 +78,7 @@ def check_controller_table(table: Mapping[str, Any]) -> str:
     return kind
 
 
-def build_controller(scene: Scene) -> Controller:
+def build_controller(scene: SceneData) -> Controller:
     """The controller declared by ``scene.controller``, on its own model of the scene.
 
     A ``[controller.model]`` table gives the controller a model that differs from the plant
@@ -96,7 +96,7 @@ def build_controller(scene: Scene) -> Controller:
     return FrictionCompensation(controller, view.robot, friction)
 
 
-def controller_view(scene: Scene, model: Mapping[str, Any] | None) -> Scene:
+def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneData:
     """The scene as a controller with a ``[controller.model]`` table believes it is.
 
     Keys: ``mass_scale`` (a factor, or one per link), ``com_offset`` (per link, [m], in the
@@ -141,11 +141,11 @@ def controller_view(scene: Scene, model: Mapping[str, Any] | None) -> Scene:
     )
 
 
-def _zero(scene: Scene, table: Mapping[str, Any]) -> Controller:
+def _zero(scene: SceneData, table: Mapping[str, Any]) -> Controller:
     return ZeroTorque(scene.robot.nu)
 
 
-def _joint_pd(scene: Scene, table: Mapping[str, Any]) -> Controller:
+def _joint_pd(scene: SceneData, table: Mapping[str, Any]) -> Controller:
     return JointPD(
         scene.robot,
         q_ref=table.get("q_ref", scene.q0),
@@ -158,7 +158,7 @@ def _joint_pd(scene: Scene, table: Mapping[str, Any]) -> Controller:
     )
 
 
-def _brogliato(scene: Scene, table: Mapping[str, Any]) -> Controller:
+def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
     """The ``type = "brogliato"`` controller of a scene (keys in docs/scene_format.md)."""
     section = "[controller]"
     frame = str(require_key(table, section, "frame"))
@@ -190,7 +190,7 @@ def _brogliato(scene: Scene, table: Mapping[str, Any]) -> Controller:
     return BrogliatoController(robot, task, cycle, gains, posture=posture)
 
 
-_BUILDERS: dict[str, Callable[[Scene, Mapping[str, Any]], Controller]] = {
+_BUILDERS: dict[str, Callable[[SceneData, Mapping[str, Any]], Controller]] = {
     "zero": _zero,
     "joint_pd": _joint_pd,
     "brogliato": _brogliato,

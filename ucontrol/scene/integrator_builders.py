@@ -18,10 +18,12 @@ from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 
 if TYPE_CHECKING:
     from ucontrol.plant import Integrator
-    from ucontrol.scene.scene import Scene
+    from ucontrol.scene.scene_data import SceneData
 
 
-def build_integrator(scene: Scene, dt: float | None = None, *, compiled: bool = True) -> Integrator:
+def build_integrator(
+    scene: SceneData, dt: float | None = None, *, compiled: bool = True
+) -> Integrator:
     """The integrator ``scene.integrator`` names, with its step or ``dt`` in [s].
 
     ``compiled = False`` runs Moreau–Jean's reference stages alone (no generated fast path).
@@ -72,7 +74,7 @@ def build_integrator(scene: Scene, dt: float | None = None, *, compiled: bool = 
     return _moreau_jean(scene, h, compiled) if name == "moreau_jean" else _BUILDERS[name](scene, h)
 
 
-def _moreau_jean(scene: Scene, dt: float, compiled: bool = True) -> Integrator:
+def _moreau_jean(scene: SceneData, dt: float, compiled: bool = True) -> Integrator:
     settings = scene.integrator
     contact_solver, friction_solver = build_contact_solvers(
         settings.contact_solver,
@@ -100,12 +102,12 @@ def _moreau_jean(scene: Scene, dt: float, compiled: bool = True) -> Integrator:
     )
 
 
-def _joint_coulomb(scene: Scene) -> bool:
+def _joint_coulomb(scene: SceneData) -> bool:
     """Whether some joint of the scene has Coulomb friction (it needs the friction solver)."""
     return scene.joint_friction is not None and scene.joint_friction.coulomb_index.size > 0
 
 
-def _event_driven(scene: Scene, dt: float) -> Integrator:
+def _event_driven(scene: SceneData, dt: float) -> Integrator:
     from ucontrol.integrators.event_driven import EventDriven  # loads scipy.integrate
 
     settings = scene.integrator
@@ -127,7 +129,7 @@ def _event_driven(scene: Scene, dt: float) -> Integrator:
     )
 
 
-def _lzb_law(scene: Scene) -> Any:
+def _lzb_law(scene: SceneData) -> Any:
     """The LZB impact law of a scene: its restitutions as energetic coefficients."""
     from ucontrol.integrators.lzb_impact import LZBImpactLaw
 
@@ -141,7 +143,7 @@ def _lzb_law(scene: Scene) -> Any:
     )
 
 
-def _compliant(scene: Scene, dt: float) -> Integrator:
+def _compliant(scene: SceneData, dt: float) -> Integrator:
     from ucontrol.integrators.compliant import Compliant  # loads scipy.integrate
 
     settings = scene.integrator
@@ -157,7 +159,7 @@ def _compliant(scene: Scene, dt: float) -> Integrator:
     )
 
 
-_BUILDERS: dict[str, Callable[[Scene, float], Integrator]] = {
+_BUILDERS: dict[str, Callable[[SceneData, float], Integrator]] = {
     "moreau_jean": _moreau_jean,
     "event_driven": _event_driven,
     "compliant": _compliant,

@@ -38,8 +38,8 @@ def natural_map_residual(
 
     ``diagonal`` is the diagonal d of D in [m/s per N s] (or :func:`velocity_scale`): an
     entry ``<= 0`` counts as 1. A NaN anywhere gives NaN, and an empty problem 0. Up to
-    :data:`PYTHON_RESIDUAL_SIZE` rows a loop on Python floats (~1 µs for m = 4, where the
-    numpy expression costs ~4.6 µs; equal at m ~ 35), numpy beyond.
+    :data:`PYTHON_RESIDUAL_SIZE` rows a loop on Python floats (cheaper than the numpy
+    expression's fixed call costs for so few rows: docs/benchmarks.md), numpy beyond.
     """
     if impulses.size > PYTHON_RESIDUAL_SIZE:
         scale = np.where(diagonal <= 0.0, 1.0, diagonal)

@@ -13,7 +13,7 @@ from ucontrol.control.path_table import cycle_from_table
 from ucontrol.exceptions import InvalidParameterError
 
 if TYPE_CHECKING:
-    from ucontrol.scene import Scene
+    from ucontrol.scene.scene_data import SceneData
 
 _GAIN_KEYS = ("stiffness", "damping", "joint_damping", "posture_stiffness", "posture_damping")
 #: Keys of the ``[controller]`` table of type ``"impedance"``.
@@ -33,7 +33,7 @@ IMPEDANCE_KEYS = {
 }
 
 
-def impedance_from_table(scene: Scene, table: Mapping[str, Any]) -> ImpedanceController:
+def impedance_from_table(scene: SceneData, table: Mapping[str, Any]) -> ImpedanceController:
     """Build the impedance controller a ``[controller]`` table declares for ``scene``.
 
     Keys (docs/task_paths.md): ``frame``, ``stiffness``, ``damping`` (required);
