@@ -5,7 +5,6 @@ from __future__ import annotations
 import ctypes
 import gc
 import math
-import sysconfig
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -59,9 +58,8 @@ def test_native_runner_equals_the_ctypes_call_and_keeps_its_buffers(tmp_path, mo
     """The builtin runner of native_call: the ctypes call's outputs, alive after its owner."""
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
-    if not (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file():
-        pytest.skip("no Python headers: compiled calls go through ctypes")
-    assert native_call._extension() is not None
+    if native_call._extension() is None:
+        pytest.skip("installed without its C extension: compiled calls go through ctypes")
     rng = np.random.default_rng(2)
     function = CompiledFunction(_function())
     run = function.runner()
@@ -85,7 +83,7 @@ def test_native_runner_raises_on_a_nonzero_status(tmp_path, monkeypatch):
     """A compiled entry returning a status other than 0 raises a CompiledCallError naming it."""
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     if native_call._extension() is None:
-        pytest.skip("native call extension unavailable")
+        pytest.skip("installed without its C extension: compiled calls go through ctypes")
     source = (
         "int failing(const double **a, double **r, long long *iw, double *w, int m) {return 3;}"
     )
