@@ -265,6 +265,21 @@ class IntegrationError(UControlError):
         super().__init__(f"{integrator} cannot advance ({time:.6g} s into the step): {reason}")
 
 
+class StrideError(UControlError):
+    """A walker's stride cannot be completed by the stance-flow model it was computed with.
+
+    Attributes:
+        time: Time into the stride at which it stopped, in [s].
+        reason: What happened (no heel strike within the time allowed, a stance foot that
+            would lift off or slip, a strike that is not plastic and sticking).
+    """
+
+    def __init__(self, time: float, reason: str) -> None:
+        self.time = time
+        self.reason = reason
+        super().__init__(f"stride stopped {time:.6g} s in: {reason}")
+
+
 class RunNotFoundError(UControlError):
     """A directory is not the output of a run: it holds no ``log.npz``.
 
