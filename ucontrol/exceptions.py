@@ -265,8 +265,11 @@ class IntegrationError(UControlError):
         super().__init__(f"{integrator} cannot advance ({time:.6g} s into the step): {reason}")
 
 
-class StrideError(UControlError):
+class StrideError(IntegrationError):
     """A walker's stride cannot be completed by the stance-flow model it was computed with.
+
+    An :class:`IntegrationError` (integrator ``"stance flow"``), so that a Newton search on a
+    stride map treats a trial whose stride fails as a failed trial.
 
     Attributes:
         time: Time into the stride at which it stopped, in [s].
@@ -275,9 +278,10 @@ class StrideError(UControlError):
     """
 
     def __init__(self, time: float, reason: str) -> None:
+        self.integrator = "stance flow"
         self.time = time
         self.reason = reason
-        super().__init__(f"stride stopped {time:.6g} s in: {reason}")
+        UControlError.__init__(self, f"stride stopped {time:.6g} s in: {reason}")
 
 
 class RunNotFoundError(UControlError):
