@@ -11,6 +11,7 @@ import pytest
 from conftest import ROBOTS
 
 from ucontrol import simulate
+from ucontrol.campaign.overrides import apply_overrides
 from ucontrol.exceptions import (
     InvalidParameterError,
     JointNotFoundError,
@@ -117,3 +118,10 @@ def test_with_actuation_takes_exactly_one_list() -> None:
 def test_the_scene_format_documents_both_keys() -> None:
     text = (Path(__file__).resolve().parents[1] / "docs" / "scene_format.md").read_text()
     assert "passive" in text and "actuated" in text
+
+
+def test_a_campaign_override_sets_the_passive_joints() -> None:
+    table = apply_overrides(_two_link_table(), {"robot.passive": ["shoulder"]})
+    robot = Scene.from_dict(table, base_dir=ROBOTS).robot
+    assert robot.passive_joints == ("shoulder",)
+    np.testing.assert_array_equal(robot.actuated, [1])

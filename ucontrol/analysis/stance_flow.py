@@ -30,6 +30,7 @@ Moreau–Jean with Coulomb friction (the event-driven integrator,
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -202,7 +203,7 @@ class StanceFlow:
         def rate(_: float, y: Vector) -> Vector:
             return np.concatenate((y[nv:], self.acceleration(y[:nv], y[nv:], stance)[0]))
 
-        def strike_event(i: int):  # type: ignore[no-untyped-def]
+        def strike_event(i: int) -> Callable[[float, Vector], float]:
             def event(_: float, y: Vector) -> float:
                 return float(self.constraints.gaps(y[:nv])[i])
 
