@@ -265,6 +265,21 @@ class IntegrationError(UControlError):
         super().__init__(f"{integrator} cannot advance ({time:.6g} s into the step): {reason}")
 
 
+class RunNotFoundError(UControlError):
+    """A directory is not the output of a run: it holds no ``log.npz``.
+
+    Attributes:
+        directory: The directory given.
+    """
+
+    def __init__(self, directory: str) -> None:
+        self.directory = directory
+        super().__init__(
+            f"no log.npz in {directory!r}: not the output directory of a run "
+            "(`ucontrol run SCENE --out DIR` writes one)"
+        )
+
+
 class StrideError(IntegrationError):
     """A walker's stride cannot be completed by the stance-flow model it was computed with.
 
@@ -282,21 +297,6 @@ class StrideError(IntegrationError):
         self.time = time
         self.reason = reason
         UControlError.__init__(self, f"stride stopped {time:.6g} s in: {reason}")
-
-
-class RunNotFoundError(UControlError):
-    """A directory is not the output of a run: it holds no ``log.npz``.
-
-    Attributes:
-        directory: The directory given.
-    """
-
-    def __init__(self, directory: str) -> None:
-        self.directory = directory
-        super().__init__(
-            f"no log.npz in {directory!r}: not the output directory of a run "
-            "(`ucontrol run SCENE --out DIR` writes one)"
-        )
 
 
 class OptionalDependencyError(UControlError):
