@@ -298,6 +298,25 @@ class RunNotFoundError(UControlError):
         )
 
 
+class StrideError(IntegrationError):
+    """A walker's stride cannot be completed by the stance-flow model it was computed with.
+
+    An :class:`IntegrationError` (integrator ``"stance flow"``), so that a Newton search on a
+    stride map treats a trial whose stride fails as a failed trial.
+
+    Attributes:
+        time: Time into the stride at which it stopped, in [s].
+        reason: What happened (no heel strike within the time allowed, a stance foot that
+            would lift off or slip, a strike that is not plastic and sticking).
+    """
+
+    def __init__(self, time: float, reason: str) -> None:
+        self.integrator = "stance flow"
+        self.time = time
+        self.reason = reason
+        UControlError.__init__(self, f"stride stopped {time:.6g} s in: {reason}")
+
+
 class OptionalDependencyError(UControlError):
     """A feature needs a package of an optional extra that is not installed.
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -39,8 +40,12 @@ class RobotModel:
         name: Robot name from the URDF or MJCF file.
         nq: Configuration size.
         nv: Velocity (tangent space) size.
-        nu: Number of actuated velocity coordinates (``nv`` minus the free-flyer's 6).
-        actuated: Indices in ``v`` of the actuated coordinates, shape (nu,).
+        nu: Number of actuated velocity coordinates (``nv`` minus the free-flyer's 6 and the
+            passive joints' coordinates).
+        actuated: Indices in ``v`` of the actuated coordinates, increasing, shape (nu,): the
+            rows of the identity that make the selection :math:`S`.
+        passive_joints: Names of the joints declared passive (no input), in model order; a
+            free-flyer base is never actuated and is not listed.
         urdf_path: The URDF file the model was loaded from (its visual geometry is drawn by
             :mod:`ucontrol.viz`), or None for a model built otherwise.
         mjcf_path: The MJCF file the model was loaded from, or None.
@@ -53,6 +58,7 @@ class RobotModel:
         floating_base: bool = False,
         urdf_path: Path | None = None,
         mjcf_path: Path | None = None,
+        passive_joints: Iterable[str] = (),
     ) -> None:
         if urdf_path is not None and mjcf_path is not None:
             raise InvalidParameterError(
@@ -66,8 +72,19 @@ class RobotModel:
         self.floating_base = floating_base
         self.nq = model.nq
         self.nv = model.nv
-        first_actuated = 6 if floating_base else 0
-        self.actuated = np.arange(first_actuated, model.nv)
+        passive = set(passive_joints)
+        for name in sorted(passive):
+            self.joint_id(name)  # JointNotFoundError listing the joints that exist
+        self.passive_joints = tuple(name for name in self.joint_names if name in passive)
+        self.actuated = np.array(
+            [
+                joint.idx_v + k
+                for joint, name in zip(model.joints[1:], self.joint_names, strict=True)
+                if name not in passive and not (floating_base and joint.id == 1)
+                for k in range(joint.nv)
+            ],
+            dtype=np.intp,
+        )
         self.nu = self.actuated.size
         self._lower = np.tril_indices(model.nv, -1)
 
@@ -209,12 +226,56 @@ class RobotModel:
         raise InvalidParameterError("robot", self.name, "a robot loaded from a URDF or MJCF file")
 
     def with_model(self, model: pin.Model) -> RobotModel:
-        """A robot of another Pinocchio model (a modified copy) from the same file and base."""
+        """A robot of another model (a modified copy) with this one's file, base, passive joints."""
         return RobotModel(
             model,
             floating_base=self.floating_base,
             urdf_path=self.urdf_path,
             mjcf_path=self.mjcf_path,
+            passive_joints=self.passive_joints,
+        )
+
+    def with_actuation(
+        self, *, actuated: Iterable[str] | None = None, passive: Iterable[str] | None = None
+    ) -> RobotModel:
+        """A copy whose inputs act on the named joints only: :math:`S` selects their coordinates.
+
+        Exactly one of ``actuated`` (every other joint is passive) or ``passive`` (every other
+        joint is actuated) is given. A free-flyer base is never actuated: naming it in
+        ``actuated`` is an error, naming it in ``passive`` changes nothing.
+
+        Args:
+            actuated: Names of the joints that receive an input.
+            passive: Names of the joints that receive none.
+
+        Raises:
+            InvalidParameterError: Both or neither are given, or ``actuated`` names the
+                free-flyer.
+            JointNotFoundError: A name is not a joint of the model (the message lists them).
+        """
+        if (actuated is None) == (passive is None):
+            raise InvalidParameterError(
+                "actuated, passive",
+                f"{actuated!r}, {passive!r}",
+                "exactly one of the two lists of joint names",
+            )
+        if actuated is not None:
+            names = [str(name) for name in actuated]
+            for name in names:
+                self.joint_id(name)
+            if self.floating_base and self.joint_names[0] in names:
+                raise InvalidParameterError(
+                    "actuated", self.joint_names[0], "a joint other than the free-flyer base"
+                )
+            passive_names = [name for name in self.joint_names if name not in names]
+        else:
+            passive_names = [str(name) for name in passive or ()]
+        return RobotModel(
+            self.model,
+            floating_base=self.floating_base,
+            urdf_path=self.urdf_path,
+            mjcf_path=self.mjcf_path,
+            passive_joints=passive_names,
         )
 
     def with_scaled_inertia(self, factor: float) -> RobotModel:

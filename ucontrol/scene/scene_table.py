@@ -58,6 +58,8 @@ _ROBOT_KEYS = {
     "gravity",
     "planar_axis",
     "flexible",
+    "actuated",
+    "passive",
 }
 #: The keys of ``[robot]`` naming its description file, and the loader of each format.
 _ROBOT_FILES: dict[str, Callable[..., RobotModel]] = {
@@ -187,9 +189,12 @@ def scene_fields(
 def _robot(robot_table: Mapping[str, Any], base_dir: Path) -> RobotModel:
     """The robot of the ``[robot]`` table, from the one description file it names.
 
+    ``actuated`` or ``passive`` (joint names, not both) set the actuated coordinates.
+
     Raises:
-        SceneError: The table names no file, or more than one.
+        SceneError: The table names no file, or more than one, or both joint lists.
         RobotFileError: The file cannot be read (URDF, MJCF; SDF is refused).
+        JointNotFoundError: A joint list names a joint the robot does not have.
     """
     given = [key for key in _ROBOT_FILES if key in robot_table]
     if len(given) != 1:
@@ -198,11 +203,20 @@ def _robot(robot_table: Mapping[str, Any], base_dir: Path) -> RobotModel:
             f"description file), got {given or 'none'}"
         )
     key = given[0]
-    return _ROBOT_FILES[key](
+    robot = _ROBOT_FILES[key](
         resolve_urdf(str(robot_table[key]), base_dir),
         floating_base=as_bool("floating_base", robot_table.get("floating_base", False)),
         gravity=as_vector("gravity", robot_table.get("gravity", [0.0, 0.0, -9.81]), 3),
     )
+    lists = {name: robot_table[name] for name in ("actuated", "passive") if name in robot_table}
+    if not lists:
+        return robot
+    if len(lists) > 1:
+        raise SceneError("[robot] takes `actuated` or `passive` (joint names), not both")
+    ((name, joints),) = lists.items()
+    if not isinstance(joints, list) or not all(isinstance(joint, str) for joint in joints):
+        raise InvalidParameterError(f"[robot] {name}", joints, "a list of joint names")
+    return robot.with_actuation(**{name: joints})
 
 
 def _sensors_and_actuators(table: Mapping[str, Any]) -> dict[str, Any]:

@@ -1,0 +1,123 @@
+r"""Period-one gaits of passive walkers: Newton on the stride map at heel strike.
+
+The section is the heel strike: a state just after a foot has struck and become the stance
+foot. A chart of it, ``to_state(z) -> (q, v)`` and ``from_state(q, v) -> z``, says which
+coordinates describe it (for the rimless wheel the post-strike speed alone; for a walker the
+post-strike angles and rates with the legs relabelled). The stride map
+
+.. math:: P(z) = \text{from\_state}\big(\text{stride}(\text{to\_state}(z))\big)
+
+runs one :meth:`~ucontrol.analysis.stance_flow.StanceFlow.stride` (stance flow to the next
+strike, then the strike). A period-one gait is a fixed point :math:`z^* = P(z^*)`, found by
+:func:`~ucontrol.analysis.poincare.fixed_point` (damped Newton, the Jacobian by central
+differences, :func:`~ucontrol.analysis.poincare.finite_difference_jacobian`); its multipliers
+are the eigenvalues of :math:`DP(z^*)`. A chart that keeps every coordinate of the state gives
+the trivial multipliers of the section too (0: the directions the strike removes): drop them
+with ``drop_trivial``. Every evaluation is bounded (a stride by ``max_duration`` of its flow,
+the search by ``max_iter``): a section never crossed is a
+:class:`~ucontrol.exceptions.StrideError`, a search that does not converge a
+:class:`~ucontrol.exceptions.SolverError`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_positive
+from ucontrol.analysis.poincare import finite_difference_jacobian, fixed_point
+from ucontrol.analysis.stance_flow import StanceFlow
+
+Vector = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Gait:
+    """A period-one gait: a fixed point of the stride map.
+
+    Attributes:
+        z: The fixed point in the chart's coordinates, shape (k,).
+        q: Configuration just after the strike, shape (nq,).
+        v: Velocity just after the strike, shape (nv,).
+        period: Step period (strike to strike) in [s].
+        multipliers: Eigenvalues of the stride map's Jacobian, largest modulus first, the
+            ``drop_trivial`` smallest ones dropped.
+        jacobian: The stride map's Jacobian at ``z``, shape (k, k).
+        residual: ‖P(z) - z‖ at the end.
+        iterations: Newton iterations.
+    """
+
+    z: Vector
+    q: Vector
+    v: Vector
+    period: float
+    multipliers: NDArray[np.complex128]
+    jacobian: NDArray[np.float64]
+    residual: float
+    iterations: int
+
+    @property
+    def stable(self) -> bool:
+        """Whether every multiplier is inside the unit circle."""
+        return bool(np.max(np.abs(self.multipliers), initial=0.0) < 1.0)
+
+
+def find_gait(
+    flow: StanceFlow,
+    to_state: Callable[[Vector], tuple[Vector, Vector]],
+    from_state: Callable[[Vector, Vector], Vector],
+    z0: Vector,
+    *,
+    tol: float = 1e-10,
+    max_iter: int = 20,
+    step: float = 1e-5,
+    drop_trivial: int = 0,
+) -> Gait:
+    """Find a period-one gait by Newton on the stride map at heel strike.
+
+    Args:
+        flow: The walker's stance flow and strike map.
+        to_state: The post-strike state (q (nq,), v (nv,)) of section coordinates z (k,).
+        from_state: The section coordinates (k,) of a post-strike state.
+        z0: First guess, shape (k,).
+        tol: Residual ‖P(z) - z‖ at which Newton stops, relative to max(1, ‖z‖).
+        max_iter: Newton iterations at most.
+        step: Relative step of the central differences of the Jacobian.
+        drop_trivial: Multipliers closest to 0 to drop (the section's own directions).
+
+    Raises:
+        StrideError: A stride from the guess fails (no strike within the flow's
+            ``max_duration``: the section is never crossed; a foot lifting off or slipping).
+        SolverError: Newton did not converge in ``max_iter`` iterations.
+    """
+    tol = as_positive("tol", tol)
+    step = as_positive("step", step)
+
+    def stride_map(z: Vector) -> Vector:
+        q, v = to_state(z)
+        stride = flow.stride(q, v)
+        return np.asarray(from_state(stride.q, stride.v), dtype=float)
+
+    point = fixed_point(
+        stride_map,
+        np.asarray(z0, dtype=float),
+        jacobian=lambda z: finite_difference_jacobian(stride_map, z, step),
+        tol=tol,
+        max_iter=max_iter,
+        drop_trivial=drop_trivial,
+    )
+    q, v = to_state(point.z)
+    stride = flow.stride(q, v)
+    return Gait(
+        z=point.z,
+        q=np.asarray(q, dtype=float),
+        v=np.asarray(v, dtype=float),
+        period=stride.duration,
+        multipliers=point.multipliers,
+        jacobian=point.jacobian,
+        residual=point.residual,
+        iterations=point.iterations,
+    )

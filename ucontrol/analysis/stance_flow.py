@@ -1,0 +1,276 @@
+r"""Event-driven strides of a passive walker whose feet stick: stance flow and heel strike.
+
+A walker here is a robot whose contacts are points (radius 0) against fixed planes, with
+friction large enough that a foot on the ground never slips. One foot (the stance foot, a
+contact :math:`s`) is on the ground; it is held fully, its normal and tangential rows
+:math:`J_s` together, as a pin:
+
+.. math::
+
+    M \dot v + h = J_s^T \lambda, \qquad J_s \dot v + \dot J_s v = 0,
+
+solved as a KKT system at every evaluation and integrated by :func:`scipy.integrate.solve_ivp`
+(DOP853) with terminal events on the gap of every other foot (decreasing zero: the heel
+strike), on the stance foot's normal force (decreasing zero: it would lift off) and on its
+friction margin :math:`\mu \lambda_n - \|\lambda_t\|` (decreasing zero: it would slip).
+The heel strike of foot :math:`b` is plastic and without slip,
+
+.. math::
+
+    M (v^+ - v^-) = J_b^T \Lambda, \qquad J_b v^+ = 0,
+
+after which :math:`b` is the stance foot; the old stance foot must leave (its normal velocity
+:math:`\ge 0` after the strike) and :math:`\Lambda` must lie in the friction cone, or the
+stride is refused (:class:`~ucontrol.exceptions.StrideError`) rather than continued with a
+model that does not hold. This is the event-driven reference of the walkers run by
+Moreau–Jean with Coulomb friction (the event-driven integrator,
+:mod:`ucontrol.integrators.event_driven`, is frictionless). Robots with ``nq == nv`` only
+(planar walkers on prismatic and revolute joints); the joints receive no input.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from scipy.integrate import solve_ivp
+
+from ucontrol._validation import as_positive
+from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.exceptions import InvalidParameterError, StrideError
+
+Vector = NDArray[np.float64]
+
+_LWA = pin.LOCAL_WORLD_ALIGNED
+#: Gap in [m] below which a foot counts as on the ground at the start of a stride.
+STANCE_GAP_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class Stride:
+    """One stride: from a post-strike state to the next heel strike, the strike included.
+
+    Attributes:
+        duration: Time from the start to the heel strike in [s].
+        q: Configuration at the strike, shape (nq,).
+        v: Velocity just after the strike, shape (nv,).
+        v_minus: Velocity just before it, shape (nv,).
+        stance: Index of the new stance contact (the foot that struck).
+        impulse: The strike's impulse on that foot (normal, then tangential rows) in [N s].
+    """
+
+    duration: float
+    q: Vector
+    v: Vector
+    v_minus: Vector
+    stance: int
+    impulse: Vector
+
+
+class StanceFlow:
+    """The stance flow and heel-strike map of a passive walker with sticking feet.
+
+    Args:
+        constraints: The walker's contacts (a scene's :attr:`~ucontrol.scene.Scene.constraints`):
+            point contacts only, radius 0, fixed planes, friction > 0, no stops.
+        rtol: Relative tolerance of solve_ivp.
+        atol: Absolute tolerance of solve_ivp.
+        max_duration: Longest stride in [s]: a foot that has not struck by then is an error.
+
+    Raises:
+        InvalidParameterError: The robot has nq != nv, or a constraint is not a sticking point
+            contact against a fixed plane.
+    """
+
+    def __init__(
+        self,
+        constraints: ConstraintSet,
+        *,
+        rtol: float = 1e-12,
+        atol: float = 1e-12,
+        max_duration: float = 10.0,
+    ) -> None:
+        robot = constraints.robot
+        if robot.nq != robot.nv:
+            raise InvalidParameterError(
+                "robot", robot.name, f"a robot with nq == nv (got nq = {robot.nq}, nv = {robot.nv})"
+            )
+        if constraints.size == 0 or constraints.size != len(constraints.contacts):
+            raise InvalidParameterError(
+                "constraints", constraints.names, "point contacts only (no stops or pairs)"
+            )
+        for contact in constraints.contacts:
+            if contact.radius != 0.0 or contact.friction <= 0.0 or contact.surface.motion:
+                raise InvalidParameterError(
+                    f"contact {contact.name!r}",
+                    f"radius {contact.radius}, friction {contact.friction}",
+                    "a point (radius 0) with friction > 0 against a fixed plane",
+                )
+        self.constraints = constraints
+        self.robot = robot
+        self.rtol = as_positive("rtol", rtol)
+        self.atol = as_positive("atol", atol)
+        self.max_duration = as_positive("max_duration", max_duration)
+        self._data = pin.Data(robot.model)
+        self._drift_data = pin.Data(robot.model)
+        self._frames = [robot.frame_id(contact.frame) for contact in constraints.contacts]
+
+    def stance_of(self, q: Vector, v: Vector) -> int:
+        """The stance foot at (q, v): of the feet on the ground, the one moving least upwards.
+
+        Just after a heel strike two feet touch the ground: the one that struck (normal
+        velocity 0) and the one that leaves (positive normal velocity).
+
+        Raises:
+            InvalidParameterError: No foot is within :data:`STANCE_GAP_TOLERANCE` of the ground.
+        """
+        gaps = self.constraints.gaps(q)
+        on_ground = np.flatnonzero(np.abs(gaps) <= STANCE_GAP_TOLERANCE)
+        if on_ground.size == 0:
+            raise InvalidParameterError(
+                "q",
+                q.tolist(),
+                f"a foot on the ground (smallest gap {np.min(gaps):.3e} m)",
+            )
+        model, data = self.robot.model, self._data
+        pin.computeAllTerms(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        normal_velocity = self.constraints.jacobian(data, on_ground) @ v
+        return int(on_ground[np.argmin(normal_velocity)])
+
+    def _rows(self, q: Vector, v: Vector, foot: int) -> tuple[Vector, Vector, Vector, Vector]:
+        """M, h, the foot's rows (normal then tangents) and their drift J̇v at (q, v)."""
+        model, data = self.robot.model, self._data
+        pin.computeAllTerms(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        M = np.triu(data.M) + np.triu(data.M, 1).T
+        normal = self.constraints.jacobian(data, [foot])
+        tangent, directions = self.constraints.tangent_rows(data, [foot])
+        drift_data = self._drift_data
+        pin.forwardKinematics(model, drift_data, q, v, np.zeros(model.nv))
+        pin.updateFramePlacements(model, drift_data)
+        acceleration = pin.getFrameClassicalAcceleration(
+            model, drift_data, self._frames[foot], _LWA
+        ).linear
+        drift = np.concatenate(
+            (self.constraints.normal_drift(drift_data, [foot]), directions @ acceleration)
+        )
+        return M, data.nle.copy(), np.vstack((normal, tangent)), drift
+
+    def acceleration(self, q: Vector, v: Vector, stance: int) -> tuple[Vector, Vector]:
+        """Joint acceleration (nv,) and the stance foot's force (normal, tangents) in [N]."""
+        M, h, J, drift = self._rows(q, v, stance)
+        k = J.shape[0]
+        kkt = np.block([[M, -J.T], [J, np.zeros((k, k))]])
+        solution = np.linalg.solve(kkt, np.concatenate((-h, -drift)))
+        return solution[: self.robot.nv], solution[self.robot.nv :]
+
+    def heel_strike(self, q: Vector, v_minus: Vector, foot: int) -> tuple[Vector, Vector]:
+        r"""Plastic, sticking strike of ``foot``: the velocity after it and its impulse [N s].
+
+        Solves :math:`M (v^+ - v^-) = J_b^T \Lambda`, :math:`J_b v^+ = 0`.
+        """
+        M, _, J, _ = self._rows(q, v_minus, foot)
+        k = J.shape[0]
+        kkt = np.block([[M, -J.T], [J, np.zeros((k, k))]])
+        solution = np.linalg.solve(kkt, np.concatenate((M @ v_minus, np.zeros(k))))
+        return solution[: self.robot.nv], solution[self.robot.nv :]
+
+    def stride(self, q: Vector, v: Vector) -> Stride:
+        """Flow from a state with one foot on the ground to the next heel strike, then strike.
+
+        Args:
+            q: Configuration with the stance foot on the ground, shape (nq,).
+            v: Velocity, shape (nv,); its component that moves the stance foot is removed
+                first (the strike map of that foot, a projection in the metric of M).
+
+        Raises:
+            InvalidParameterError: No foot on the ground at ``q``.
+            StrideError: The stance foot would lift off or slip, no other foot strikes within
+                :attr:`max_duration` (the section is never crossed), or the strike is not a
+                plastic sticking one with the old foot leaving.
+        """
+        q = self.robot.check_configuration("q", q)
+        v = self.robot.check_velocity("v", v)
+        stance = self.stance_of(q, v)
+        v, _ = self.heel_strike(q, v, stance)
+        nv, mu = self.robot.nv, self.constraints.friction[stance]
+        others = [i for i in range(self.constraints.size) if i != stance]
+
+        def rate(_: float, y: Vector) -> Vector:
+            return np.concatenate((y[nv:], self.acceleration(y[:nv], y[nv:], stance)[0]))
+
+        def strike_event(i: int) -> Callable[[float, Vector], float]:
+            def event(_: float, y: Vector) -> float:
+                return float(self.constraints.gaps(y[:nv])[i])
+
+            event.terminal, event.direction = True, -1.0  # type: ignore[attr-defined]
+            return event
+
+        def lift_off(_: float, y: Vector) -> float:
+            return float(self.acceleration(y[:nv], y[nv:], stance)[1][0])
+
+        def slip(_: float, y: Vector) -> float:
+            force = self.acceleration(y[:nv], y[nv:], stance)[1]
+            return float(mu * force[0] - np.linalg.norm(force[1:]))
+
+        y0 = np.concatenate((q, v))
+        for name, margin in (("lift off", lift_off), ("slip", slip)):
+            if margin(0.0, y0) < 0.0:
+                raise StrideError(
+                    0.0, f"the stance foot {self.constraints.names[stance]!r} would {name}"
+                )
+        lift_off.terminal, lift_off.direction = True, -1.0  # type: ignore[attr-defined]
+        slip.terminal, slip.direction = True, -1.0  # type: ignore[attr-defined]
+        events = [strike_event(i) for i in others] + [lift_off, slip]
+        solution = solve_ivp(
+            rate,
+            (0.0, self.max_duration),
+            y0,
+            method="DOP853",
+            rtol=self.rtol,
+            atol=self.atol,
+            events=events,
+        )
+        if solution.status == -1:
+            raise StrideError(float(solution.t[-1]), f"solve_ivp failed: {solution.message}")
+        fired = [k for k, times in enumerate(solution.t_events) if len(times)]
+        if not fired:
+            raise StrideError(
+                self.max_duration, "no foot struck the ground (the section is never crossed)"
+            )
+        event = fired[0]
+        t_end, y_end = float(solution.t_events[event][0]), solution.y_events[event][0]
+        if event >= len(others):
+            kind = "lift off" if event == len(others) else "slip"
+            raise StrideError(
+                t_end, f"the stance foot {self.constraints.names[stance]!r} would {kind}"
+            )
+        foot = others[event]
+        q_end, v_minus = y_end[:nv], y_end[nv:]
+        v_plus, impulse = self.heel_strike(q_end, v_minus, foot)
+        self._check_strike(q_end, v_plus, impulse, stance, foot, t_end)
+        return Stride(t_end, q_end, v_plus, v_minus, foot, impulse)
+
+    def _check_strike(
+        self, q: Vector, v: Vector, impulse: Vector, old: int, new: int, t: float
+    ) -> None:
+        """Refuse a strike that pulls, slips, or leaves the old foot pressing the ground."""
+        name = self.constraints.names[new]
+        if (
+            impulse[0] < 0.0
+            or np.linalg.norm(impulse[1:]) > self.constraints.friction[new] * impulse[0]
+        ):
+            raise StrideError(
+                t, f"the strike of {name!r} is not a sticking one (impulse {impulse.tolist()})"
+            )
+        J_old = self._rows(q, v, old)[2]
+        if J_old[0] @ v < -self.atol:
+            raise StrideError(
+                t,
+                f"the old stance foot {self.constraints.names[old]!r} keeps pressing after the "
+                f"strike of {name!r} (double support is not modelled)",
+            )
