@@ -41,6 +41,7 @@ from ucontrol.exceptions import (
     UControlError,
 )
 from ucontrol.log import NO_SOLVE, SOLVED, UNSOLVED, Log
+from ucontrol.model.robot_model import RobotModel
 from ucontrol.output_files import OutputLock, check_output_dir, write_atomically
 from ucontrol.scene import Scene
 from ucontrol.scene.scene import BILATERAL_TOLERANCE
@@ -240,7 +241,15 @@ class _ClosedLoop:
         if scene.sensors is not None:  # what the controller sees, imported only when declared
             from ucontrol.sensors.measurement import Sensors
 
-            self.sensors = Sensors(scene.sensors, robot, integrator.constraints, flexible, period)
+            believed = getattr(controller, "robot", None)  # the momentum observer's model
+            self.sensors = Sensors(
+                scene.sensors,
+                robot,
+                integrator.constraints,
+                flexible,
+                period,
+                believed if isinstance(believed, RobotModel) else None,
+            )
         if scene.actuators is not None:
             from ucontrol.sensors.actuators import Actuators
 
@@ -305,7 +314,7 @@ class _ClosedLoop:
         )
         q, v = self.q, self.v
         if self.sensors is not None:
-            q, v, contacts = self.sensors.measure(q, v, contacts, t)
+            q, v, contacts = self.sensors.measure(q, v, contacts, t, self.tau)
             self.measured_q, self.measured_v = q, v
         output = self.controller(t, q, v, contacts)
         if type(output) is not np.ndarray or output.dtype != np.float64:

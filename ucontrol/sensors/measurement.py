@@ -20,6 +20,16 @@ systems): it needs no model of the plant, and costs the accuracy of one unfilter
 impact. The velocity of the first period is the true initial velocity (the robot starts at
 rest or from a known state).
 
+Contacts: with ``observer = "oracle"`` the controller receives the plant's own impulses and
+active sets (with the force noise), which a real robot has no access to. With ``"momentum"`` a
+:class:`~ucontrol.sensors.momentum_observer.MomentumObserver` on the controller's model reads
+the measured position, the velocity estimate above and the torque applied over the period
+(after the actuators); the constraints whose measured gap is at most ``contact_gap`` are
+candidates, their normal rows :math:`J_c` share the residual by least squares
+(:math:`J_c^T \hat\lambda = r`), and a candidate with :math:`\hat\lambda_i > 0` is active
+with the impulse :math:`\hat\lambda_i T`; every other constraint carries none. Nothing of the
+plant's impulses reaches the controller then.
+
 Delay: the controller at period k receives the whole measurement (positions, velocity,
 contact information) of period :math:`k - d`; before :math:`d` periods have passed it receives
 the first one.
@@ -35,8 +45,10 @@ from numpy.typing import NDArray
 
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.control.controller import ContactState
+from ucontrol.exceptions import InvalidParameterError
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
+from ucontrol.sensors.momentum_observer import MomentumObserver
 from ucontrol.sensors.sensor_settings import SensorSettings
 
 Vector = NDArray[np.float64]
@@ -52,6 +64,12 @@ class Sensors:
             measured state).
         flexible: Flexible joints (their motor coordinates are measured too), or None.
         period: Control period T in [s].
+        believed: The robot as the controller believes it (the momentum observer's model),
+            or None for ``robot``.
+
+    Raises:
+        InvalidParameterError: ``observer = "momentum"`` on a robot with flexible joints, or
+            with a believed robot of another velocity dimension.
     """
 
     def __init__(
@@ -61,6 +79,7 @@ class Sensors:
         constraints: ConstraintSet,
         flexible: FlexibleJoints | None,
         period: float,
+        believed: RobotModel | None = None,
     ) -> None:
         self.settings = settings
         self.period = period
@@ -90,24 +109,47 @@ class Sensors:
         self._was_carrying: NDArray[np.bool_] | None = None
         self._raw_periods = 0  # periods left whose velocity is the raw difference
         self._queue: deque[tuple[Vector, Vector, ContactState]] = deque()
+        self._momentum = None
+        if settings.observer == "momentum":
+            self._momentum = _momentum_observer(settings, robot, flexible, period, believed)
 
     def measure(
-        self, q: Vector, v: Vector, contacts: ContactState, t: float | None = None
+        self,
+        q: Vector,
+        v: Vector,
+        contacts: ContactState,
+        t: float | None = None,
+        tau: Vector | None = None,
     ) -> tuple[Vector, Vector, ContactState]:
         """The measurement the controller receives now (delayed), from the true signals.
 
         Args:
             q: True configuration, shape (nq,) (+ nf motors).
             v: True velocity, shape (nv,) (+ nf motors).
-            contacts: True contact information of the period that ends now.
+            contacts: True contact information of the period that ends now (only its names
+                and period with ``observer = "momentum"``).
             t: Time of the measurement in [s] (the gaps of moving surfaces depend on it).
+            tau: Generalized torque applied over the period that ends now, shape (nv,)
+                (needed by ``observer = "momentum"`` only).
 
         Returns:
             Measured configuration, velocity and contact information.
+
+        Raises:
+            InvalidParameterError: ``tau`` is None with ``observer = "momentum"``.
         """
         q_m = self._position(q)
         v_m = self._velocity(q_m, v, contacts)
-        self._queue.append((q_m, v_m, self._contacts(q_m, v_m, contacts, t)))
+        if self._momentum is None:
+            seen = self._contacts(q_m, v_m, contacts, t)
+        else:
+            if tau is None:
+                raise InvalidParameterError(
+                    "tau", tau, "the torque applied (observer = 'momentum')"
+                )
+            self._momentum.update(q_m[: self._nq], v_m[: self._nv], tau[: self._nv])
+            seen = self._observed_contacts(q_m, v_m, contacts, t)
+        self._queue.append((q_m, v_m, seen))
         if len(self._queue) > self.settings.delay + 1:
             self._queue.popleft()
         return self._queue[0]
@@ -149,14 +191,18 @@ class Sensors:
             self._estimate = self._estimate + self._alpha * (raw - self._estimate)
         return self._estimate.copy()
 
+    def _geometry(self, q_m: Vector, v_m: Vector, t: float | None) -> tuple[Vector, Vector]:
+        """Gaps and normal velocities at the measured state (its kinematics left in the data)."""
+        model, data = self._robot.model, self._data
+        pin.forwardKinematics(model, data, q_m[: self._nq], v_m[: self._nv])
+        pin.updateFramePlacements(model, data)
+        return self._constraints.evaluate(data, q_m[: self._nq], v_m[: self._nv], t)
+
     def _contacts(
         self, q_m: Vector, v_m: Vector, contacts: ContactState, t: float | None
     ) -> ContactState:
         """Gaps and normal velocities at the measured state, noisy impulses."""
-        model, data = self._robot.model, self._data
-        pin.forwardKinematics(model, data, q_m[: self._nq], v_m[: self._nv])
-        pin.updateFramePlacements(model, data)
-        gap, normal_velocity = self._constraints.evaluate(data, q_m[: self._nq], v_m[: self._nv], t)
+        gap, normal_velocity = self._geometry(q_m, v_m, t)
         impulse = contacts.impulse
         sigma = self.settings.force_noise
         if sigma > 0.0:  # a force noise of σ [N] on the mean force over the period
@@ -165,3 +211,40 @@ class Sensors:
         return ContactState(
             contacts.names, gap, normal_velocity, impulse, contacts.active.copy(), contacts.dt
         )
+
+    def _observed_contacts(
+        self, q_m: Vector, v_m: Vector, contacts: ContactState, t: float | None
+    ) -> ContactState:
+        """Gaps and normal velocities at the measured state, impulses of the momentum observer."""
+        assert self._momentum is not None
+        gap, normal_velocity = self._geometry(q_m, v_m, t)
+        candidates = np.flatnonzero(gap <= self.settings.contact_gap)
+        impulse = np.zeros(gap.size)
+        if candidates.size:
+            pin.computeJointJacobians(self._robot.model, self._data, q_m[: self._nq])
+            J = self._constraints.jacobian(self._data, candidates)  # (m, nv)
+            force = self._momentum.contact_forces(J)  # [N] (or [N m] on stops)
+            impulse[candidates] = np.maximum(force, 0.0) * contacts.dt  # [N s]
+        return ContactState(
+            contacts.names, gap, normal_velocity, impulse, impulse > 0.0, contacts.dt
+        )
+
+
+def _momentum_observer(
+    settings: SensorSettings,
+    robot: RobotModel,
+    flexible: FlexibleJoints | None,
+    period: float,
+    believed: RobotModel | None,
+) -> MomentumObserver:
+    """The momentum observer of ``settings`` on the believed robot (``robot`` if None)."""
+    if flexible is not None:  # the links' torque K (q2 - q1) is not observed yet
+        raise InvalidParameterError(
+            "observer", settings.observer, "'oracle' on a robot with flexible joints"
+        )
+    model = robot.model if believed is None else believed.model
+    if model.nv != robot.nv:
+        raise InvalidParameterError(
+            "believed robot", believed, f"a model with nv = {robot.nv} (the plant's)"
+        )
+    return MomentumObserver(model, settings.observer_gain, period, settings.impact_threshold)
