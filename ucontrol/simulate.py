@@ -371,6 +371,7 @@ class _ClosedLoop:
         if self.sensors is not None:
             self.log.record_extra("measured_q", self.measured_q)
             self.log.record_extra("measured_v", self.measured_v)
+            self.sensors.record_observer(self.log)
         if self.actuators is not None:
             self.log.record_extra("commanded_u", self.commanded_u)
 
@@ -599,6 +600,9 @@ def _new_log(
     if scene.sensors is not None:  # what the controller saw (motors after the links)
         log.add_field("measured_q", (n_q,))
         log.add_field("measured_v", (n_v + (0 if flexible is None else flexible.nf),))
+        if scene.sensors.observer == "momentum":  # the observer's residual and impact flag
+            log.add_field("momentum_residual", (robot.nv,))
+            log.add_field("impact_detected", (), dtype=bool)
     if scene.actuators is not None:  # the controller's output before the limits
         log.add_field("commanded_u", (robot.nu,))
     if flexible is not None:  # motor states, beside the links' q and v

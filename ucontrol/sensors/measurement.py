@@ -26,8 +26,9 @@ active sets (with the force noise), which a real robot has no access to. With ``
 the measured position, the velocity estimate above and the torque applied over the period
 (after the actuators); the constraints whose measured gap is at most ``contact_gap`` are
 candidates, their normal rows :math:`J_c` share the residual by least squares
-(:math:`J_c^T \hat\lambda = r`), and a candidate with :math:`\hat\lambda_i > 0` is active
-with the impulse :math:`\hat\lambda_i T`; every other constraint carries none. Nothing of the
+(:math:`J_c^T \hat\lambda = r`), and a candidate with :math:`\hat\lambda_i` above
+``force_threshold`` is active with the impulse :math:`\hat\lambda_i T`; every other
+constraint carries none. Nothing of the
 plant's impulses reaches the controller then.
 
 Delay: the controller at period k receives the whole measurement (positions, velocity,
@@ -46,6 +47,7 @@ from numpy.typing import NDArray
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.control.controller import ContactState
 from ucontrol.exceptions import InvalidParameterError
+from ucontrol.log import Log
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.sensors.momentum_observer import MomentumObserver
@@ -154,6 +156,16 @@ class Sensors:
             self._queue.popleft()
         return self._queue[0]
 
+    def record_observer(self, log: Log) -> None:
+        """The momentum observer's residual and impact flag in the open row of ``log``.
+
+        Nothing without ``observer = "momentum"``; the fields ``momentum_residual`` (nv,)
+        [N m] and ``impact_detected`` are declared by the closed loop.
+        """
+        if self._momentum is not None:
+            log.record_extra("momentum_residual", self._momentum.residual)
+            log.record_extra("impact_detected", self._momentum.impact)
+
     def _position(self, q: Vector) -> Vector:
         q_m = q.copy()
         if np.any(self._noise > 0.0):
@@ -224,7 +236,8 @@ class Sensors:
             pin.computeJointJacobians(self._robot.model, self._data, q_m[: self._nq])
             J = self._constraints.jacobian(self._data, candidates)  # (m, nv)
             force = self._momentum.contact_forces(J)  # [N] (or [N m] on stops)
-            impulse[candidates] = np.maximum(force, 0.0) * contacts.dt  # [N s]
+            closed = force > self.settings.force_threshold
+            impulse[candidates[closed]] = force[closed] * contacts.dt  # [N s]
         return ContactState(
             contacts.names, gap, normal_velocity, impulse, impulse > 0.0, contacts.dt
         )
