@@ -44,6 +44,11 @@ CASES: tuple[tuple[str, dict[str, Any]], ...] = (
         "momentum, v from q (100 Hz)",
         {"observer": "momentum", "velocity": "difference", "velocity_cutoff": 100.0},
     ),
+    ("oracle, v observer (100 Hz)", {"velocity": "observer", "velocity_cutoff": 100.0}),
+    (
+        "momentum, v observer (100 Hz)",
+        {"observer": "momentum", "velocity": "observer", "velocity_cutoff": 100.0},
+    ),
 )
 #: The plateau of the desired force in the first cycle [s].
 PLATEAU = (6.0, 9.5)

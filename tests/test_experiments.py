@@ -167,6 +167,6 @@ def test_midpoint_order_refuses_bad_flags(
 
 def test_momentum_observer_runs(capsys: pytest.CaptureFixture[str]) -> None:
     rows = _load("momentum_observer").main(["--duration", "6.5"])
-    assert len(rows) == 6 and rows[0].startswith("| oracle |")
+    assert len(rows) == 8 and rows[0].startswith("| oracle |")
     assert "0 false" in rows[1]  # the default observer flags no impact the plant did not make
     assert "| run |" in capsys.readouterr().out

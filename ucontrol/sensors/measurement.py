@@ -18,7 +18,9 @@ spans the jump is not carried forward. It is the simplest
 of the observers designed for jumps (book §8.5.4 points at observers for complementarity
 systems): it needs no model of the plant, and costs the accuracy of one unfiltered period per
 impact. The velocity of the first period is the true initial velocity (the robot starts at
-rest or from a known state).
+rest or from a known state). With ``observer = "momentum"`` the impacts that re-initialise
+the filter are the momentum observer's flags instead of the plant's impulses; that observer
+then runs on the raw difference, whose jump no filter has spread.
 
 Contacts: with ``observer = "oracle"`` the controller receives the plant's own impulses and
 active sets (with the force noise), which a real robot has no access to. With ``"momentum"`` a
@@ -140,16 +142,17 @@ class Sensors:
         Raises:
             InvalidParameterError: ``tau`` is None with ``observer = "momentum"``.
         """
+        momentum = self._momentum
+        if momentum is not None and tau is None:
+            raise InvalidParameterError("tau", tau, "the torque applied (observer = 'momentum')")
         q_m = self._position(q)
-        v_m = self._velocity(q_m, v, contacts)
-        if self._momentum is None:
+        v_m = self._velocity(q_m, v, contacts, tau)
+        if momentum is None:
             seen = self._contacts(q_m, v_m, contacts, t)
         else:
-            if tau is None:
-                raise InvalidParameterError(
-                    "tau", tau, "the torque applied (observer = 'momentum')"
-                )
-            self._momentum.update(q_m[: self._nq], v_m[: self._nv], tau[: self._nv])
+            if self.settings.velocity != "observer":  # else updated on the raw difference
+                assert tau is not None
+                momentum.update(q_m[: self._nq], v_m[: self._nv], tau[: self._nv])
             seen = self._observed_contacts(q_m, v_m, contacts, t)
         self._queue.append((q_m, v_m, seen))
         if len(self._queue) > self.settings.delay + 1:
@@ -177,31 +180,45 @@ class Sensors:
             q_m[self._quantised] = np.round(values) * self._resolution
         return q_m
 
-    def _velocity(self, q_m: Vector, v: Vector, contacts: ContactState) -> Vector:
+    def _velocity(
+        self, q_m: Vector, v: Vector, contacts: ContactState, tau: Vector | None
+    ) -> Vector:
         source = self.settings.velocity
         if source == "true":
             return v.copy()
         last, self._last_q = self._last_q, q_m
         if last is None or self._estimate is None:
             self._estimate = v.copy()
-            self._was_carrying = contacts.impulse > 0.0
+            if source == "observer":
+                self._closed(q_m, v, contacts, tau)  # the first sample of either observer
             return self._estimate.copy()
         raw = np.empty_like(v)
         raw[: self._nv] = pin.difference(self._robot.model, last[: self._nq], q_m[: self._nq])
         raw[self._nv :] = q_m[self._nq :] - last[self._nq :]
         raw /= self.period  # [rad/s] or [m/s]
-        if source == "observer":
-            assert self._was_carrying is not None
-            carrying = contacts.impulse > 0.0
-            if np.any(carrying & ~self._was_carrying):  # a constraint closed: an impact
-                self._raw_periods = 2
-            self._was_carrying = carrying
+        if source == "observer" and self._closed(q_m, raw, contacts, tau):
+            self._raw_periods = 2
         if self._raw_periods > 0:
             self._raw_periods -= 1
             self._estimate = raw
         else:
             self._estimate = self._estimate + self._alpha * (raw - self._estimate)
         return self._estimate.copy()
+
+    def _closed(self, q_m: Vector, raw: Vector, contacts: ContactState, tau: Vector | None) -> bool:
+        """Whether a constraint closed over the period that ends now: an impact.
+
+        The momentum observer's impact flag, the observer updated on the raw velocity
+        ``raw`` (unfiltered: a filter would spread the jump it looks for), or, for the oracle,
+        a constraint that carries an impulse after a period without.
+        """
+        if self._momentum is not None:
+            assert tau is not None
+            self._momentum.update(q_m[: self._nq], raw[: self._nv], tau[: self._nv])
+            return self._momentum.impact
+        carrying = contacts.impulse > 0.0
+        was_carrying, self._was_carrying = self._was_carrying, carrying
+        return was_carrying is not None and bool(np.any(carrying & ~was_carrying))
 
     def _geometry(self, q_m: Vector, v_m: Vector, t: float | None) -> tuple[Vector, Vector]:
         """Gaps and normal velocities at the measured state (its kinematics left in the data)."""

@@ -75,8 +75,9 @@ class SensorSettings:
             are rounded to a multiple of it; 0 for none.
         velocity: ``"true"`` (the plant's velocity, with no noise), ``"difference"`` (finite
             difference of the measured positions over the control period, low-pass filtered),
-            or ``"observer"`` (the same filter re-initialised at impacts; see
-            :class:`~ucontrol.sensors.measurement.Sensors`).
+            or ``"observer"`` (the same filter re-initialised at impacts: those of the plant
+            with ``observer = "oracle"``, those the momentum observer flags with
+            ``"momentum"``; see :class:`~ucontrol.sensors.measurement.Sensors`).
         velocity_cutoff: Cut-off frequency of the velocity filter in [Hz]; None: no filter.
         delay: Measurement delay in control periods (an integer >= 0): the controller at
             period k sees the measurement of period k - delay.
@@ -89,7 +90,8 @@ class SensorSettings:
             impulses and active sets (with ``force_noise``), which no real robot has.
             ``"momentum"``: a generalized-momentum observer
             (:class:`~ucontrol.sensors.momentum_observer.MomentumObserver`) on the measured
-            positions, the velocity of ``velocity`` and the torque applied, on the
+            positions, the velocity of ``velocity`` (the raw difference of the measured
+            positions with ``"observer"``) and the torque applied, on the
             controller's own model; the constraints whose measured gap is at most
             ``contact_gap`` share its residual by least squares, and those whose estimated
             force exceeds ``force_threshold`` are active and carry it times the period.
@@ -152,10 +154,6 @@ class SensorSettings:
         )
         if self.observer != "momentum":
             return
-        if self.velocity == "observer":  # its re-initialisation reads the plant's impulses
-            raise InvalidParameterError(
-                "velocity", self.velocity, "'true' or 'difference' with observer = 'momentum'"
-            )
         if self.force_noise > 0.0:
             raise InvalidParameterError(
                 "force_noise", self.force_noise, "0 with observer = 'momentum' (no force sensor)"
