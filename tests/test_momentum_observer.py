@@ -77,18 +77,47 @@ class _Recorder:
         return self.controller(t, q, v, contacts)
 
 
-def test_arm_pressed_on_the_ground_at_rest_sees_the_plants_force() -> None:
+@pytest.mark.parametrize("control_period", [T, 5 * T])  # [s] one step, or five held
+def test_arm_pressed_on_the_ground_at_rest_sees_the_plants_force(control_period: float) -> None:
     """Pressed at rest, the force the controller sees is the plant's contact force."""
     scene = _scene("two_link_one_constraint.toml", sensors={"observer": "momentum"})
     pd = JointPD(scene.robot, q_ref=np.array([0.7, -1.6]), kp=30.0, kd=6.0)  # tip 7 cm below
     recorder = _Recorder(pd)
-    log = simulate(scene, recorder, duration=3.0).log
+    log = simulate(scene, recorder, duration=3.0, control_period=control_period).log
     assert np.abs(log.v[-1]).max() < 1e-6  # at rest
     plant = log.impulse[-2, 0] / T  # [N] the contact force of the last step (3.376 N)
+    seen = recorder.seen[-1]
+    assert plant > 3.0 and seen.dt == pytest.approx(control_period)
+    assert abs(seen.force[0] - plant) < 1e-6 * plant  # measured 2e-8 relative
+    assert seen.active.tolist() == [True, False, False, False, False]
+
+
+class _Believing(_Recorder):
+    """A recorder whose controller believes the robot is ``robot``."""
+
+    def __init__(self, controller: Any, robot: Any) -> None:
+        super().__init__(controller)
+        self.robot = robot
+
+
+def test_the_observer_runs_on_the_model_the_controller_believes() -> None:
+    """At rest the force seen solves J^T lambda = g_believed(q) - tau, not the plant's."""
+    scene = _scene("two_link_one_constraint.toml", sensors={"observer": "momentum"})
+    believed = scene.robot.with_scaled_inertia(1.2)
+    pd = JointPD(scene.robot, q_ref=np.array([0.7, -1.6]), kp=30.0, kd=6.0)
+    recorder = _Believing(pd, believed)
+    log = simulate(scene, recorder, duration=3.0).log
+    q, tau = log.q[-2], log.u[-3]  # the last call's sample, and the torque held before it
+    model = believed.model
+    data = model.createData()
+    frame = model.getFrameId("end_effector")
+    J_n = pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED)[1]  # (nv,)
+    g = pin.computeGeneralizedGravity(model, data, q)
+    expected = J_n @ (g - tau) / (J_n @ J_n)  # [N] least squares of one column
     seen = recorder.seen[-1].force[0]
-    assert plant > 3.0
-    assert abs(seen - plant) < 1e-6 * plant  # measured 2e-8 relative
-    assert recorder.seen[-1].active.tolist() == [True, False, False, False, False]
+    plant = log.impulse[-2, 0] / T
+    assert abs(seen - expected) < 1e-6 * abs(expected)
+    assert abs(seen - plant) > 0.05 * plant  # the believed masses show
 
 
 def test_each_impact_is_seen_in_the_sample_after_it_without_the_impulses() -> None:
