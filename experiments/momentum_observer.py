@@ -1,10 +1,11 @@
-r"""Brogliato's law on two_link_one_constraint: the plant's impulses against a momentum observer.
+r"""Brogliato's law on the two-link tasks: the plant's impulses against a momentum observer.
 
-The same scene (``robots/two_link_one_constraint.toml``) is run with ``[sensors]`` tables that
-differ only in where the controller's contact information comes from: ``observer =
-"oracle"`` (the plant's impulses) or ``"momentum"`` (measured q and the torque applied, see
-docs/observers.md), with the observer's bandwidth and the velocity estimate varied. Figures of
-the first cycle, from the log:
+The same scene (``robots/two_link_one_constraint.toml``; with ``--scenes`` also its flexible
+twin ``two_link_flexible_one_constraint.toml``, oracle and default momentum observer only) is
+run with ``[sensors]`` tables that differ only in where the controller's contact information
+comes from: ``observer = "oracle"`` (the plant's impulses) or ``"momentum"`` (measured q and
+the torque applied, see docs/observers.md), with the observer's bandwidth and the velocity
+estimate varied. Figures of the first cycle, from the log:
 
 - first impact t0, accumulation end t_f and takeoff t_d as the controller declared them [s];
 - largest task-space error in the free phase and in the constrained phase [m] (the
@@ -50,19 +51,24 @@ CASES: tuple[tuple[str, dict[str, Any]], ...] = (
         {"observer": "momentum", "velocity": "observer", "velocity_cutoff": 100.0},
     ),
 )
+#: The scenes and the cases run on each (the flexible law is slower: two cases).
+SCENES = {
+    "two_link_one_constraint": CASES,
+    "two_link_flexible_one_constraint": CASES[:2],
+}
 #: The plateau of the desired force in the first cycle [s].
 PLATEAU = (6.0, 9.5)
 
 
-def _scene(sensors: dict[str, Any]) -> Scene:
-    table = tomllib.loads((ROBOTS / "two_link_one_constraint.toml").read_text())
+def _scene(name: str, sensors: dict[str, Any]) -> Scene:
+    table = tomllib.loads((ROBOTS / f"{name}.toml").read_text())
     table.pop("reference", None)
     table["sensors"] = sensors
     return Scene.from_dict(table, base_dir=ROBOTS)
 
 
-def _row(label: str, sensors: dict[str, Any], duration: float, impulse: float) -> str:
-    result = simulate(_scene(sensors), duration=duration)
+def _row(scene: str, label: str, sensors: dict[str, Any], duration: float, impulse: float) -> str:
+    result = simulate(_scene(scene, sensors), duration=duration)
     log, dt = result.log, result.log.metadata["dt"]
     cycle = cycle_events(log)[0]
     tracking = result.summary["tracking"]["cycles"][0]
@@ -85,7 +91,7 @@ def _row(label: str, sensors: dict[str, Any], duration: float, impulse: float) -
     times = (cycle.first_impact[0], cycle.accumulation_end[0], cycle.takeoff[0])  # [s]
     errors = (tracking.get("free_error_max"), tracking.get("constrained_error_max"))  # [m]
     cells = [f"{t:.3f}" for t in times] + ["-" if e is None else f"{e:.3g}" for e in errors]
-    return f"| {label} | {' | '.join(cells)} | {force} | {detection} |"
+    return f"| {scene} | {label} | {' | '.join(cells)} | {force} | {detection} |"
 
 
 def main(argv: Sequence[str] | None = None) -> list[str]:
@@ -95,13 +101,20 @@ def main(argv: Sequence[str] | None = None) -> list[str]:
     parser.add_argument(
         "--impulse", type=float, default=0.03, help="smallest plant impulse checked [N s]"
     )
+    parser.add_argument(
+        "--scenes", nargs="+", choices=sorted(SCENES), default=list(SCENES), help="scenes run"
+    )
     args = parser.parse_args(argv)
     print(
-        "| run | t0 [s] | t_f [s] | t_d [s] | free error [m] | constrained error [m] "
+        "| scene | run | t0 [s] | t_f [s] | t_d [s] | free error [m] | constrained error [m] "
         "| force error (plateau) | flag delay per impulse [samples]; false flags |"
     )
-    print("|---|---|---|---|---|---|---|---|")
-    rows = [_row(label, sensors, args.duration, args.impulse) for label, sensors in CASES]
+    print("|---|---|---|---|---|---|---|---|---|")
+    rows = [
+        _row(scene, label, sensors, args.duration, args.impulse)
+        for scene in args.scenes
+        for label, sensors in SCENES[scene]
+    ]
     for row in rows:
         print(row)
     return rows

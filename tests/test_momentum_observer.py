@@ -220,10 +220,18 @@ def test_bad_observer_settings(table: dict[str, Any], match: str) -> None:
         SensorSettings(**table)
 
 
-def test_momentum_observer_refuses_flexible_joints() -> None:
+def test_flexible_arm_pressed_at_rest_sees_the_plants_force() -> None:
+    """With flexible joints the links' torque is the springs': the force is still the plant's."""
     scene = _scene("two_link_flexible_one_constraint.toml", sensors={"observer": "momentum"})
-    with pytest.raises(InvalidParameterError, match=r"`observer`.*flexible"):
-        simulate(scene, duration=0.01)
+    assert scene.flexible is not None
+    pd = JointPD(scene.robot, q_ref=np.array([0.7, -1.6]), kp=30.0, kd=6.0, flexible=scene.flexible)
+    recorder = _Recorder(pd)
+    log = simulate(scene, recorder, duration=3.0).log
+    assert np.abs(log.v[-1]).max() < 1e-6 and np.abs(log.motor_v[-1]).max() < 1e-6  # at rest
+    plant = log.impulse[-2, 0] / T  # [N] (3.225 N)
+    seen = recorder.seen[-1].force[0]
+    assert plant > 3.0
+    assert abs(seen - plant) < 1e-6 * plant  # measured 2e-13 relative
 
 
 def test_momentum_observer_bad_arguments() -> None:

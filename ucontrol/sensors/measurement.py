@@ -26,7 +26,9 @@ Contacts: with ``observer = "oracle"`` the controller receives the plant's own i
 active sets (with the force noise), which a real robot has no access to. With ``"momentum"`` a
 :class:`~ucontrol.sensors.momentum_observer.MomentumObserver` on the controller's model reads
 the measured position, the velocity estimate above and the torque applied over the period
-(after the actuators); the constraints whose measured gap is at most ``contact_gap`` are
+(after the actuators; with flexible joints the observer watches the links' momentum, driven
+by the rigid joints' inputs and the transmission torque at the measured link and motor
+states); the constraints whose measured gap is at most ``contact_gap`` are
 candidates, their normal rows :math:`J_c` share the residual by least squares
 (:math:`J_c^T \hat\lambda = r`), and a candidate with :math:`\hat\lambda_i` above
 ``force_threshold`` is active with the impulse :math:`\hat\lambda_i T`; every other
@@ -72,8 +74,8 @@ class Sensors:
             or None for ``robot``.
 
     Raises:
-        InvalidParameterError: ``observer = "momentum"`` on a robot with flexible joints, or
-            with a believed robot of another velocity dimension.
+        InvalidParameterError: ``observer = "momentum"`` with a believed robot of another
+            velocity dimension.
     """
 
     def __init__(
@@ -114,8 +116,10 @@ class Sensors:
         self._raw_periods = 0  # periods left whose velocity is the raw difference
         self._queue: deque[tuple[Vector, Vector, ContactState]] = deque()
         self._momentum = None
+        self._flexible = flexible
+        self._last_transmission: Vector | None = None  # on the links, shape (nv,) [N m]
         if settings.observer == "momentum":
-            self._momentum = _momentum_observer(settings, robot, flexible, period, believed)
+            self._momentum = _momentum_observer(settings, robot, period, believed)
 
     def measure(
         self,
@@ -152,7 +156,7 @@ class Sensors:
         else:
             if self.settings.velocity != "observer":  # else updated on the raw difference
                 assert tau is not None
-                momentum.update(q_m[: self._nq], v_m[: self._nv], tau[: self._nv])
+                self._update_momentum(q_m, v_m, tau)
             seen = self._observed_contacts(q_m, v_m, contacts, t)
         self._queue.append((q_m, v_m, seen))
         if len(self._queue) > self.settings.delay + 1:
@@ -205,6 +209,26 @@ class Sensors:
             self._estimate = self._estimate + self._alpha * (raw - self._estimate)
         return self._estimate.copy()
 
+    def _update_momentum(self, q_m: Vector, v_m: Vector, tau: Vector) -> None:
+        """Update the momentum observer with the links' torque over the period that ends now.
+
+        With flexible joints the links receive, besides the inputs of rigid joints, the
+        transmission torque :math:`-S^T f` of the springs and dampers at the measured link and
+        motor states, averaged over the period by the trapezoid rule.
+        """
+        assert self._momentum is not None
+        nq, nv, flexible = self._nq, self._nv, self._flexible
+        torque = tau[:nv]
+        if flexible is not None:
+            on_links = np.zeros(nv)
+            on_links[flexible.v_index] = -flexible.spring_torque(
+                q_m[:nq], v_m[:nv], q_m[nq:], v_m[nv:]
+            )
+            last = on_links if self._last_transmission is None else self._last_transmission
+            torque = torque + 0.5 * (last + on_links)  # [N m]
+            self._last_transmission = on_links
+        self._momentum.update(q_m[:nq], v_m[:nv], torque)
+
     def _closed(self, q_m: Vector, raw: Vector, contacts: ContactState, tau: Vector | None) -> bool:
         """Whether a constraint closed over the period that ends now: an impact.
 
@@ -214,7 +238,7 @@ class Sensors:
         """
         if self._momentum is not None:
             assert tau is not None
-            self._momentum.update(q_m[: self._nq], raw[: self._nv], tau[: self._nv])
+            self._update_momentum(q_m, raw, tau)
             return self._momentum.impact
         carrying = contacts.impulse > 0.0
         was_carrying, self._was_carrying = self._was_carrying, carrying
@@ -261,17 +285,9 @@ class Sensors:
 
 
 def _momentum_observer(
-    settings: SensorSettings,
-    robot: RobotModel,
-    flexible: FlexibleJoints | None,
-    period: float,
-    believed: RobotModel | None,
+    settings: SensorSettings, robot: RobotModel, period: float, believed: RobotModel | None
 ) -> MomentumObserver:
     """The momentum observer of ``settings`` on the believed robot (``robot`` if None)."""
-    if flexible is not None:  # the links' torque K (q2 - q1) is not observed yet
-        raise InvalidParameterError(
-            "observer", settings.observer, "'oracle' on a robot with flexible joints"
-        )
     model = robot.model if believed is None else believed.model
     if model.nv != robot.nv:
         raise InvalidParameterError(
