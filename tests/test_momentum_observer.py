@@ -253,3 +253,14 @@ def test_momentum_observer_bad_arguments() -> None:
     free = _scene("free_ball.toml").robot  # nv = 6: not the arm
     with pytest.raises(InvalidParameterError, match=r"`believed robot`"):
         Sensors(scene.sensors, scene.robot, scene.constraints, None, T, believed=free)
+
+
+def test_contact_forces_solve_the_residual_by_least_squares() -> None:
+    """Two closed constraints on the arm: r = J^T lambda gives back lambda; none gives none."""
+    model = _scene("two_link_drop.toml").robot.model
+    observer = MomentumObserver(model, 50.0, T, 1.0)
+    J = np.array([[0.4, -0.7], [1.0, 0.3]])  # (m, nv): two independent normal rows
+    forces = np.array([2.0, 5.0])  # [N]
+    observer.residual = J.T @ forces
+    np.testing.assert_allclose(observer.contact_forces(J), forces, rtol=1e-12)
+    assert observer.contact_forces(np.zeros((0, 2))).shape == (0,)

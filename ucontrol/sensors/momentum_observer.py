@@ -96,8 +96,8 @@ class MomentumObserver:
         Args:
             q: Measured configuration, shape (nq,).
             v: Velocity estimate, shape (nv,) in [rad/s] or [m/s].
-            tau: Generalized torque applied over the period that ends now, shape (nv,)
-                (unused on the first call).
+            tau: Mean generalized torque applied over the period that ends now (the held
+                input), shape (nv,) in [N m] (unused on the first call).
 
         Raises:
             ShapeError: ``tau`` is not of shape (nv,).
