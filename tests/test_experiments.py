@@ -163,3 +163,12 @@ def test_midpoint_order_refuses_bad_flags(
         midpoint_order.main(["--duration", "0.01", "--out", str(tmp_path), *flags.split()])
     assert exit_info.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_momentum_observer_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    rows = _load("momentum_observer").main(
+        ["--duration", "6.5", "--scenes", "two_link_one_constraint"]
+    )
+    assert len(rows) == 8 and rows[0].startswith("| two_link_one_constraint | oracle |")
+    assert "0 false" in rows[1]  # the default observer flags no impact the plant did not make
+    assert "| run |" in capsys.readouterr().out

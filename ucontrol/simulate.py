@@ -41,6 +41,7 @@ from ucontrol.exceptions import (
     UControlError,
 )
 from ucontrol.log import NO_SOLVE, SOLVED, UNSOLVED, Log
+from ucontrol.model.robot_model import RobotModel
 from ucontrol.output_files import OutputLock, check_output_dir, write_atomically
 from ucontrol.scene import Scene
 from ucontrol.scene.scene_data import BILATERAL_TOLERANCE
@@ -240,7 +241,15 @@ class _ClosedLoop:
         if scene.sensors is not None:  # what the controller sees, imported only when declared
             from ucontrol.sensors.measurement import Sensors
 
-            self.sensors = Sensors(scene.sensors, robot, integrator.constraints, flexible, period)
+            believed = getattr(controller, "robot", None)  # the momentum observer's model
+            self.sensors = Sensors(
+                scene.sensors,
+                robot,
+                integrator.constraints,
+                flexible,
+                period,
+                believed if isinstance(believed, RobotModel) else None,
+            )
         if scene.actuators is not None:
             from ucontrol.sensors.actuators import Actuators
 
@@ -305,7 +314,7 @@ class _ClosedLoop:
         )
         q, v = self.q, self.v
         if self.sensors is not None:
-            q, v, contacts = self.sensors.measure(q, v, contacts, t)
+            q, v, contacts = self.sensors.measure(q, v, contacts, t, self.tau)
             self.measured_q, self.measured_v = q, v
         output = self.controller(t, q, v, contacts)
         if type(output) is not np.ndarray or output.dtype != np.float64:
@@ -362,6 +371,7 @@ class _ClosedLoop:
         if self.sensors is not None:
             self.log.record_extra("measured_q", self.measured_q)
             self.log.record_extra("measured_v", self.measured_v)
+            self.sensors.record_observer(self.log)
         if self.actuators is not None:
             self.log.record_extra("commanded_u", self.commanded_u)
 
@@ -590,6 +600,9 @@ def _new_log(
     if scene.sensors is not None:  # what the controller saw (motors after the links)
         log.add_field("measured_q", (n_q,))
         log.add_field("measured_v", (n_v + (0 if flexible is None else flexible.nf),))
+        if scene.sensors.observer == "momentum":  # the observer's residual and impact flag
+            log.add_field("momentum_residual", (robot.nv,))
+            log.add_field("impact_detected", (), dtype=bool)
     if scene.actuators is not None:  # the controller's output before the limits
         log.add_field("commanded_u", (robot.nu,))
     if flexible is not None:  # motor states, beside the links' q and v
