@@ -11,7 +11,7 @@ from conftest import ball_scene
 
 from ucontrol.exceptions import IntegrationError, InvalidParameterError
 from ucontrol.integrators import Compliant
-from ucontrol.integrators.compliant import (
+from ucontrol.integrators.contact_laws import (
     MAX_DAMPING_RATIO,
     damping_ratio,
     one_sided_restitution,
