@@ -294,20 +294,21 @@ class ContactLaw:
         return np.maximum(force, 0.0)
 
     def elastic_energy(self, depth: Vector, coefficient: Vector, peak: Vector) -> float:
-        """Energy stored in the contacts' springs, in [J]; arguments as :meth:`force`.
+        """Energy the contacts' springs would give back, in [J]; arguments as :meth:`force`.
 
-        k δ^{p+1}/(p + 1), or for unloading walton_braun contacts that of the unloading
-        spring, (k/e²)(δ - δ_m(1 - e²))²/2 above the permanent set.
+        k δ^{p+1}/(p + 1). For walton_braun the energy of the unloading spring
+        (k/e²)(δ - δ_m(1 - e²))²/2 above the permanent set, which is e² k δ²/2 while loading
+        (δ_m = δ): continuous where loading turns to unloading and back, so that the
+        mechanical energy with it never rises without work; loading dissipates
+        (1 - e²) k δ dδ.
         """
         k, p = self.stiffness, self.exponent
         depth = np.maximum(depth, 0.0)
-        energy = k * depth ** (p + 1.0) / (p + 1.0)
-        if self.hysteretic:
-            unloading = ~np.isinf(peak)
-            top = np.where(unloading, peak, 0.0)
-            stretch = np.maximum(depth - top * (1.0 - coefficient**2), 0.0)
-            energy = np.where(unloading, 0.5 * k * stretch**2 / coefficient**2, energy)
-        return float(np.sum(energy))
+        if not self.hysteretic:
+            return float(np.sum(k * depth ** (p + 1.0) / (p + 1.0)))
+        top = np.where(np.isinf(peak), depth, peak)  # δ_m, [m]
+        stretch = np.maximum(depth - top * (1.0 - coefficient**2), 0.0)  # δ - δ_0, [m]
+        return float(np.sum(0.5 * k * stretch**2 / coefficient**2))
 
     def rebound(
         self,
