@@ -11,11 +11,12 @@ from conftest import ball_scene
 
 from ucontrol.exceptions import IntegrationError, InvalidParameterError
 from ucontrol.integrators import Compliant
-from ucontrol.integrators.compliant import (
+from ucontrol.integrators.contact_laws import (
     MAX_DAMPING_RATIO,
     damping_ratio,
     one_sided_restitution,
 )
+from ucontrol.integrators.methods import CONTACT_MODELS
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
@@ -81,7 +82,7 @@ def test_resting_ball_sinks_by_its_weight_over_the_stiffness() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("model", ["linear", "hunt_crossley"])
+@pytest.mark.parametrize("model", CONTACT_MODELS)
 def test_energy_with_the_elastic_part_never_rises(model: str) -> None:
     scene = _compliant(ball_scene(0.9), stiffness=1e6, contact_model=model, rtol=1e-10, atol=1e-12)
     result = simulate(scene, duration=1.5, progress=False)

@@ -6,7 +6,7 @@ INTEGRATORS = ("moreau_jean", "event_driven", "compliant")
 #: events of event_driven, stiff methods for the contact springs of compliant.
 IVP_METHODS = {"event_driven": ("DOP853", "RK45"), "compliant": ("Radau", "BDF", "LSODA")}
 #: The contact force laws of compliant.
-CONTACT_MODELS = ("linear", "hunt_crossley")
+CONTACT_MODELS = ("linear", "hunt_crossley", "hunt_crossley_exact", "kuwabara_kono", "walton_braun")
 #: Impact laws of event_driven: the generalized Newton law, or Liu–Zhao–Brogliato's energetic
 #: multiple-impact law (:mod:`ucontrol.integrators.lzb_impact`).
 IMPACT_LAWS = ("newton", "lzb")

@@ -153,6 +153,7 @@ def _compliant(scene: SceneData, dt: float) -> Integrator:
         dt=dt,
         stiffness=settings.stiffness,
         contact_model=settings.contact_model,
+        reference_speed=settings.reference_speed,
         flexible=scene.flexible,
         joint_friction=scene.joint_friction,
         **settings.solver_options(),

@@ -34,9 +34,12 @@ class IntegratorSettings:
             ``"BDF"`` or ``"LSODA"`` (compliant); None: DOP853 or Radau.
         zeno_velocity: Rebound speed in [m/s] below which event_driven makes an impact
             plastic, cutting accumulations of impacts.
-        stiffness: Contact stiffness of compliant, in [N/m] (linear) or [N/m^1.5]
-            (Hunt–Crossley).
-        contact_model: Force law of compliant, ``"linear"`` or ``"hunt_crossley"``.
+        stiffness: Contact stiffness of compliant, in [N/m] (linear, walton_braun) or
+            [N/m^1.5] (hunt_crossley, hunt_crossley_exact, kuwabara_kono).
+        contact_model: Force law of compliant, one of :data:`CONTACT_MODELS`
+            (docs/compliant_laws.md).
+        reference_speed: Impact speed in [m/s] at which compliant's ``kuwabara_kono`` law
+            rebounds with the contacts' restitutions.
         restitution_threshold: Closing speed in [m/s] below which Moreau–Jean treats a contact
             as persistent (e = 0); 0 applies Newton's law to every closing contact.
         contact_solver: Contact solver of Moreau–Jean: ``"proxsuite"``, ``"pinocchio-admm"``,
@@ -80,6 +83,7 @@ class IntegratorSettings:
     zeno_velocity: float = 1e-5
     stiffness: float = 1e6
     contact_model: str = "linear"
+    reference_speed: float = 1.0
     restitution_threshold: float = 0.0
     contact_solver: str = "proxsuite"
     friction_tolerance: float = 1e-8
@@ -164,6 +168,9 @@ class IntegratorSettings:
             raise InvalidParameterError(
                 "contact_model", self.contact_model, f"one of {list(CONTACT_MODELS)}"
             )
+        object.__setattr__(
+            self, "reference_speed", as_positive("reference_speed", self.reference_speed)
+        )
 
     def solver_options(self) -> dict[str, Any]:
         """The solve_ivp settings given (rtol, atol, method), as keyword arguments."""

@@ -108,6 +108,7 @@ _INTEGRATOR_KEYS = {
     "zeno_velocity",
     "stiffness",
     "contact_model",
+    "reference_speed",
     "restitution_threshold",
     "contact_solver",
     "friction_tolerance",
