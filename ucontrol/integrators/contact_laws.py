@@ -113,8 +113,8 @@ def hunt_crossley_restitution(damping: float) -> float:
 
     .. math:: e(x) = \frac{1 + W_0\big(-(1 + x)\,e^{-(1 + x)}\big)}{x},
 
-    the relation published by Carvalho and Martins (Mech. Mach. Theory 139, 2019); derived in
-    docs/compliant_laws.md and checked against :meth:`ContactLaw.restitution`. Since
+    derived from the energy integral in docs/compliant_laws.md and checked against
+    :meth:`ContactLaw.restitution`. Since
     :math:`1 - ex > 0`, the force stays positive until δ = 0. Lambert's form loses digits near
     its branch point (x → 0): below x = 0.1 the relation is solved for e instead.
 
