@@ -124,6 +124,23 @@ class NotFoundError(UControlError, KeyError):
         return str(self.args[0])
 
 
+class UserFunctionError(UControlError, LookupError):
+    """A user function named ``module:function`` cannot be imported.
+
+    Attributes:
+        spec: The name asked for, ``"module:function"``.
+        reason: Why it is not available (the module does not import, has no such callable).
+    """
+
+    def __init__(self, spec: str, reason: str) -> None:
+        self.spec = spec
+        self.reason = reason
+        super().__init__(f"cannot load the function {spec!r}: {reason}")
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
 class FrameNotFoundError(NotFoundError):
     """A frame name is not in the robot model; :attr:`available` lists the frames that are."""
 

@@ -13,7 +13,14 @@ from typing import Any
 
 import numpy as np
 
-from ucontrol._validation import as_bool, as_vector, check_keys, require_key, table_type
+from ucontrol._validation import (
+    as_bool,
+    as_vector,
+    check_keys,
+    import_callable,
+    require_key,
+    table_type,
+)
 from ucontrol.contact.bilateral import BilateralConstraint, FrameClosure, JointCoupling
 from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.joint_stop import JointStop
@@ -70,6 +77,8 @@ _SURFACE_KEYS = {"type", "point", "normal", "motion"}
 _MOTION_KEYS = {
     "sinusoid": {"type", "amplitude", "frequency", "phase"},
     "polynomial": {"type", "coefficients"},
+    "ramp": {"type", "velocity"},
+    "python": {"type", "function"},
 }
 _CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
 _SPHERE_CONTACT_KEYS = {
@@ -143,10 +152,10 @@ def scene_fields(
     if flexible_table is not None:
         flexible, motor_q0, motor_v0 = _flexible(flexible_table, robot)
     surfaces = {
-        name: _plane(f"[surfaces.{name}]", name, spec)
+        name: _plane(f"[surfaces.{name}]", name, spec, base_dir)
         for name, spec in table.get("surfaces", {}).items()
     }
-    contacts = [_contact(spec, surfaces) for spec in table.get("contacts", [])]
+    contacts = [_contact(spec, surfaces, base_dir) for spec in table.get("contacts", [])]
     sphere_contacts = [_sphere_contact(spec) for spec in table.get("sphere_contacts", [])]
     shapes = {
         name: _shape(f"[shapes.{name}]", name, spec, base_dir)
@@ -244,7 +253,7 @@ def check_reference(table: Any, contacts: Sequence[PointContact]) -> dict[str, A
     return {"type": kind, "contact": contact}
 
 
-def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
+def _plane(section: str, name: str, spec: Mapping[str, Any], base_dir: Path) -> Plane:
     check_keys(section, spec, _SURFACE_KEYS)
     kind = spec.get("type", "plane")
     if kind != "plane":
@@ -254,14 +263,32 @@ def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
         point=spec.get("point", [0.0, 0.0, 0.0]),
         normal=require_key(spec, section, "normal"),
         name=name,
-        motion=None if motion is None else _motion(f"{section} motion", motion),
+        motion=None if motion is None else _motion(f"{section} motion", motion, base_dir),
     )
 
 
-def _motion(section: str, spec: Any) -> Any:
-    """A surface's ``motion`` table: a sinusoid or a polynomial translation."""
-    from ucontrol.contact.surface_motion import Polynomial, Sinusoid
+def _motion(section: str, spec: Any, base_dir: Path) -> Any:
+    """A surface's ``motion``: one table, or an array of them whose motions add.
 
+    A table is a sinusoid, a polynomial, a ramp (constant velocity from the origin) or a
+    Python function ``module:name`` of t returning (x, v, a), its module searched first in
+    the scene file's folder (``base_dir``).
+
+    Raises:
+        SceneError: An empty array, or an entry that is not a table.
+        NotFoundError: An unknown motion type.
+        UserFunctionError: A ``python`` motion whose function cannot be imported.
+        InvalidParameterError: A ``python`` motion whose function does not return three
+            3-vectors at t = 0.
+    """
+    from ucontrol.contact.surface_motion import MotionSum, Polynomial, Sinusoid, UserMotion
+
+    if isinstance(spec, list):
+        if not spec:
+            raise SceneError(f"{section} must be a table or a non-empty array of tables, got []")
+        return MotionSum(
+            tuple(_motion(f"{section}[{k}]", term, base_dir) for k, term in enumerate(spec))
+        )
     kind = table_type(section, spec, _MOTION_KEYS, "motion type")
     if kind == "sinusoid":
         return Sinusoid(
@@ -269,14 +296,24 @@ def _motion(section: str, spec: Any) -> Any:
             frequency=require_key(spec, section, "frequency"),
             phase=spec.get("phase", 0.0),
         )
+    if kind == "ramp":
+        velocity = as_vector(f"{section} velocity", require_key(spec, section, "velocity"), 3)
+        return Polynomial(coefficients=np.stack((np.zeros(3), velocity)))
+    if kind == "python":
+        function = import_callable(require_key(spec, section, "function"), (str(base_dir),))
+        motion = UserMotion(function)
+        motion(0.0)  # three finite 3-vectors, or a typed error now rather than mid-run
+        return motion
     return Polynomial(coefficients=require_key(spec, section, "coefficients"))
 
 
-def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointContact:
+def _contact(
+    spec: Mapping[str, Any], surfaces: Mapping[str, Plane], base_dir: Path
+) -> PointContact:
     check_keys("[[contacts]]", spec, _CONTACT_KEYS)
     surface = require_key(spec, "[[contacts]]", "surface")
     if isinstance(surface, Mapping):
-        plane = _plane("[[contacts]] surface", "plane", surface)
+        plane = _plane("[[contacts]] surface", "plane", surface, base_dir)
     elif surface in surfaces:
         plane = surfaces[surface]
     else:
@@ -316,7 +353,7 @@ def _shape(section: str, name: str, spec: Any, base_dir: Path) -> EnvironmentSha
     fields: dict[str, Any] = {
         "name": name,
         "type": kind,
-        "motion": None if motion is None else _motion(f"{section} motion", motion),
+        "motion": None if motion is None else _motion(f"{section} motion", motion, base_dir),
     }
     if kind == "halfspace":
         fields["position"] = spec.get("point", [0.0, 0.0, 0.0])
