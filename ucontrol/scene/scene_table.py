@@ -65,6 +65,7 @@ _ROBOT_KEYS = {
     "gravity",
     "planar_axis",
     "flexible",
+    "assemble",
 }
 #: The keys of ``[robot]`` naming its description file, and the loader of each format.
 _ROBOT_FILES: dict[str, Callable[..., RobotModel]] = {
@@ -170,13 +171,16 @@ def scene_fields(
     controller = dict(table.get("controller", {"type": "zero"}))
     check_controller_table(controller)
     check_keys("[integrator]", integrator_table, _INTEGRATOR_KEYS)
+    bilateral = tuple(_bilateral(spec) for spec in table.get("bilateral", []))
+    if "assemble" in robot_table:
+        q0 = _assembled_q0(robot_table["assemble"], robot, bilateral, q0)
     return dict(
         name=str(table.get("name", default_name)),
         robot=robot,
         contacts=tuple(contacts),
         sphere_contacts=tuple(sphere_contacts),
         collision_pairs=tuple(collision_pairs),
-        bilateral=tuple(_bilateral(spec) for spec in table.get("bilateral", [])),
+        bilateral=bilateral,
         planar_axis=None if planar_axis is None else as_vector("planar_axis", planar_axis, 3),
         stops=tuple(stops),
         q0=q0,
@@ -212,6 +216,34 @@ def _robot(robot_table: Mapping[str, Any], base_dir: Path) -> RobotModel:
         floating_base=as_bool("floating_base", robot_table.get("floating_base", False)),
         gravity=as_vector("gravity", robot_table.get("gravity", [0.0, 0.0, -9.81]), 3),
     )
+
+
+def _assembled_q0(
+    spec: Any, robot: RobotModel, bilateral: Sequence[BilateralConstraint], q0: Any
+) -> Any:
+    """``q0`` projected onto the bilateral constraints (``[robot] assemble``).
+
+    ``assemble = true`` moves every coordinate; ``assemble = ["crank_joint"]`` holds those
+    joints' coordinates at their ``q0`` values; ``false`` leaves ``q0`` as written.
+
+    Raises:
+        InvalidParameterError: ``assemble`` is neither a boolean nor a list of joint names.
+        JointNotFoundError: A held joint the robot does not have.
+        AssemblyError: No closure near ``q0`` (:func:`ucontrol.contact.assembly.assemble`).
+    """
+    from ucontrol.contact.assembly import assemble
+
+    if isinstance(spec, bool):
+        fixed: list[str] = []
+    elif isinstance(spec, list) and all(isinstance(name, str) for name in spec):
+        fixed = spec
+    else:
+        raise InvalidParameterError(
+            "[robot] assemble", spec, "true, false or a list of joint names held fixed"
+        )
+    if spec is False:
+        return q0
+    return assemble(robot, bilateral, q0, fixed=fixed, name="q0")
 
 
 def _sensors_and_actuators(table: Mapping[str, Any]) -> dict[str, Any]:
