@@ -66,6 +66,7 @@ _ROBOT_KEYS = {
     "planar_axis",
     "flexible",
     "assemble",
+    "links",
 }
 #: The keys of ``[robot]`` naming its description file, and the loader of each format.
 _ROBOT_FILES: dict[str, Callable[..., RobotModel]] = {
@@ -73,6 +74,7 @@ _ROBOT_FILES: dict[str, Callable[..., RobotModel]] = {
     "mjcf": RobotModel.from_mjcf,
     "sdf": RobotModel.from_sdf,
 }
+_LINK_KEYS = {"mass", "com", "inertia", "scale"}
 _FLEXIBLE_KEYS = {"joints", "stiffness", "motor_inertia", "damping", "q0", "v0"}
 _SURFACE_KEYS = {"type", "point", "normal", "motion"}
 _MOTION_KEYS = {
@@ -146,6 +148,8 @@ def scene_fields(
     robot_table = require_key(table, "the scene", "robot")
     check_keys("[robot]", robot_table, _ROBOT_KEYS)
     robot = _robot(robot_table, base_dir)
+    if "links" in robot_table:
+        robot = _with_link_overrides(robot_table["links"], robot)
     q0 = robot.check_configuration("q0", robot_table.get("q0", robot.neutral()))
     v0 = robot.check_velocity("v0", robot_table.get("v0", np.zeros(robot.nv)))
     flexible_table = robot_table.get("flexible")
@@ -216,6 +220,27 @@ def _robot(robot_table: Mapping[str, Any], base_dir: Path) -> RobotModel:
         floating_base=as_bool("floating_base", robot_table.get("floating_base", False)),
         gravity=as_vector("gravity", robot_table.get("gravity", [0.0, 0.0, -9.81]), 3),
     )
+
+
+def _with_link_overrides(spec: Any, robot: RobotModel) -> RobotModel:
+    """The robot with the masses and inertias of ``[robot.links.NAME]`` tables.
+
+    Raises:
+        SceneError: ``links`` or one of its entries is not a table.
+        UnknownKeyError: A key other than mass, com, inertia, scale.
+        FrameNotFoundError: A link the robot does not have.
+        InvalidParameterError: A value of the wrong shape or sign (naming the link).
+        InvalidInertiaError: A non-physical body (naming the link).
+    """
+    from ucontrol.model.link_inertia import LinkInertia, with_link_inertias
+
+    if not isinstance(spec, Mapping):
+        raise SceneError(f"[robot.links] must be a table of link tables, got {spec!r}")
+    overrides = []
+    for link, values in spec.items():
+        check_keys(f"[robot.links.{link}]", values, _LINK_KEYS)
+        overrides.append(LinkInertia(link=str(link), **values))
+    return with_link_inertias(robot, overrides)
 
 
 def _assembled_q0(
