@@ -54,6 +54,9 @@ def shaker(t):
 def flat(t):
     return np.zeros(2), np.zeros(3), np.zeros(3)
 
+def wrong_velocity(t):
+    return np.array([0.0, 0.0, t]), np.zeros(3), np.zeros(3)
+
 not_callable = 3.0
 """
 
@@ -144,6 +147,8 @@ def test_a_python_motion_that_does_not_import_is_an_error(
 def test_bad_motion_specs_are_errors(module_dir: Path) -> None:
     with pytest.raises(InvalidParameterError, match="displacement at t = 0"):
         _ball({"type": "python", "function": "ucontrol_test_shaker:flat"}, module_dir)
+    with pytest.raises(InvalidParameterError, match="velocity at t = 0"):
+        _ball({"type": "python", "function": "ucontrol_test_shaker:wrong_velocity"}, module_dir)
     with pytest.raises(SceneError, match="non-empty array"):
         _ball([], module_dir)
     with pytest.raises(NotFoundError, match="motion type"):

@@ -336,9 +336,17 @@ def _motion(section: str, spec: Any, base_dir: Path) -> Any:
         NotFoundError: An unknown motion type.
         UserFunctionError: A ``python`` motion whose function cannot be imported.
         InvalidParameterError: A ``python`` motion whose function does not return three
-            3-vectors at t = 0.
+            finite 3-vectors at t = 0, or whose velocity and acceleration are not the
+            derivatives of its displacement and velocity there
+            (:func:`~ucontrol.contact.surface_motion.check_motion`).
     """
-    from ucontrol.contact.surface_motion import MotionSum, Polynomial, Sinusoid, UserMotion
+    from ucontrol.contact.surface_motion import (
+        MotionSum,
+        Polynomial,
+        Sinusoid,
+        UserMotion,
+        check_motion,
+    )
 
     if isinstance(spec, list):
         if not spec:
@@ -359,7 +367,7 @@ def _motion(section: str, spec: Any, base_dir: Path) -> Any:
     if kind == "python":
         function = import_callable(require_key(spec, section, "function"), (str(base_dir),))
         motion = UserMotion(function)
-        motion(0.0)  # three finite 3-vectors, or a typed error now rather than mid-run
+        check_motion(motion, np.zeros(1))  # a typed error now rather than mid-run
         return motion
     return Polynomial(coefficients=require_key(spec, section, "coefficients"))
 
