@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import importlib
 import math
 import re
-from collections.abc import Mapping
+import sys
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -17,6 +19,7 @@ from ucontrol.exceptions import (
     SceneError,
     ShapeError,
     UnknownKeyError,
+    UserFunctionError,
 )
 
 
@@ -179,3 +182,30 @@ def toml_error_message(error: ValueError, text: str) -> str:
         name = line.strip("[]") if line.startswith("[") else line.partition("=")[0].strip()
         message += f" (the key {name!r} is given twice)"
     return message
+
+
+def import_callable(spec: Any, python_path: tuple[str, ...] = ()) -> Callable[..., Any]:
+    """The callable named ``module:name``, its module imported by name.
+
+    Args:
+        spec: ``"module:name"`` (``"my_package.motions:shaker"``).
+        python_path: Folders searched first for the module (put at the front of ``sys.path``).
+
+    Raises:
+        UserFunctionError: ``spec`` is not of the form ``module:name``, the module cannot be
+            imported, or it has no callable of that name.
+    """
+    module_name, colon, name = str(spec).partition(":")
+    if not isinstance(spec, str) or not colon or not module_name or not name:
+        raise UserFunctionError(str(spec), "expected 'module:name'")
+    for folder in reversed(python_path):
+        if folder not in sys.path:
+            sys.path.insert(0, folder)
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as error:
+        raise UserFunctionError(spec, f"cannot import module {module_name!r}: {error}") from error
+    function = getattr(module, name, None)
+    if not callable(function):
+        raise UserFunctionError(spec, f"module {module_name!r} has no callable {name!r}")
+    return function  # type: ignore[no-any-return]

@@ -68,6 +68,40 @@ class NonFiniteValueError(InvalidParameterError):
         self.expected = "finite"
 
 
+class AssemblyError(InvalidParameterError):
+    """A closed chain cannot be assembled: no configuration near the guess closes its loops.
+
+    Attributes:
+        name: The configuration's name, e.g. ``"q0"``.
+        residual: Largest constraint residual reached, in [m] or [rad].
+        constraint: The bilateral constraint row of that residual, e.g. ``"closure[1]"``.
+        iterations: Gauss–Newton iterations done.
+        configuration: The configuration of smallest residual reached, shape (nq,).
+    """
+
+    def __init__(
+        self,
+        name: str,
+        residual: float,
+        constraint: str,
+        iterations: int,
+        configuration: Any,
+        reason: str,
+    ) -> None:
+        self.residual = residual
+        self.constraint = constraint
+        self.iterations = iterations
+        self.configuration = configuration
+        UControlError.__init__(
+            self,
+            f"`{name}` cannot be assembled: bilateral constraint {constraint!r} keeps a residual "
+            f"of {residual:.3e} after {iterations} Gauss-Newton iterations ({reason})",
+        )
+        self.name = name
+        self.value = configuration
+        self.expected = "a configuration near a closure of the loops"
+
+
 class RobotFileError(UControlError):
     """A robot description file (URDF, MJCF, SDF) is missing or cannot be read.
 
@@ -121,6 +155,23 @@ class NotFoundError(UControlError, KeyError):
         super().__init__(f"unknown {kind} {name!r}; available: {', '.join(self.available)}")
 
     def __str__(self) -> str:  # KeyError would print the repr of the message
+        return str(self.args[0])
+
+
+class UserFunctionError(UControlError, LookupError):
+    """A user function named ``module:function`` cannot be imported.
+
+    Attributes:
+        spec: The name asked for, ``"module:function"``.
+        reason: Why it is not available (the module does not import, has no such callable).
+    """
+
+    def __init__(self, spec: str, reason: str) -> None:
+        self.spec = spec
+        self.reason = reason
+        super().__init__(f"cannot load the function {spec!r}: {reason}")
+
+    def __str__(self) -> str:
         return str(self.args[0])
 
 

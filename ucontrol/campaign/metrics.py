@@ -14,15 +14,14 @@ A metric is named by a string:
 
 from __future__ import annotations
 
-import importlib
 import math
-import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from itertools import pairwise
 from typing import Any
 
-from ucontrol.exceptions import UnknownMetricError
+from ucontrol._validation import import_callable
+from ucontrol.exceptions import UnknownMetricError, UserFunctionError
 
 
 def _cycles(summary: Mapping[str, Any]) -> list[Mapping[str, Any]]:
@@ -103,18 +102,10 @@ def import_function(spec: str, python_path: tuple[str, ...] = ()) -> Callable[[A
     Raises:
         UnknownMetricError: The module cannot be imported or has no such callable.
     """
-    module_name, _, function_name = spec.partition(":")
-    for folder in reversed(python_path):
-        if folder not in sys.path:
-            sys.path.insert(0, folder)
     try:
-        module = importlib.import_module(module_name)
-    except ImportError as error:
-        raise UnknownMetricError(spec, f"cannot import module {module_name!r}: {error}") from error
-    function = getattr(module, function_name, None)
-    if not callable(function):
-        raise UnknownMetricError(spec, f"module {module_name!r} has no function {function_name!r}")
-    return function  # type: ignore[no-any-return]
+        return import_callable(spec, python_path)
+    except UserFunctionError as error:
+        raise UnknownMetricError(spec, error.reason) from error
 
 
 def resolve(summary: Mapping[str, Any], path: str) -> Any:

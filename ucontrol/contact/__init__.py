@@ -1,5 +1,6 @@
 """What can touch what: surfaces, point, sphere–sphere and collision-shape contacts, stops."""
 
+from ucontrol.contact.assembly import assemble
 from ucontrol.contact.bilateral import BilateralSet, FrameClosure, JointCoupling
 from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.constraint_set import ConstraintSet
@@ -20,5 +21,6 @@ __all__ = [
     "Plane",
     "PointContact",
     "SphereSphereContact",
+    "assemble",
     "tangent_basis",
 ]

@@ -91,13 +91,14 @@ class EnvironmentShape:
                     "a function of t giving (displacement, velocity, acceleration)",
                 )
             from ucontrol.contact.surface_motion import (
+                MotionSum,
                 Polynomial,
                 Sinusoid,
                 UserMotion,
                 check_motion,
             )
 
-            if not isinstance(self.motion, Sinusoid | Polynomial | UserMotion):
+            if not isinstance(self.motion, Sinusoid | Polynomial | UserMotion | MotionSum):
                 # A plain function: its values checked finite at every call.
                 object.__setattr__(self, "motion", UserMotion(self.motion))
             assert self.motion is not None

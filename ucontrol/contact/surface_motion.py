@@ -6,6 +6,8 @@ through :math:`p_0 + x(t)` at time t: a point contact's gap becomes the time-dep
 -n \cdot \dot x(t)`, and its normal velocity the relative one,
 :math:`u_n = n \cdot (v_F - \dot x(t))` (docs/environments.md). A motion gives the
 displacement, velocity and acceleration at t; each is checked finite when evaluated.
+:class:`MotionSum` adds motions (a ramp plus a sinusoid): displacements, velocities and
+accelerations add, as the superposed translations do.
 """
 
 from __future__ import annotations
@@ -120,6 +122,31 @@ class UserMotion:
             )
         names = ("displacement", "velocity", "acceleration")
         x, v, a = (as_vector(f"{name} at t = {t}", value, 3) for name, value in zip(names, values))
+        return x, v, a
+
+
+@dataclass(frozen=True)
+class MotionSum:
+    r""":math:`x(t) = \sum_k x_k(t)`: the sum of several motions (a ramp and a sinusoid).
+
+    Attributes:
+        terms: The motions added, at least one.
+    """
+
+    terms: tuple[SurfaceMotion, ...]
+
+    def __post_init__(self) -> None:
+        terms = tuple(self.terms)
+        if not terms:
+            raise InvalidParameterError("terms", list(terms), "at least one motion")
+        object.__setattr__(self, "terms", terms)
+
+    def __call__(self, t: float) -> tuple[Vector, Vector, Vector]:
+        """Displacement [m], velocity [m/s] and acceleration [m/s²] at t [s], each (3,)."""
+        x, v, a = np.zeros(3), np.zeros(3), np.zeros(3)
+        for term in self.terms:
+            x_k, v_k, a_k = term(t)
+            x, v, a = x + x_k, v + v_k, a + a_k
         return x, v, a
 
 

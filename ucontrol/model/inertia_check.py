@@ -30,23 +30,39 @@ def check_inertias(robot: RobotModel) -> None:
     model = robot.model
     for joint in range(1, model.njoints):
         inertia = model.inertias[joint]
-        mass = float(inertia.mass)
-        rotational = np.asarray(inertia.inertia, dtype=float)
-        body = _body_name(model, joint)
-        if not np.isfinite(mass) or not np.all(np.isfinite(rotational)):
-            raise InvalidInertiaError(body, mass, [float("nan")] * 3, "finite")
-        moments = np.linalg.eigvalsh(0.5 * (rotational + rotational.T)).tolist()
-        scale = max(float(moments[-1]), 1e-300)
-        if mass < 0.0:
-            raise InvalidInertiaError(body, mass, moments, "a mass >= 0")
-        if moments[0] < -_SLACK * scale:
-            raise InvalidInertiaError(body, mass, moments, "positive semi-definite")
-        if moments[0] + moments[1] < moments[2] * (1.0 - _SLACK):
-            raise InvalidInertiaError(
-                body, mass, moments, "principal moments with I1 + I2 >= I3 (triangle inequality)"
-            )
-        if mass == 0.0 and moments[-1] > 0.0:
-            raise InvalidInertiaError(body, mass, moments, "no inertia without mass")
+        check_body(_body_name(model, joint), float(inertia.mass), inertia.inertia)
+
+
+def check_body(body: str, mass: float, rotational: NDArray[np.float64]) -> list[float]:
+    """Check one body's mass [kg] and rotational inertia about its centre of mass [kg m²].
+
+    Args:
+        body: The link's name, in errors.
+        mass: Its mass in [kg].
+        rotational: Its inertia about the centre of mass, shape (3, 3).
+
+    Returns:
+        The principal moments in [kg m²], ascending.
+
+    Raises:
+        InvalidInertiaError: As :func:`check_inertias`.
+    """
+    rotational = np.asarray(rotational, dtype=float)
+    if not np.isfinite(mass) or not np.all(np.isfinite(rotational)):
+        raise InvalidInertiaError(body, mass, [float("nan")] * 3, "finite")
+    moments: list[float] = np.linalg.eigvalsh(0.5 * (rotational + rotational.T)).tolist()
+    scale = max(float(moments[-1]), 1e-300)
+    if mass < 0.0:
+        raise InvalidInertiaError(body, mass, moments, "a mass >= 0")
+    if moments[0] < -_SLACK * scale:
+        raise InvalidInertiaError(body, mass, moments, "positive semi-definite")
+    if moments[0] + moments[1] < moments[2] * (1.0 - _SLACK):
+        raise InvalidInertiaError(
+            body, mass, moments, "principal moments with I1 + I2 >= I3 (triangle inequality)"
+        )
+    if mass == 0.0 and moments[-1] > 0.0:
+        raise InvalidInertiaError(body, mass, moments, "no inertia without mass")
+    return moments
 
 
 def check_mass_matrix(robot: RobotModel, q: NDArray[np.float64]) -> None:

@@ -13,7 +13,14 @@ from typing import Any
 
 import numpy as np
 
-from ucontrol._validation import as_bool, as_vector, check_keys, require_key, table_type
+from ucontrol._validation import (
+    as_bool,
+    as_vector,
+    check_keys,
+    import_callable,
+    require_key,
+    table_type,
+)
 from ucontrol.contact.bilateral import BilateralConstraint, FrameClosure, JointCoupling
 from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.joint_stop import JointStop
@@ -60,6 +67,8 @@ _ROBOT_KEYS = {
     "flexible",
     "actuated",
     "passive",
+    "assemble",
+    "links",
 }
 #: The keys of ``[robot]`` naming its description file, and the loader of each format.
 _ROBOT_FILES: dict[str, Callable[..., RobotModel]] = {
@@ -67,11 +76,14 @@ _ROBOT_FILES: dict[str, Callable[..., RobotModel]] = {
     "mjcf": RobotModel.from_mjcf,
     "sdf": RobotModel.from_sdf,
 }
+_LINK_KEYS = {"mass", "com", "inertia", "scale"}
 _FLEXIBLE_KEYS = {"joints", "stiffness", "motor_inertia", "damping", "q0", "v0"}
 _SURFACE_KEYS = {"type", "point", "normal", "motion"}
 _MOTION_KEYS = {
     "sinusoid": {"type", "amplitude", "frequency", "phase"},
     "polynomial": {"type", "coefficients"},
+    "ramp": {"type", "velocity"},
+    "python": {"type", "function"},
 }
 _CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
 _SPHERE_CONTACT_KEYS = {
@@ -139,6 +151,8 @@ def scene_fields(
     robot_table = require_key(table, "the scene", "robot")
     check_keys("[robot]", robot_table, _ROBOT_KEYS)
     robot = _robot(robot_table, base_dir)
+    if "links" in robot_table:
+        robot = _with_link_overrides(robot_table["links"], robot)
     q0 = robot.check_configuration("q0", robot_table.get("q0", robot.neutral()))
     v0 = robot.check_velocity("v0", robot_table.get("v0", np.zeros(robot.nv)))
     flexible_table = robot_table.get("flexible")
@@ -146,10 +160,10 @@ def scene_fields(
     if flexible_table is not None:
         flexible, motor_q0, motor_v0 = _flexible(flexible_table, robot)
     surfaces = {
-        name: _plane(f"[surfaces.{name}]", name, spec)
+        name: _plane(f"[surfaces.{name}]", name, spec, base_dir)
         for name, spec in table.get("surfaces", {}).items()
     }
-    contacts = [_contact(spec, surfaces) for spec in table.get("contacts", [])]
+    contacts = [_contact(spec, surfaces, base_dir) for spec in table.get("contacts", [])]
     sphere_contacts = [_sphere_contact(spec) for spec in table.get("sphere_contacts", [])]
     shapes = {
         name: _shape(f"[shapes.{name}]", name, spec, base_dir)
@@ -164,13 +178,16 @@ def scene_fields(
     controller = dict(table.get("controller", {"type": "zero"}))
     check_controller_table(controller)
     check_keys("[integrator]", integrator_table, _INTEGRATOR_KEYS)
+    bilateral = tuple(_bilateral(spec) for spec in table.get("bilateral", []))
+    if "assemble" in robot_table:
+        q0 = _assembled_q0(robot_table["assemble"], robot, bilateral, q0)
     return dict(
         name=str(table.get("name", default_name)),
         robot=robot,
         contacts=tuple(contacts),
         sphere_contacts=tuple(sphere_contacts),
         collision_pairs=tuple(collision_pairs),
-        bilateral=tuple(_bilateral(spec) for spec in table.get("bilateral", [])),
+        bilateral=bilateral,
         planar_axis=None if planar_axis is None else as_vector("planar_axis", planar_axis, 3),
         stops=tuple(stops),
         q0=q0,
@@ -220,6 +237,55 @@ def _robot(robot_table: Mapping[str, Any], base_dir: Path) -> RobotModel:
     return robot.with_actuation(**{name: joints})
 
 
+def _with_link_overrides(spec: Any, robot: RobotModel) -> RobotModel:
+    """The robot with the masses and inertias of ``[robot.links.NAME]`` tables.
+
+    Raises:
+        SceneError: ``links`` or one of its entries is not a table.
+        UnknownKeyError: A key other than mass, com, inertia, scale.
+        FrameNotFoundError: A link the robot does not have.
+        InvalidParameterError: A value of the wrong shape or sign (naming the link).
+        InvalidInertiaError: A non-physical body (naming the link).
+    """
+    from ucontrol.model.link_inertia import LinkInertia, with_link_inertias
+
+    if not isinstance(spec, Mapping):
+        raise SceneError(f"[robot.links] must be a table of link tables, got {spec!r}")
+    overrides = []
+    for link, values in spec.items():
+        check_keys(f"[robot.links.{link}]", values, _LINK_KEYS)
+        overrides.append(LinkInertia(link=str(link), **values))
+    return with_link_inertias(robot, overrides)
+
+
+def _assembled_q0(
+    spec: Any, robot: RobotModel, bilateral: Sequence[BilateralConstraint], q0: Any
+) -> Any:
+    """``q0`` projected onto the bilateral constraints (``[robot] assemble``).
+
+    ``assemble = true`` moves every coordinate; ``assemble = ["crank_joint"]`` holds those
+    joints' coordinates at their ``q0`` values; ``false`` leaves ``q0`` as written.
+
+    Raises:
+        InvalidParameterError: ``assemble`` is neither a boolean nor a list of joint names.
+        JointNotFoundError: A held joint the robot does not have.
+        AssemblyError: No closure near ``q0`` (:func:`ucontrol.contact.assembly.assemble`).
+    """
+    from ucontrol.contact.assembly import assemble
+
+    if isinstance(spec, bool):
+        fixed: list[str] = []
+    elif isinstance(spec, list) and all(isinstance(name, str) for name in spec):
+        fixed = spec
+    else:
+        raise InvalidParameterError(
+            "[robot] assemble", spec, "true, false or a list of joint names held fixed"
+        )
+    if spec is False:
+        return q0
+    return assemble(robot, bilateral, q0, fixed=fixed, name="q0")
+
+
 def _sensors_and_actuators(table: Mapping[str, Any]) -> dict[str, Any]:
     """The ``[sensors]`` and ``[actuators]`` settings, imported only when declared."""
     fields: dict[str, Any] = {}
@@ -259,7 +325,7 @@ def check_reference(table: Any, contacts: Sequence[PointContact]) -> dict[str, A
     return {"type": kind, "contact": contact}
 
 
-def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
+def _plane(section: str, name: str, spec: Mapping[str, Any], base_dir: Path) -> Plane:
     check_keys(section, spec, _SURFACE_KEYS)
     kind = spec.get("type", "plane")
     if kind != "plane":
@@ -269,14 +335,40 @@ def _plane(section: str, name: str, spec: Mapping[str, Any]) -> Plane:
         point=spec.get("point", [0.0, 0.0, 0.0]),
         normal=require_key(spec, section, "normal"),
         name=name,
-        motion=None if motion is None else _motion(f"{section} motion", motion),
+        motion=None if motion is None else _motion(f"{section} motion", motion, base_dir),
     )
 
 
-def _motion(section: str, spec: Any) -> Any:
-    """A surface's ``motion`` table: a sinusoid or a polynomial translation."""
-    from ucontrol.contact.surface_motion import Polynomial, Sinusoid
+def _motion(section: str, spec: Any, base_dir: Path) -> Any:
+    """A surface's ``motion``: one table, or an array of them whose motions add.
 
+    A table is a sinusoid, a polynomial, a ramp (constant velocity from the origin) or a
+    Python function ``module:name`` of t returning (x, v, a), its module searched first in
+    the scene file's folder (``base_dir``).
+
+    Raises:
+        SceneError: An empty array, or an entry that is not a table.
+        NotFoundError: An unknown motion type.
+        UserFunctionError: A ``python`` motion whose function cannot be imported.
+        InvalidParameterError: A ``python`` motion whose function does not return three
+            finite 3-vectors at t = 0, or whose velocity and acceleration are not the
+            derivatives of its displacement and velocity there
+            (:func:`~ucontrol.contact.surface_motion.check_motion`).
+    """
+    from ucontrol.contact.surface_motion import (
+        MotionSum,
+        Polynomial,
+        Sinusoid,
+        UserMotion,
+        check_motion,
+    )
+
+    if isinstance(spec, list):
+        if not spec:
+            raise SceneError(f"{section} must be a table or a non-empty array of tables, got []")
+        return MotionSum(
+            tuple(_motion(f"{section}[{k}]", term, base_dir) for k, term in enumerate(spec))
+        )
     kind = table_type(section, spec, _MOTION_KEYS, "motion type")
     if kind == "sinusoid":
         return Sinusoid(
@@ -284,14 +376,24 @@ def _motion(section: str, spec: Any) -> Any:
             frequency=require_key(spec, section, "frequency"),
             phase=spec.get("phase", 0.0),
         )
+    if kind == "ramp":
+        velocity = as_vector(f"{section} velocity", require_key(spec, section, "velocity"), 3)
+        return Polynomial(coefficients=np.stack((np.zeros(3), velocity)))
+    if kind == "python":
+        function = import_callable(require_key(spec, section, "function"), (str(base_dir),))
+        motion = UserMotion(function)
+        check_motion(motion, np.zeros(1))  # a typed error now rather than mid-run
+        return motion
     return Polynomial(coefficients=require_key(spec, section, "coefficients"))
 
 
-def _contact(spec: Mapping[str, Any], surfaces: Mapping[str, Plane]) -> PointContact:
+def _contact(
+    spec: Mapping[str, Any], surfaces: Mapping[str, Plane], base_dir: Path
+) -> PointContact:
     check_keys("[[contacts]]", spec, _CONTACT_KEYS)
     surface = require_key(spec, "[[contacts]]", "surface")
     if isinstance(surface, Mapping):
-        plane = _plane("[[contacts]] surface", "plane", surface)
+        plane = _plane("[[contacts]] surface", "plane", surface, base_dir)
     elif surface in surfaces:
         plane = surfaces[surface]
     else:
@@ -331,7 +433,7 @@ def _shape(section: str, name: str, spec: Any, base_dir: Path) -> EnvironmentSha
     fields: dict[str, Any] = {
         "name": name,
         "type": kind,
-        "motion": None if motion is None else _motion(f"{section} motion", motion),
+        "motion": None if motion is None else _motion(f"{section} motion", motion, base_dir),
     }
     if kind == "halfspace":
         fields["position"] = spec.get("point", [0.0, 0.0, 0.0])
