@@ -212,6 +212,8 @@ class Compliant:
         impulse = np.zeros(self._n)
         active = inside.copy()
         t, events, stalls = 0.0, 0, 0
+        start = 0.0 if state.t is None else float(state.t)  # [s], absolute time of the step
+        onsets: list[tuple[int, float]] = []  # (constraint, time [s]) where a contact begins
         while h - t > _STALL_TIME:
             q, v, segment_impulse, duration, fired = self._integrate(
                 q, v, tau, inside, speeds, h - t, t
@@ -235,10 +237,11 @@ class Compliant:
                 _, u = self._dynamics.kinematics(q, v)
                 speeds = speeds.copy()
                 speeds[entering] = np.maximum(-u[entering], self.min_impact_speed)
+                onsets += [(int(i), start + t) for i in np.flatnonzero(entering)]
             inside = inside ^ fired
             active |= inside
         self._carry = (q.copy(), v.copy(), inside.copy(), speeds.copy())
-        return StepOutcome(q, v, impulse, active, None, events)
+        return StepOutcome(q, v, impulse, active, None, events, impacts=tuple(onsets))
 
     def _carried_modes(self, state: PlantEvaluation) -> tuple[Mask, Vector]:
         """Which constraints are in contact, and their δ̇⁻, as the last step left them.
