@@ -109,11 +109,7 @@ def table(points: int, out: Path) -> list[str]:
 
 
 def oscillator(points: int, out: Path) -> list[str]:
-    def solve(w: float, x: np.ndarray) -> pc.FixedPoint:
-        s = pc.impact_oscillator(frequency=w, **OSCILLATOR)
-        return pc.fixed_point(
-            pc.stroboscopic_map(s), x, jacobian=lambda x: pc.stroboscopic_jacobian(s, x)
-        )
+    solve = pc.stroboscopic_solver(lambda w: pc.impact_oscillator(frequency=w, **OSCILLATOR))
 
     branch = pc.continuation(solve, np.linspace(2.0, 2.9, 10), np.array([-3.3626, 3.2073]))
     flip = next(b for b in branch.bifurcations if b.kind == "period_doubling")
@@ -148,14 +144,8 @@ def oscillator(points: int, out: Path) -> list[str]:
     def graze_system(F: float) -> pc.ImpactSystem:
         return pc.impact_oscillator(frequency=w, **{**OSCILLATOR, "stop": sigma, "force": F})
 
-    def free_solve(F: float, x: np.ndarray) -> pc.FixedPoint:
-        system = pc.without_impacts(graze_system(F))
-        return pc.fixed_point(
-            pc.stroboscopic_map(system), x, jacobian=lambda x: pc.stroboscopic_jacobian(system, x)
-        )
-
     grazing = pc.continuation(
-        free_solve,
+        pc.stroboscopic_solver(lambda F: pc.without_impacts(graze_system(F))),
         np.array([0.15, 0.17, 0.19]),
         np.array([0.4, 0.0]),
         grazing=lambda F, x: pc.smallest_gap(graze_system(F), 0.0, x),

@@ -6,7 +6,7 @@ import os
 import zipfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +32,21 @@ SAMPLE_FIELDS: dict[str, str] = {
     "solver_outer_iterations": "()",
 }
 
+
+class Impacts(NamedTuple):
+    """The impacts of a run, in the order the integrator found them.
+
+    Attributes:
+        t: Impact times in [s], shape (K,): located within the step by event-driven
+            integration, the contact onsets of compliant integration, the start t_k of the
+            step that closes the constraint with Moreau–Jean (resolution h).
+        constraint: The constraint of each impact, by name, shape (K,).
+    """
+
+    t: NDArray[np.float64]
+    constraint: NDArray[Any]  # strings
+
+
 #: ``solver_status`` codes: no contact solve in the step, solved within the solver's
 #: tolerance, or left above it (the run went on with ``on_unsolved = "warn"``).
 NO_SOLVE, SOLVED, UNSOLVED = 0, 1, 2
@@ -48,6 +63,9 @@ class Log:
     (:data:`NO_SOLVE`, :data:`SOLVED`, :data:`UNSOLVED`) and ``solver_outer_iterations``
     (fixed-point iterations of a friction solve). The last row has no step after it: its
     impulses are zero and its torque is the one last applied.
+
+    Besides the rows, :attr:`impacts` lists the run's impacts with their times (a table of
+    its own: a step may hold several impacts, or none).
 
     Args:
         capacity: Maximum number of rows.
@@ -89,6 +107,7 @@ class Log:
             "solver_outer_iterations": np.zeros(capacity, dtype=np.int64),
         }
         self._extras: dict[str, NDArray[Any]] = {}
+        self._impacts: list[tuple[int, float]] = []  # (constraint index, time [s])
 
     def __len__(self) -> int:
         return self.size
@@ -116,6 +135,26 @@ class Log:
         if name not in self.constraint_names:
             raise NotFoundError("constraint", name, self.constraint_names)
         return self.constraint_names.index(name)
+
+    @property
+    def impacts(self) -> Impacts:
+        """The run's impacts: their times in [s] and constraints' names, each of shape (K,)."""
+        pairs = np.array(self._impacts, dtype=float).reshape(-1, 2)
+        names = np.array(self.constraint_names, dtype=str)[pairs[:, 0].astype(np.intp)]
+        return Impacts(pairs[:, 1].copy(), names)
+
+    def impact_times_of(self, name: str) -> NDArray[np.float64]:
+        """Impact times of constraint ``name`` in [s], shape (K_a,), in the order found.
+
+        Raises:
+            NotFoundError: No constraint has that name (the message lists them).
+        """
+        i = self.constraint_index(name)
+        return np.array([t for index, t in self._impacts if index == i], dtype=float)
+
+    def record_impacts(self, impacts: Sequence[tuple[int, float]]) -> None:
+        """Add a step's impacts, (constraint index, time in [s]) pairs, to :attr:`impacts`."""
+        self._impacts += impacts
 
     def gap_of(self, name: str) -> NDArray[np.float64]:
         """Gap of constraint ``name`` at every sample, in [m] (or [rad]), shape (N,)."""
@@ -258,6 +297,9 @@ class Log:
         path.parent.mkdir(parents=True, exist_ok=True)
         payload: dict[str, Any] = {name: getattr(self, name) for name in self.fields}
         payload["constraint_names"] = np.array(self.constraint_names, dtype=str)
+        pairs = np.array(self._impacts, dtype=float).reshape(-1, 2)
+        payload["impact_t"] = pairs[:, 1]
+        payload["impact_constraint"] = pairs[:, 0].astype(np.int64)
         for key, value in self.metadata.items():
             payload[f"meta_{key}"] = np.array(value)
         return write_atomically(path, lambda stream: np.savez(stream, **payload))
@@ -278,6 +320,16 @@ class Log:
         if missing:
             raise LogFileError(str(path), f"it has no {sorted(missing)} arrays")
         names = [str(name) for name in content.pop("constraint_names")]
+        impact_t = content.pop("impact_t", np.zeros(0))  # logs written before the table: none
+        impact_constraint = content.pop("impact_constraint", np.zeros(0, dtype=np.int64))
+        if impact_t.shape != impact_constraint.shape or not np.all(
+            (impact_constraint >= 0) & (impact_constraint < len(names))
+        ):
+            raise LogFileError(
+                str(path),
+                f"its impact table has {impact_t.shape} times and constraints "
+                f"{impact_constraint.tolist()} for {len(names)} constraints",
+            )
         metadata = {
             key.removeprefix("meta_"): _metadata_value(content.pop(key))
             for key in list(content)
@@ -298,6 +350,9 @@ class Log:
             else:
                 log._arrays[key] = value
         log.size = size
+        log._impacts = [
+            (int(i), float(t)) for i, t in zip(impact_constraint, impact_t, strict=True)
+        ]
         return log
 
 

@@ -130,6 +130,12 @@ class StepOutcome(NamedTuple):
             coordinates, in [N s], shape (n, 3) (on the first sphere of a sphere–sphere
             contact, the opposite on the second), or None when the constraints have no
             friction.
+        impacts: The step's impacts as (constraint index, time in [s]) pairs, in the order
+            found: the located impact times of event-driven integration (within the step), the
+            contact onsets of compliant integration, and the step's start time t_k for a
+            constraint that a Moreau–Jean step closes with an impulse (time-stepping locates no
+            impact: its resolution is the step h). Times count from the evaluation's ``t``
+            (0 when it has none); empty (the shared ``()``) for a step without impacts.
     """
 
     q: Vector
@@ -140,6 +146,7 @@ class StepOutcome(NamedTuple):
     events: int = 0
     plastic: bool = False
     friction_impulse: Vector | None = None
+    impacts: tuple[tuple[int, float], ...] = ()
 
 
 class Integrator(Protocol):

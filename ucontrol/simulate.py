@@ -339,7 +339,7 @@ class _ClosedLoop:
         else:
             self._record_controller_fields()
         outcome = self.integrator.step(state, self.tau)
-        if outcome.solution is None and outcome.friction_impulse is None:
+        if outcome.solution is None and outcome.friction_impulse is None and not outcome.impacts:
             log.record_step_without_solve(self.u, outcome.impulse, outcome.active)
         else:
             _record_step(log, self.u, outcome)
@@ -614,8 +614,10 @@ def _new_log(
 
 
 def _record_step(log: Log, u: NDArray[np.float64], outcome: StepOutcome) -> None:
-    """The input, impulses and contact solve of a step, in the open row of ``log``."""
+    """The input, impulses, impacts and contact solve of a step, in the open row of ``log``."""
     solution = outcome.solution
+    if outcome.impacts:
+        log.record_impacts(outcome.impacts)
     if outcome.friction_impulse is not None:
         log.record_extra("friction_impulse", outcome.friction_impulse)
     if solution is None:

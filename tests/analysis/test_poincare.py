@@ -144,11 +144,10 @@ def analytic_period_one(w: float, guess: tuple[float, float]) -> tuple[float, fl
     return t_star, v_minus, np.linalg.eigvals(S @ expm(A * T))
 
 
-def oscillator_fixed_point(w: float, x: np.ndarray) -> pc.FixedPoint:
-    system = pc.impact_oscillator(frequency=w, **_OSCILLATOR)
-    return pc.fixed_point(
-        pc.stroboscopic_map(system), x, jacobian=lambda x: pc.stroboscopic_jacobian(system, x)
-    )
+#: The period-1 orbit (x, ẋ) at t = 0 of the oscillator forced at ω: (ω, guess) -> FixedPoint.
+oscillator_fixed_point = pc.stroboscopic_solver(
+    lambda w: pc.impact_oscillator(frequency=w, **_OSCILLATOR)
+)
 
 
 def test_oscillator_period_one_multipliers_against_exact_flow() -> None:
@@ -192,7 +191,9 @@ def test_oscillator_period_doubling_in_frequency() -> None:
     x = point.z + np.array([0.01, 0.0])
     for _ in range(60):
         x = P(x)
-    orbit = pc.fixed_point(P, x, period=2, jacobian=lambda x: pc.stroboscopic_jacobian(system, x))
+    orbit = pc.stroboscopic_solver(
+        lambda w: pc.impact_oscillator(frequency=w, **_OSCILLATOR), period=2
+    )(w, x)
     assert np.linalg.norm(P(orbit.z) - orbit.z) > 1e-3
     assert orbit.stable
     assert not oscillator_fixed_point(w, point.z).stable
@@ -210,13 +211,8 @@ def test_oscillator_grazing_at_free_response_amplitude() -> None:
     def system_at(force: float) -> pc.ImpactSystem:
         return pc.impact_oscillator(frequency=w, **{**parameters, "force": force})
 
-    def solve(force: float, x: np.ndarray) -> pc.FixedPoint:
-        system = pc.without_impacts(system_at(force))  # the non-impacting orbit, continued
-        return pc.fixed_point(
-            pc.stroboscopic_map(system),
-            x,
-            jacobian=lambda x: pc.stroboscopic_jacobian(system, x),
-        )
+    # the non-impacting orbit, continued
+    solve = pc.stroboscopic_solver(lambda force: pc.without_impacts(system_at(force)))
 
     def grazing(force: float, x: np.ndarray) -> float:
         return pc.smallest_gap(system_at(force), 0.0, x)

@@ -266,6 +266,34 @@ def stroboscopic_jacobian(
     return trajectory.jacobian
 
 
+def stroboscopic_solver(
+    system_at: Callable[[float], ImpactSystem], *, period: int = 1
+) -> Callable[[float, Vector], FixedPoint]:
+    """The ``solve`` of :func:`continuation` for the period-``period`` orbit of a system.
+
+    Args:
+        system_at: The system at a parameter value (e.g. ``lambda w:
+            impact_oscillator(frequency=w, ...)``).
+        period: Forcing periods of the orbit (k of :func:`fixed_point`).
+
+    Returns:
+        (parameter, guess) -> the fixed point of the stroboscopic map x(0) -> x(T) at that
+        parameter, by Newton with the Jacobian of :func:`stroboscopic_jacobian` (variational
+        equations and saltation matrices).
+    """
+
+    def solve(parameter: float, guess: Vector) -> FixedPoint:
+        system = system_at(parameter)
+        return fixed_point(
+            stroboscopic_map(system),
+            guess,
+            period=period,
+            jacobian=lambda z: stroboscopic_jacobian(system, z),
+        )
+
+    return solve
+
+
 def impact_map(system: ImpactSystem, horizon: float | None = None) -> Callable[[Vector], Vector]:
     """The impact map (t_k, x_k+) -> (t_{k+1}, x_{k+1}+), to the next impact; shape (n + 1,).
 

@@ -161,6 +161,8 @@ class Compliant:
         impulse = np.zeros(self._n)
         active = inside.copy()
         t, events, stalls = 0.0, 0, 0
+        start = 0.0 if state.t is None else float(state.t)  # [s], absolute time of the step
+        onsets: list[tuple[int, float]] = []  # (constraint, time [s]) where a contact begins
         while h - t > _STALL_TIME:
             q, v, segment_impulse, duration, fired, turned = self._integrate(
                 q, v, tau, (inside, speeds, peaks), h - t, t
@@ -182,6 +184,7 @@ class Compliant:
             gap, u = self._dynamics.kinematics(q, v)
             entering = fired & ~inside
             speeds[entering] = np.maximum(-u[entering], self.min_impact_speed)
+            onsets += [(int(i), start + t) for i in np.flatnonzero(entering)]
             unloading = turned & np.isinf(peaks)
             peaks[turned] = np.inf  # pushed past the deepest penetration: loading again
             peaks[unloading] = -gap[unloading]  # turned back: the deepest penetration
@@ -189,7 +192,7 @@ class Compliant:
             inside = inside ^ fired
             active |= inside
         self._carry = (q.copy(), v.copy(), inside, speeds, peaks)
-        return StepOutcome(q, v, impulse, active, None, events)
+        return StepOutcome(q, v, impulse, active, None, events, impacts=tuple(onsets))
 
     def _carried_modes(self, state: PlantEvaluation) -> tuple[Mask, Vector, Vector]:
         """The contact modes as the last step left them: in contact, δ̇⁻ and δ_m.

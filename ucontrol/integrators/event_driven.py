@@ -30,7 +30,9 @@ are of order :math:`m_\text{eff}` ``zeno_velocity`` and may be slightly adhesive
 
 Each :meth:`EventDriven.step` integrates exactly over :math:`[t_k, t_k + h]` with the torque
 held, so :func:`ucontrol.simulate` runs it like Moreau–Jean; the step ``h`` is only the sampling
-and control period. Its impulse is that of the step: impacts plus :math:`\int \lambda\,dt`.
+and control period. Its impulse is that of the step: impacts plus :math:`\int \lambda\,dt`;
+its :attr:`~ucontrol.plant.StepOutcome.impacts` are the located times of the step's impacts
+(the events at which a closing constraint gets an impulse), to solve_ivp's event accuracy.
 
 **Bilateral constraints.** With :attr:`~ucontrol.contact.ConstraintSet.bilateral` (loop
 closures, joint couplings: rows :math:`J_b`, residual :math:`h(q)`) the bilateral rows are
@@ -111,6 +113,7 @@ class _Settled:
     impulse: Vector
     max_step: float
     solutions: list[ContactSolution]
+    impacts: tuple[int, ...] = ()  # the constraints with an impact (closing, with an impulse)
 
 
 @dataclass(frozen=True)
@@ -230,6 +233,7 @@ class EventDriven:
         closed = self._carried_closed_set(q, v)
         closing = releasing = np.zeros(self._n, dtype=bool)
         solutions: list[ContactSolution] = []
+        impacts: list[tuple[int, float]] = []  # (constraint, absolute time [s])
         t, events, stalls = 0.0, 0, 0
         while True:
             settled = self._settle(q, v, tau, closed, closing, releasing, start + t)
@@ -237,6 +241,7 @@ class EventDriven:
             impulse += settled.impulse
             active |= closed | (settled.impulse > 0.0)
             solutions += settled.solutions
+            impacts += [(i, start + t) for i in settled.impacts]
             if h - t <= _STALL_TIME:
                 break
             segment = self._integrate(q, v, tau, closed, h - t, settled.max_step, start, t)
@@ -269,7 +274,7 @@ class EventDriven:
             q, v = self._project(q, v, closed, start + h)
         self._carry = (q.copy(), v.copy(), closed.copy())
         worst = max(solutions, key=lambda solution: solution.residual, default=None)
-        return StepOutcome(q, v, impulse, active, worst, events)
+        return StepOutcome(q, v, impulse, active, worst, events, impacts=tuple(impacts))
 
     def _carried_closed_set(self, q: Vector, v: Vector) -> Mask | None:
         """The closed set the last step ended with, if this step continues it exactly."""
@@ -308,10 +313,13 @@ class EventDriven:
         terms = dynamics.constraint_terms(q, v, tau, indices, t=time)
         u_near = u[indices]
         solutions = []
+        impacts: tuple[int, ...] = ()
         if np.any(u_near < -self.closure_velocity):
             solution = self._checked(self.impact_solver, self._impact(terms, u_near, indices))
             solutions.append(solution)
             impulse[indices] = solution.impulses
+            hit = (u_near < -self.closure_velocity) & (solution.impulses > 0.0)
+            impacts = tuple(int(i) for i in indices[hit])
             v = v + terms.Minv_Jt @ solution.impulses
             v, capture = self._capture(terms, v)
             impulse[indices] += capture
@@ -331,7 +339,13 @@ class EventDriven:
         if closed.any() or self._bilateral:
             q, v = self._project(q, v, closed, time)
         return _Settled(
-            q, v, closed, impulse, self._max_step(terms, u_near, closed[indices]), solutions
+            q,
+            v,
+            closed,
+            impulse,
+            self._max_step(terms, u_near, closed[indices]),
+            solutions,
+            impacts,
         )
 
     def _impact(

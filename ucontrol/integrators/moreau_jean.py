@@ -544,13 +544,15 @@ class MoreauJean:
             )  # fmt: skip
         if indices.size == rows == 1 and free_step is not None and free_step.single_rows:
             if not memory.first:
-                return self._single_row_outcome(free_step, active, int(indices[0]))
+                return self._single_row_outcome(free_step, active, int(indices[0]), state.t)
         return self._contact_outcome(state, v_free, inverse_inertia, active, indices, activation)
 
     def _single_row_outcome(
-        self, free_step: CompiledFreeStep, active: NDArray[np.bool_], i: int
+        self, free_step: CompiledFreeStep, active: NDArray[np.bool_], i: int, t: float | None
     ) -> StepOutcome:
-        """The outcome of a step with constraint ``i`` alone active, from the compiled call.
+        """The outcome of a step at time ``t`` [s] with constraint ``i`` alone active.
+
+        From the compiled call.
 
         The one-row LCP's closed form is part of the compiled step: its solve time is not
         measured apart (0 s in the solution).
@@ -562,8 +564,11 @@ class MoreauJean:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
         impulse[i] = row.impulse.item()
+        impacts = _closing_impacts(impulse, self.memory.activation, (i,), t)
         self.memory = next_memory(impulse, self.persistence_tolerance)
-        return StepOutcome(row.q, row.v, impulse, active, solution, plastic=row.plastic)
+        return StepOutcome(
+            row.q, row.v, impulse, active, solution, plastic=row.plastic, impacts=impacts
+        )
 
     def _contact_outcome(
         self,
@@ -659,6 +664,7 @@ class MoreauJean:
             solution,
             plastic=plastic,
             friction_impulse=friction_impulse,
+            impacts=_closing_impacts(impulse, activation, indices, state.t),
         )
 
     def _advance_theta(self, state: PlantEvaluation, v_next: Vector) -> Vector:
@@ -998,6 +1004,18 @@ def _read_only(array: Vector) -> Vector:
     """``array``, made read-only (an outcome shared between steps)."""
     array.flags.writeable = False
     return array
+
+
+def _closing_impacts(
+    impulse: Vector, activation: Vector, rows: Any, t: float | None
+) -> tuple[tuple[int, float], ...]:
+    """(constraint, t_k in [s]) of the ``rows`` the step closes (t_k = ``t``, 0 when None).
+
+    A row closes when it gets an impulse without being held by the last step (its
+    ``activation`` is 0): time-stepping locates no impact, so its time is the step's start.
+    """
+    t_k = 0.0 if t is None else float(t)
+    return tuple((int(i), t_k) for i in rows if impulse[i] > 0.0 and activation[i] <= 0.0)
 
 
 def _pad(rows: Vector, size: int) -> Vector:
