@@ -315,15 +315,17 @@ def _single_row_step(
 
     ops = _casadi_ops()
     d, u_free, u_minus = delassus[i, i], J[i, :] @ v_free, velocity[i]
+    e = float(rules.restitution[i])
     rebound, closure = newton_offsets(
         ops,
         gap[i],
         u_minus,
-        float(rules.restitution[i]),
+        e,
         activation[i] > 0.0,
         h,
         rules.threshold,
         rules.newton_law == "siconos",
+        e == 0.0,
     )
     b = u_free + closure
 

@@ -365,6 +365,7 @@ class MoreauJean:
                     "solver", self.solver.name, "'proxsuite' with bilateral constraints"
                 )
         self._friction = constraints.has_friction
+        self._plastic = not constraints.restitution.any()  # e = 0 everywhere: no rebound terms
         self.persistence_tolerance = as_float("persistence_tolerance", persistence_tolerance)
         if self.persistence_tolerance < 0.0:
             raise InvalidParameterError("persistence_tolerance", persistence_tolerance, ">= 0")
@@ -533,18 +534,19 @@ class MoreauJean:
             # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
             predicted = predicted_gaps(state.gap, state.normal_velocity, self.gamma * self.dt)
         active, activation = active_set(memory, state.gap, predicted, self.persistence_tolerance)
-        indices = active.nonzero()[0]
-        rows = indices.size + self._problem_rows
+        count = np.count_nonzero(active)
+        rows = count + self._problem_rows
         if not rows:  # no contact problem: nothing held next
             self.memory = self._free_memory
             q_next = self._advance_theta(state, v_free) if q_free is None else q_free
             return StepOutcome(
-                q_next, v_free, self._no_impulse, active, None,
-                friction_impulse=self._no_friction_impulse,
+                q_next, v_free, self._no_impulse, active, None, 0, False,
+                self._no_friction_impulse,
             )  # fmt: skip
-        if indices.size == rows == 1 and free_step is not None and free_step.single_rows:
+        if count == rows == 1 and free_step is not None and free_step.single_rows:
             if not memory.first:
-                return self._single_row_outcome(free_step, active, int(indices[0]), state.t)
+                return self._single_row_outcome(free_step, active, int(active.argmax()), state.t)
+        indices = active.nonzero()[0]
         return self._contact_outcome(state, v_free, inverse_inertia, active, indices, activation)
 
     def _single_row_outcome(
@@ -565,10 +567,8 @@ class MoreauJean:
         impulse = np.zeros(self.constraints.size)
         impulse[i] = row.impulse.item()
         impacts = _closing_impacts(impulse, self.memory.activation, (i,), t)
-        self.memory = next_memory(impulse, self.persistence_tolerance)
-        return StepOutcome(
-            row.q, row.v, impulse, active, solution, plastic=row.plastic, impacts=impacts
-        )
+        self.memory = next_memory(impulse, (i,), self.persistence_tolerance)
+        return StepOutcome(row.q, row.v, impulse, active, solution, 0, row.plastic, None, impacts)
 
     def _contact_outcome(
         self,
@@ -587,6 +587,7 @@ class MoreauJean:
         measures every row but the bilateral ones (module docstring).
         """
         constraints, data, m = self.constraints, self._data, indices.size
+        rows = indices.tolist()  # (Python ints: the loops over the active rows below)
         if state.normal_rows is not None:
             J = state.normal_rows[indices]
         else:
@@ -631,6 +632,7 @@ class MoreauJean:
                 self.dt,
                 self.restitution_threshold,
                 self.newton_law == "siconos",
+                self._plastic,
             )
         if m_b and bilateral_offset is not None:  # the midpoint's rows (module docstring)
             closure[-m_b:] = bilateral_offset
@@ -655,7 +657,7 @@ class MoreauJean:
         if self._bilateral is not None:  # held contacts' normal rows kept by the projection
             held = J[:m][impulse[indices] > 0.0, : self.robot.nv]
             q_next = self._project(q_next, held if held.size else None)
-        self.memory = next_memory(impulse, self.persistence_tolerance)
+        self.memory = next_memory(impulse, rows, self.persistence_tolerance)
         return StepOutcome(
             q_next,
             v_next,
@@ -664,7 +666,7 @@ class MoreauJean:
             solution,
             plastic=plastic,
             friction_impulse=friction_impulse,
-            impacts=_closing_impacts(impulse, activation, indices, state.t),
+            impacts=_closing_impacts(impulse, activation, rows, state.t),
         )
 
     def _advance_theta(self, state: PlantEvaluation, v_next: Vector) -> Vector:
@@ -1014,8 +1016,11 @@ def _closing_impacts(
     A row closes when it gets an impulse without being held by the last step (its
     ``activation`` is 0): time-stepping locates no impact, so its time is the step's start.
     """
-    t_k = 0.0 if t is None else float(t)
-    return tuple((int(i), t_k) for i in rows if impulse[i] > 0.0 and activation[i] <= 0.0)
+    impacts: tuple[tuple[int, float], ...] = ()
+    for i in rows:
+        if impulse[i] > 0.0 and activation[i] <= 0.0:
+            impacts += ((int(i), 0.0 if t is None else float(t)),)
+    return impacts
 
 
 def _pad(rows: Vector, size: int) -> Vector:

@@ -28,7 +28,7 @@ redone plastic (module docstring of :mod:`~ucontrol.integrators.moreau_jean`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -119,9 +119,19 @@ def active_set(
     return predicted <= activation, activation
 
 
-def next_memory(impulse: Vector, persistence_tolerance: float) -> StepMemory:
-    """The memory after a step with normal ``impulse`` (n,): those with one are held."""
-    return StepMemory(np.multiply(impulse > 0.0, persistence_tolerance), False)
+def next_memory(
+    impulse: Vector, rows: Sequence[int] | NDArray[np.intp], persistence_tolerance: float
+) -> StepMemory:
+    """The memory after a step with normal ``impulse`` (n,): those with one are held.
+
+    ``rows`` are the constraints of the step's active set, the only ones with an impulse (a
+    few: a loop over them costs less than a pass over every constraint).
+    """
+    activation = np.zeros(impulse.size)
+    for i in rows:
+        if impulse[i] > 0.0:
+            activation[i] = persistence_tolerance
+    return StepMemory(activation, False)
 
 
 def newton_offsets(
@@ -133,6 +143,7 @@ def newton_offsets(
     h: Any,
     threshold: float,
     siconos: bool,
+    plastic: bool = False,
 ) -> tuple[Any, Any]:
     r"""Newton's restitution terms and the closures of a step's normal rows.
 
@@ -145,15 +156,19 @@ def newton_offsets(
         h: Step in [s].
         threshold: Closing speed below which no restitution applies, in [m/s].
         siconos: Restitution on every row (Siconos' convention), not only closing ones.
+        plastic: Every ``restitution`` is 0 (known when the step is built): no rebound to
+            compute.
 
     Returns:
         :math:`e_a u_a^-` on the closing rows not held open (0 elsewhere), and the closure
         :math:`g_a / h` on the held rows with a positive gap (0 elsewhere), in [m/s].
     """
     held_open = ops.logical_and(held, gap > 0.0)
+    closure = ops.where(held_open, gap / h, 0.0)
+    if plastic:  # e = 0 on every row: e u⁻ = 0
+        return 0.0 * u_minus, closure
     no_rebound = held_open if siconos else ops.logical_or(held_open, u_minus >= -threshold)
     rebound = ops.where(no_rebound, 0.0, restitution * u_minus)
-    closure = ops.where(held_open, gap / h, 0.0)
     return rebound, closure
 
 
