@@ -47,6 +47,7 @@ def draw(name: str, out: Path, duration: float | None) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ucontrol.analysis.coordinates import coordinate_names, coordinate_units
     from ucontrol.scene import Scene
     from ucontrol.simulate import simulate
 
@@ -59,10 +60,16 @@ def draw(name: str, out: Path, duration: float | None) -> Path:
     names = list(log.constraint_names)
     pairs = sorted({label.split("#")[0] for label in names})
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7.0, 5.0), sharex=True)
-    for k in range(min(q.shape[1], 7)):
-        top.plot(t, q[:, k], label=f"q[{k}]")
-    top.set_ylabel("q [m] or [rad]")
-    top.legend(loc="best", fontsize=7, ncol=4)
+    shown = min(q.shape[1], 7)
+    q_names, _ = coordinate_names(scene.robot.model, q.shape[1], np.asarray(log.v).shape[1])
+    q_units, _ = coordinate_units(scene.robot.model, q.shape[1], np.asarray(log.v).shape[1])
+    units = list(dict.fromkeys(q_units[:shown]))  # one axis per unit: the first two
+    axes = [top] + ([top.twinx()] if len(units) > 1 else [])
+    for axis, unit in zip(axes, units, strict=False):
+        for k in (k for k in range(shown) if q_units[k] == unit):
+            axis.plot(t, q[:, k], label=q_names[k], ls="-" if axis is top else "--")
+        axis.set_ylabel(f"q [{unit}]")
+        axis.legend(loc="upper left" if axis is top else "upper right", fontsize=7, ncol=2)
     top.set_title(f"{name} ({scene.integrator.name}, h = {scene.integrator.dt:g} s)")
     bilateral = scene.constraints.bilateral
     if not names and bilateral is not None:  # a closed chain: its closure residual
@@ -75,7 +82,7 @@ def draw(name: str, out: Path, duration: float | None) -> Path:
     for pair in pairs:
         rows = [i for i, label in enumerate(names) if label.split("#")[0] == pair]
         bottom.plot(t, gap[:, rows].min(axis=1), label=f"gap {pair}")
-    bottom.set_ylabel("gap [m] or [rad]")
+    bottom.set_ylabel("gap [m] (stops: [rad] or [m])")
     bottom.set_xlabel("t [s]")
     if gap.size:
         low, high = float(gap.min()), float(np.percentile(gap.min(axis=1), 95))
