@@ -103,11 +103,14 @@ def test_the_gait_scuffs_at_mid_stance_and_the_scuff_is_ignored(
         atol=1e-12,
         t_eval=t,
     )
-    height = np.array([_foot_height(x) for x in solution.y.T])
-    below = t[height < 0.0]
-    # The swing foot dips below the slope around mid-stance (the legs cross) ...
-    assert below.size > 0 and below[0] < stride.mid_stance < below[-1]
-    assert -1e-3 < height.min() < 0.0
+    # The last sample is the strike itself (height 0 up to rounding): left out.
+    height = np.array([_foot_height(x) for x in solution.y.T[:-1]])
+    below = t[:-1][height < 0.0]
+    # The swing foot dips below the slope once, as the legs cross before mid-stance (measured:
+    # from t = 1.8139 to 1.8952, 6.4e-5 leg lengths deep; mid-stance at 2.0508) ...
+    assert below.size > 0 and np.all(np.diff(below) < 1.5 * (t[1] - t[0]))
+    assert below[-1] < stride.mid_stance
+    assert -1e-4 < height.min() < -1e-5
     # ... and the stride goes on to the strike with the swing foot ahead.
     assert stride.state_minus[0] < 0.0 and stride.state_minus[1] < 0.0
     assert abs(stride.state_minus[1] - 2.0 * stride.state_minus[0]) <= 1e-12
