@@ -23,15 +23,42 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
 from ucontrol.analysis.poincare import finite_difference_jacobian, fixed_point
-from ucontrol.analysis.stance_flow import StanceFlow
 
 Vector = NDArray[np.float64]
+
+
+class StrideResult(Protocol):
+    """What :func:`find_gait` reads of a stride: its duration and the post-strike state."""
+
+    @property
+    def duration(self) -> float:
+        """Time from the start to the heel strike (the walker's time unit)."""
+
+    @property
+    def q(self) -> Vector:
+        """Configuration at the strike."""
+
+    @property
+    def v(self) -> Vector:
+        """Velocity just after the strike."""
+
+
+class Walker(Protocol):
+    """A walker's stride map.
+
+    A :class:`~ucontrol.analysis.stance_flow.StanceFlow`, or a model such as
+    :class:`~ucontrol.analysis.simplest_walker.SimplestWalker`.
+    """
+
+    def stride(self, q: Vector, v: Vector) -> StrideResult:
+        """Flow from a post-strike state to the next heel strike, then strike."""
 
 
 @dataclass(frozen=True)
@@ -42,7 +69,7 @@ class Gait:
         z: The fixed point in the chart's coordinates, shape (k,).
         q: Configuration just after the strike, shape (nq,).
         v: Velocity just after the strike, shape (nv,).
-        period: Step period (strike to strike) in [s].
+        period: Step period (strike to strike) in [s] (in the walker's time unit).
         multipliers: Eigenvalues of the stride map's Jacobian, largest modulus first, the
             ``drop_trivial`` smallest ones dropped.
         jacobian: The stride map's Jacobian at ``z``, shape (k, k).
@@ -66,7 +93,7 @@ class Gait:
 
 
 def find_gait(
-    flow: StanceFlow,
+    flow: Walker,
     to_state: Callable[[Vector], tuple[Vector, Vector]],
     from_state: Callable[[Vector, Vector], Vector],
     z0: Vector,
@@ -79,7 +106,7 @@ def find_gait(
     """Find a period-one gait by Newton on the stride map at heel strike.
 
     Args:
-        flow: The walker's stance flow and strike map.
+        flow: The walker's stance flow and strike map (anything with a ``stride(q, v)``).
         to_state: The post-strike state (q (nq,), v (nv,)) of section coordinates z (k,).
         from_state: The section coordinates (k,) of a post-strike state.
         z0: First guess, shape (k,).

@@ -38,7 +38,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from ucontrol._validation import as_positive
+from ucontrol._validation import as_positive, as_vector
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import InvalidParameterError, StrideError
 
@@ -71,7 +71,7 @@ class Stride:
 
 
 class StanceFlow:
-    """The stance flow and heel-strike map of a passive walker with sticking feet.
+    r"""The stance flow and heel-strike map of a passive walker with sticking feet.
 
     Args:
         constraints: The walker's contacts (a scene's :attr:`~ucontrol.scene.Scene.constraints`):
@@ -79,6 +79,10 @@ class StanceFlow:
         rtol: Relative tolerance of solve_ivp.
         atol: Absolute tolerance of solve_ivp.
         max_duration: Longest stride in [s]: a foot that has not struck by then is an error.
+        ahead: Direction of travel in the world frame, shape (3,), or None. Given, a foot that
+            reaches the ground behind the stance foot along it does not strike (a point foot
+            scuffing the ground as the legs cross, ignored as in Garcia et al. 1998): the strike
+            event of foot :math:`b` is :math:`g_b + \max(0, -(p_b - p_s) \cdot a)`.
 
     Raises:
         InvalidParameterError: The robot has nq != nv, or a constraint is not a sticking point
@@ -92,6 +96,7 @@ class StanceFlow:
         rtol: float = 1e-12,
         atol: float = 1e-12,
         max_duration: float = 10.0,
+        ahead: Vector | None = None,
     ) -> None:
         robot = constraints.robot
         if robot.nq != robot.nv:
@@ -114,6 +119,7 @@ class StanceFlow:
         self.rtol = as_positive("rtol", rtol)
         self.atol = as_positive("atol", atol)
         self.max_duration = as_positive("max_duration", max_duration)
+        self.ahead = None if ahead is None else as_vector("ahead", ahead, 3)
         self._data = pin.Data(robot.model)
         self._drift_data = pin.Data(robot.model)
         self._frames = [robot.frame_id(contact.frame) for contact in constraints.contacts]
@@ -205,7 +211,7 @@ class StanceFlow:
 
         def strike_event(i: int) -> Callable[[float, Vector], float]:
             def event(_: float, y: Vector) -> float:
-                return float(self.constraints.gaps(y[:nv])[i])
+                return float(self.constraints.gaps(y[:nv])[i]) + self._behind(y[:nv], i, stance)
 
             event.terminal, event.direction = True, -1.0  # type: ignore[attr-defined]
             return event
@@ -254,6 +260,15 @@ class StanceFlow:
         v_plus, impulse = self.heel_strike(q_end, v_minus, foot)
         self._check_strike(q_end, v_plus, impulse, stance, foot, t_end)
         return Stride(t_end, q_end, v_plus, v_minus, foot, impulse)
+
+    def _behind(self, q: Vector, foot: int, stance: int) -> float:
+        """How far ``foot`` is behind the stance foot along :attr:`ahead` in [m] (0 if ahead)."""
+        if self.ahead is None:
+            return 0.0
+        model, data = self.robot.model, self._drift_data
+        pin.framesForwardKinematics(model, data, q)
+        step = data.oMf[self._frames[foot]].translation - data.oMf[self._frames[stance]].translation
+        return max(0.0, -float(step @ self.ahead))
 
     def _check_strike(
         self, q: Vector, v: Vector, impulse: Vector, old: int, new: int, t: float
