@@ -41,7 +41,6 @@ if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
 
 def _parser() -> argparse.ArgumentParser:
     # Pinocchio, scipy and dask come with these: imported once the signals are handled (main)
-    from ucontrol import convergence
     from ucontrol.campaign.command import add_sweep_parser
     from ucontrol.design.command import add_design_parser
     from ucontrol.scene import INTEGRATORS
@@ -117,21 +116,21 @@ def _parser() -> argparse.ArgumentParser:
         "--dts",
         type=float,
         nargs="+",
-        default=convergence.DEFAULT_DTS,
+        default=None,
         help="moreau_jean steps in [s]",
     )
     study.add_argument(
         "--tolerances",
         type=float,
         nargs="+",
-        default=convergence.DEFAULT_TOLERANCES,
+        default=None,
         help="event_driven relative tolerances (atol = rtol / 100)",
     )
     study.add_argument(
         "--stiffnesses",
         type=float,
         nargs="+",
-        default=convergence.DEFAULT_STIFFNESSES,
+        default=None,
         help="compliant stiffnesses in [N/m]",
     )
     study.add_argument(
@@ -387,13 +386,13 @@ def _convergence(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
     out = args.out if args.out is not None else Path("runs") / scene.name / "convergence"
     check_output_dir("--out", out)
+    # the ranges the command line leaves out take run_convergence's defaults
+    ranges = {"dts": args.dts, "tolerances": args.tolerances, "stiffnesses": args.stiffnesses}
     study = convergence.run_convergence(
         scene,
         duration=args.duration,
         integrators=args.integrators,
-        dts=args.dts,
-        tolerances=args.tolerances,
-        stiffnesses=args.stiffnesses,
+        **{name: values for name, values in ranges.items() if values is not None},
         sample_dt=args.sample_dt,
         control_period=args.control_period,
     )

@@ -1,6 +1,8 @@
 """Controllers and the protocol they follow.
 
-:class:`FlexibleBrogliatoController` (casadi) is imported on first use.
+Every name is imported from its module on first use, so that a scene without a controller
+loads neither casadi (:class:`BrogliatoController`) nor scipy.interpolate
+(:class:`SplinePath`).
 """
 
 from __future__ import annotations
@@ -8,35 +10,34 @@ from __future__ import annotations
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
-from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
-from ucontrol.control.circle_path import CirclePath
-from ucontrol.control.controller import ContactState, Controller, LoggingController
-from ucontrol.control.desired_cycle import (
-    ContactPhase,
-    DesiredCycle,
-    NominalPath,
-    read_designed_cycle,
-)
-from ucontrol.control.friction_compensation import FrictionCompensation
-from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
-from ucontrol.control.joint_pd import JointPD
-from ucontrol.control.juggling_controller import (
-    ArmJugglingController,
-    JugglingController,
-    JugglingSettings,
-)
-from ucontrol.control.path_reach import check_reach
-from ucontrol.control.path_table import PATH_TYPES, path_from_table
-from ucontrol.control.phase import Event, Phase
-from ucontrol.control.phase_machine import DesiredState, PhaseMachine
-from ucontrol.control.polyline_path import PolylinePath
-from ucontrol.control.segment_path import SegmentPath
-from ucontrol.control.spline_path import SplinePath
-from ucontrol.control.task_coordinates import TaskCoordinates, TaskState
-from ucontrol.control.zero_torque import ZeroTorque
-
 if TYPE_CHECKING:
+    from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+    from ucontrol.control.circle_path import CirclePath
+    from ucontrol.control.controller import ContactState, Controller, LoggingController
+    from ucontrol.control.desired_cycle import (
+        ContactPhase,
+        DesiredCycle,
+        NominalPath,
+        read_designed_cycle,
+    )
     from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
+    from ucontrol.control.friction_compensation import FrictionCompensation
+    from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
+    from ucontrol.control.joint_pd import JointPD
+    from ucontrol.control.juggling_controller import (
+        ArmJugglingController,
+        JugglingController,
+        JugglingSettings,
+    )
+    from ucontrol.control.path_reach import check_reach
+    from ucontrol.control.path_table import PATH_TYPES, path_from_table
+    from ucontrol.control.phase import Event, Phase
+    from ucontrol.control.phase_machine import DesiredState, PhaseMachine
+    from ucontrol.control.polyline_path import PolylinePath
+    from ucontrol.control.segment_path import SegmentPath
+    from ucontrol.control.spline_path import SplinePath
+    from ucontrol.control.task_coordinates import TaskCoordinates, TaskState
+    from ucontrol.control.zero_torque import ZeroTorque
 
 __all__ = [
     "PATH_TYPES",
@@ -73,8 +74,48 @@ __all__ = [
 ]
 
 
+#: Where each public name lives; imported on first use (PEP 562).
+_MODULES = {
+    "PATH_TYPES": "ucontrol.control.path_table",
+    "ArmJugglingController": "ucontrol.control.juggling_controller",
+    "BrogliatoController": "ucontrol.control.brogliato_controller",
+    "BrogliatoGains": "ucontrol.control.brogliato_controller",
+    "CirclePath": "ucontrol.control.circle_path",
+    "ContactPhase": "ucontrol.control.desired_cycle",
+    "ContactState": "ucontrol.control.controller",
+    "Controller": "ucontrol.control.controller",
+    "DesiredCycle": "ucontrol.control.desired_cycle",
+    "DesiredState": "ucontrol.control.phase_machine",
+    "Event": "ucontrol.control.phase",
+    "FlexibleBrogliatoController": "ucontrol.control.flexible_brogliato_controller",
+    "FrictionCompensation": "ucontrol.control.friction_compensation",
+    "ImpedanceController": "ucontrol.control.impedance_controller",
+    "ImpedanceGains": "ucontrol.control.impedance_controller",
+    "JointPD": "ucontrol.control.joint_pd",
+    "JugglingController": "ucontrol.control.juggling_controller",
+    "JugglingSettings": "ucontrol.control.juggling_controller",
+    "LoggingController": "ucontrol.control.controller",
+    "NominalPath": "ucontrol.control.desired_cycle",
+    "Phase": "ucontrol.control.phase",
+    "PhaseMachine": "ucontrol.control.phase_machine",
+    "PolylinePath": "ucontrol.control.polyline_path",
+    "SegmentPath": "ucontrol.control.segment_path",
+    "SplinePath": "ucontrol.control.spline_path",
+    "TaskCoordinates": "ucontrol.control.task_coordinates",
+    "TaskState": "ucontrol.control.task_coordinates",
+    "ZeroTorque": "ucontrol.control.zero_torque",
+    "check_reach": "ucontrol.control.path_reach",
+    "path_from_table": "ucontrol.control.path_table",
+    "read_designed_cycle": "ucontrol.control.desired_cycle",
+}
+
+
 def __getattr__(name: str) -> Any:
-    if name == "FlexibleBrogliatoController":
-        module = import_module("ucontrol.control.flexible_brogliato_controller")
-        return module.FlexibleBrogliatoController
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module = _MODULES.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

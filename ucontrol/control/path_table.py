@@ -16,7 +16,6 @@ from ucontrol.control.controller_table import contact_phases
 from ucontrol.control.desired_cycle import ContactPhase, NominalPath, read_designed_cycle
 from ucontrol.control.polyline_path import PolylinePath
 from ucontrol.control.segment_path import SegmentPath
-from ucontrol.control.spline_path import SplinePath
 from ucontrol.exceptions import InvalidParameterError
 
 #: Keys of each path type: (required, optional).
@@ -29,11 +28,19 @@ PATH_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 #: Path types a table may declare.
 PATH_TYPES = tuple(PATH_KEYS)
 
+
+def _spline(**arguments: Any) -> NominalPath:
+    # scipy.interpolate comes with SplinePath: imported by the scenes that declare one
+    from ucontrol.control.spline_path import SplinePath
+
+    return SplinePath(**arguments)
+
+
 _CLASSES: dict[str, Callable[..., NominalPath]] = {
     "circle": CirclePath,
     "segment": SegmentPath,
     "polyline": PolylinePath,
-    "spline": SplinePath,
+    "spline": _spline,
 }
 
 

@@ -1,8 +1,8 @@
 """Building a scene's controller from its ``[controller]`` table: one builder per type.
 
 The table's keys are checked when the scene is loaded (:func:`check_controller_table`), the
-controller is built when a run asks for it. The flexible-joint law (which needs casadi) is
-imported only by a scene with flexible joints.
+controller is built when a run asks for it. The Brogliato laws (which need casadi) are
+imported only by a scene that declares one.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import as_bool, check_keys, require_key
 from ucontrol.contact.plane import Plane
-from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
 from ucontrol.control.controller import Controller
 from ucontrol.control.controller_table import CYCLE_KEYS, tracked_contacts
 from ucontrol.control.desired_cycle import DesiredCycle
@@ -160,6 +159,9 @@ def _joint_pd(scene: SceneData, table: Mapping[str, Any]) -> Controller:
 
 def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
     """The ``type = "brogliato"`` controller of a scene (keys in docs/scene_format.md)."""
+    # casadi comes with the Brogliato controllers: imported by the scenes that declare one
+    from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+
     section = "[controller]"
     frame = str(require_key(table, section, "frame"))
     tracked = tracked_contacts(table, frame, scene.contacts)
