@@ -104,3 +104,32 @@ def test_frame_path_is_the_tip_of_the_two_link_arm() -> None:
         axis=1,
     )
     np.testing.assert_allclose(robot.frame_path(q, "end_effector"), expected, atol=1e-14)
+
+
+_SAME_NAME_URDF = """<robot name="same">
+  <link name="base"/>
+  <link name="arm">
+    <inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+      <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="arm" type="revolute">
+    <origin xyz="0 0 1"/><parent link="base"/><child link="arm"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="10"/>
+  </joint>
+</robot>
+"""
+
+
+def test_a_joint_named_as_its_link_gives_the_link_frame(tmp_path) -> None:
+    """Pinocchio refuses to choose between the joint's and the link's frame: the link's is taken."""
+    import pinocchio as pin
+
+    from ucontrol.model.robot_model import RobotModel
+
+    path = tmp_path / "same.urdf"
+    path.write_text(_SAME_NAME_URDF)
+    robot = RobotModel.from_urdf(path)
+    with pytest.raises(ValueError, match="Several frames"):
+        robot.model.getFrameId("arm")  # the leak this guards against
+    frame = robot.model.frames[robot.frame_id("arm")]
+    assert frame.name == "arm" and frame.type == pin.FrameType.BODY

@@ -22,6 +22,27 @@ from ucontrol.exceptions import (
 Vector = NDArray[np.float64]
 
 
+#: The frame taken where several share a name, in order of preference.
+_FRAME_PREFERENCE = (
+    pin.FrameType.BODY,
+    pin.FrameType.OP_FRAME,
+    pin.FrameType.FIXED_JOINT,
+    pin.FrameType.JOINT,
+)
+
+
+def frame_index(model: pin.Model, name: str) -> int:
+    """Index of the existing frame ``name`` of ``model``, the link's where several share it.
+
+    A joint named as its child link gives two frames of that name; Pinocchio's
+    ``getFrameId`` then refuses to choose. The preference is :data:`_FRAME_PREFERENCE`.
+    """
+    for kind in _FRAME_PREFERENCE:
+        if model.existFrame(name, kind):
+            return int(model.getFrameId(name, kind))
+    return int(model.getFrameId(name))
+
+
 class RobotModel:
     r"""Rigid multibody dynamics of a robot described by a URDF or MJCF file.
 
@@ -327,10 +348,14 @@ class RobotModel:
         return list(self.model.names)[1:]
 
     def frame_id(self, name: str) -> int:
-        """Index of frame ``name``; raises :class:`FrameNotFoundError` listing existing ones."""
+        """Index of frame ``name``; raises :class:`FrameNotFoundError` listing existing ones.
+
+        Where several frames share the name (a joint named as its child link), the link's
+        (``BODY``) frame is taken, then an operational, a fixed-joint and a joint frame.
+        """
         if not self.model.existFrame(name):
             raise FrameNotFoundError(name, self.frame_names)
-        return int(self.model.getFrameId(name))
+        return frame_index(self.model, name)
 
     def joint_id(self, name: str) -> int:
         """Index of joint ``name``; raises :class:`JointNotFoundError` listing existing ones."""

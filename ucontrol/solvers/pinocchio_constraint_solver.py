@@ -79,6 +79,7 @@ from ucontrol.exceptions import (
     ShapeError,
     SolverError,
 )
+from ucontrol.model.robot_model import frame_index
 from ucontrol.solvers.contact_solution import ContactSolution, complementarity_residual
 from ucontrol.solvers.coulomb_problem import CoulombProblem
 
@@ -455,7 +456,7 @@ class PinocchioStepper:
         for contact in self.contacts:
             if not model.existFrame(contact.frame):
                 raise FrameNotFoundError(contact.frame, [frame.name for frame in model.frames])
-            frame_id = int(model.getFrameId(contact.frame))
+            frame_id = frame_index(model, contact.frame)
             frame = model.frames[frame_id]
             world_placement = pin.SE3(
                 _rotation_with_z(contact.surface.normal), contact.surface.point
