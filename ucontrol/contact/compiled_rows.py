@@ -192,8 +192,8 @@ def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> Cons
 def qualifies(constraints: ConstraintSet) -> bool:
     """Whether ``constraints`` are plane point contacts (at least one) and stops alone.
 
-    Without friction, sphere–sphere contacts, collision pairs, moving surfaces or bilateral
-    constraints; the robot's joints are checked when the rows are built.
+    Without friction, sphere–sphere contacts, collision pairs, moving surfaces, bilateral
+    constraints or clearance joints; the robot's joints are checked when the rows are built.
     """
     return bool(
         constraints.contacts
@@ -202,4 +202,5 @@ def qualifies(constraints: ConstraintSet) -> bool:
         and constraints.bilateral is None
         and not constraints.time_dependent
         and not constraints.has_friction
+        and not constraints.clearances
     )

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_vector
 from ucontrol.contact.bilateral import BilateralConstraint, BilateralSet
+from ucontrol.contact.clearance_joint import ClearanceJoint
 from ucontrol.contact.collision_pair import CollisionPair
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
@@ -22,16 +23,20 @@ Vector = NDArray[np.float64]
 _LWA = pin.LOCAL_WORLD_ALIGNED
 #: Largest |n · a| of a plane contact of a planar robot (n the plane normal, a the axis).
 _PLANAR_TOLERANCE = 1e-9
+#: Relative distance to its circle within which a clearance joint's play is on it.
+_ON_CIRCLE = 1e-12
 
 
 class ConstraintSet:
-    r"""Point contacts, sphere–sphere contacts, collision pairs, then joint stops, in one list.
+    r"""Point contacts, sphere–sphere contacts, collision pairs, joint stops, then clearances.
 
     Constraint ``i`` has gap ``g_i(q)`` (>= 0 when admissible), normal velocity
     ``u_i = J_i v`` and restitution ``e_i``. Point contacts come first, in the order given, then
     sphere–sphere contacts, then the rows of the collision pairs
     (:class:`~ucontrol.contact.collision_geometry.CollisionGeometry`, built only when there is
-    a pair), then each finite stop bound (lower before upper).
+    a pair), then each finite stop bound (lower before upper), then each clearance joint
+    (:mod:`~ucontrol.contact.clearance_joint`: the journal in its bearing, one tangential row
+    with friction, whatever ``planar_axis``).
 
     Contacts with a positive friction coefficient also have tangential rows (:meth:`tangent_rows`):
     two (spatial friction) or, when the robot moves in a plane (``planar_axis``), one — the
@@ -56,12 +61,15 @@ class ConstraintSet:
         collision_pairs: Pairs of collision shapes (link ↔ environment shape or link).
         bilateral: Bilateral constraints h(q) = 0 (loop closures, joint couplings), kept
             apart from the unilateral list (:attr:`bilateral`).
+        clearances: Revolute joints with radial clearance; the robot must have their play
+            joints (:func:`~ucontrol.model.joint_clearance.with_joint_clearance`).
 
     Attributes:
         robot: The robot whose data buffer is read.
         contacts: The point contacts.
         sphere_contacts: The sphere–sphere contacts.
         stops: The joint stops.
+        clearances: The clearance joints.
         collision_pairs: The collision pairs.
         collision: Their rows' geometry, or None without pairs.
         bilateral: The bilateral constraints'
@@ -86,8 +94,9 @@ class ConstraintSet:
 
     Raises:
         InvalidParameterError: A stop is on a joint with more than one degree of freedom, a
-            plane contact of a planar robot has a normal out of the plane of motion, or the
-            robot has no degree of freedom (nv = 0) but constraints.
+            plane contact of a planar robot has a normal out of the plane of motion, the
+            robot has no degree of freedom (nv = 0) but constraints, or a clearance joint has
+            no play joints.
     """
 
     def __init__(
@@ -99,6 +108,7 @@ class ConstraintSet:
         planar_axis: Vector | None = None,
         collision_pairs: Sequence[CollisionPair] = (),
         bilateral: Sequence[BilateralConstraint] = (),
+        clearances: Sequence[ClearanceJoint] = (),
     ) -> None:
         declared = {
             "contacts": len(contacts),
@@ -106,6 +116,7 @@ class ConstraintSet:
             "sphere_contacts": len(sphere_contacts),
             "collision_pairs": len(collision_pairs),
             "bilateral": len(bilateral),
+            "clearances": len(clearances),
         }
         if robot.nv == 0 and any(declared.values()):  # nothing can move against them
             raise InvalidParameterError(
@@ -170,6 +181,13 @@ class ConstraintSet:
                 names.append(f"{stop.joint}/{side}")
                 restitution.append(stop.restitution)
                 friction.append(0.0)
+        self._stops_end = len(names)
+        self.clearances = tuple(clearances)
+        self._play = [_PlayTerms(robot, clearance) for clearance in self.clearances]
+        for clearance in self.clearances:
+            names.append(clearance.name)
+            restitution.append(clearance.restitution)
+            friction.append(clearance.friction)
         self.stop_coordinates = list(zip(stop_q, stop_v, strict=True))
         self.stop_terms = np.column_stack((stop_sign, stop_bound)).reshape(-1, 2)
         self._stop_q = np.array(stop_q, dtype=int)
@@ -184,8 +202,9 @@ class ConstraintSet:
         self._n_point = len(self.contacts)
         spatial_rows = 1 if self.planar_axis is not None else 2
         self.tangent_count = np.where(self.friction > 0.0, spatial_rows, 0)
+        self.tangent_count[self._stops_end :] = self.friction[self._stops_end :] > 0.0
         self.has_friction = bool(self.tangent_count.any())
-        self._has_stops = self.size > self.n_contacts
+        self._has_stops = self._stops_end > self.n_contacts
         self._contact_terms = list(
             zip(self._frame_ids, list(self._normals), self._offsets.tolist(), strict=True)
         )
@@ -250,9 +269,12 @@ class ConstraintSet:
         if self.time_dependent:
             self._move(gap, velocity, t)
         if self._has_stops:
-            k = self.n_contacts
-            gap[k:] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
-            velocity[k:] = self._stop_sign * v[self._stop_v]
+            k, end = self.n_contacts, self._stops_end
+            gap[k:end] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
+            velocity[k:end] = self._stop_sign * v[self._stop_v]
+        for i, play in enumerate(self._play, self._stops_end):
+            gap[i], normal = play.gap_normal(data)
+            velocity[i] = -normal.dot(v[play.v_xy])
         return gap, velocity
 
     def jacobian(self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]) -> Vector:
@@ -278,8 +300,11 @@ class ConstraintSet:
                     pin.getFrameJacobian(model, data, first, _LWA)[:3]
                     - pin.getFrameJacobian(model, data, second, _LWA)[:3]
                 )
-            else:
+            elif i < self._stops_end:
                 rows[row, self._stop_v[i - k]] = self._stop_sign[i - k]
+            else:
+                play = self._play[i - self._stops_end]
+                rows[row, play.v_xy] = -play.gap_normal(data)[1]
         if shapes and self.collision is not None:
             rows[shapes] = self.collision.jacobian(
                 data, [int(indices[row]) - self._pairs_end for row in shapes]
@@ -309,7 +334,17 @@ class ConstraintSet:
             if count == 0:
                 continue
             end = start + count
-            if self._pairs_end <= i and self.collision is not None:
+            if i >= self._stops_end:
+                play = self._play[int(i) - self._stops_end]
+                rows[start:end] = 0.0
+                normal = play.gap_normal(data)[1]
+                tangent = np.array([-normal[1], normal[0]])  # a × n in the play plane
+                rows[start:end, play.v_xy] = tangent
+                rows[start:end, play.v_theta] = play.radius
+                directions[start:end] = play.world_direction(data, tangent)
+                start = end
+                continue
+            if self._pairs_end <= i < self.n_contacts and self.collision is not None:
                 row = int(i) - self._pairs_end
                 normal = self.collision.normals(data, [row])[0]
                 tangents = tangent_basis(normal, self.planar_axis)
@@ -365,9 +400,20 @@ class ConstraintSet:
             local = [int(indices[row]) - self._pairs_end for row in shapes]
             drift[shapes] = self.collision.drift(data, local, q, v, t)
         for row, i in enumerate(indices):
-            if self._pairs_end <= i < self.n_contacts:
+            if self._pairs_end <= i < self._stops_end:  # collision rows above, stops 0
                 continue
-            if i < self._n_point:
+            if i >= self._stops_end:
+                if v is None:
+                    raise InvalidParameterError(
+                        "v", None, "the velocity for the drift of clearance joints"
+                    )
+                play = self._play[int(i) - self._stops_end]
+                offset = play.offset(data)
+                distance = float(np.sqrt(offset.dot(offset)))
+                normal = play.gap_normal(data)[1]
+                sliding = v[play.v_xy[1]] * normal[0] - v[play.v_xy[0]] * normal[1]  # t·ṗ
+                drift[row] = -(sliding**2) / distance if distance > 0.0 else 0.0
+            elif i < self._n_point:
                 frame_id, normal, _ = self._contact_terms[i]
                 acceleration = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA)
                 drift[row] = normal @ acceleration.linear
@@ -387,6 +433,46 @@ class ConstraintSet:
                 )
                 drift[row] = normal @ acceleration + tangential.dot(tangential) / distance
         return drift
+
+    def clamp_play(self, q: Vector) -> Vector:
+        r"""``q`` with each clearance joint's play moved back into its disc :math:`\|p\| \le c`.
+
+        A time-stepping scheme holds a sliding journal at :math:`\dot g \ge 0` only to first
+        order: on the bearing's circle each step leaves it :math:`O(h^2)` outside. The play
+        :math:`p` is scaled back onto the circle (a radial move, which changes no other
+        coordinate); ``q`` is returned unchanged without clearance joints or penetration.
+
+        Args:
+            q: Configuration, shape (nq,) (or longer: the entries after the robot's are kept).
+        """
+        for play in self._play:
+            offset = q[play.q_xy]
+            distance = float(np.sqrt(offset.dot(offset)))
+            if distance > play.clearance:
+                q = q.copy()
+                q[play.q_xy] = offset * (play.clearance / distance)
+        return q
+
+    def play_rows(self, q: Vector) -> Vector:
+        r"""Normal rows :math:`-n^T` of the clearance joints on their circle at ``q``, (k, nv).
+
+        Those whose play is at :math:`\|p\| = c` (as :meth:`clamp_play` leaves it): a
+        projection that keeps :math:`J_n \delta q = 0` keeps them on it to first order.
+        """
+        rows = []
+        for play in self._play:
+            offset = q[play.q_xy]
+            distance = float(np.sqrt(offset.dot(offset)))
+            if distance >= play.clearance * (1.0 - _ON_CIRCLE):
+                row = np.zeros(self.robot.nv)
+                row[play.v_xy] = -offset / distance
+                rows.append(row)
+        return np.array(rows).reshape(-1, self.robot.nv)
+
+    def has_drift(self, indices: Sequence[int] | NDArray[np.intp]) -> bool:
+        r"""Whether some constraint of ``indices`` has a drift :math:`\dot J v` (not a stop)."""
+        index = np.asarray(indices)
+        return bool(np.any((index < self.n_contacts) | (index >= self._stops_end)))
 
     def gaps(self, q: Vector, t: float = 0.0) -> Vector:
         """Gaps at configuration ``q``, shape (n,); runs forward kinematics on the robot's data.
@@ -464,7 +550,11 @@ class ConstraintSet:
             gap[i] = np.sqrt(delta.dot(delta)) - radii
         if self.collision is not None:
             gap[self._pairs_end : self.n_contacts] = self.collision.gaps(data, t)
-        gap[self.n_contacts :] = self._stop_sign * (q[self._stop_q] - self._stop_bound)
+        gap[self.n_contacts : self._stops_end] = self._stop_sign * (
+            q[self._stop_q] - self._stop_bound
+        )
+        for i, play in enumerate(self._play, self._stops_end):
+            gap[i] = play.gap_normal(data)[0]
         return gap
 
     @staticmethod
@@ -472,6 +562,57 @@ class ConstraintSet:
         """Unit normal from the centre of frame ``second`` to that of ``first``, shape (3,)."""
         delta = data.oMf[first].translation - data.oMf[second].translation
         return delta / np.sqrt(delta.dot(delta))
+
+
+class _PlayTerms:
+    """The play coordinates and geometry of a clearance joint (module clearance_joint)."""
+
+    def __init__(self, robot: RobotModel, clearance: ClearanceJoint) -> None:
+        from ucontrol.model.joint_clearance import play_joints
+
+        model = robot.model
+        ids = []
+        for name in play_joints(clearance.joint):
+            if name not in robot.joint_names:
+                raise InvalidParameterError(
+                    "clearances",
+                    clearance.joint,
+                    f"a joint the robot gives play to (no joint {name!r}: build the robot "
+                    "with ucontrol.model.joint_clearance.with_joint_clearance)",
+                )
+            ids.append(robot.joint_id(name))
+        self.x_joint, self.y_joint = ids
+        joints = model.joints
+        self.v_xy = np.array([joints[j].idx_v for j in ids], dtype=np.intp)
+        self.q_xy = np.array([joints[j].idx_q for j in ids], dtype=np.intp)
+        self.v_theta = int(joints[robot.joint_id(clearance.joint)].idx_v)
+        self.axes = np.array([np.asarray(joints[j].extract().axis) for j in ids])  # (2, 3)
+        self.placement = model.jointPlacements[self.x_joint]
+        self.clearance = clearance.clearance
+        self.radius = clearance.journal_radius
+
+    def offset(self, data: pin.Data) -> Vector:
+        """The journal centre's offset (x, y) from the bearing's in [m], shape (2,).
+
+        Read from the joints' local placements in ``data`` (after forward kinematics).
+        """
+        placement = self.placement
+        x = self.axes[0].dot(
+            placement.rotation.T.dot(data.liMi[self.x_joint].translation - placement.translation)
+        )
+        y = self.axes[1].dot(data.liMi[self.y_joint].translation)
+        return np.array([x, y])
+
+    def gap_normal(self, data: pin.Data) -> tuple[float, Vector]:
+        """The gap c - |p| in [m] and the unit normal p / |p| (e1 at p = 0), shape (2,)."""
+        offset = self.offset(data)
+        distance = float(np.sqrt(offset.dot(offset)))
+        normal = offset / distance if distance > 0.0 else np.array([1.0, 0.0])
+        return self.clearance - distance, normal
+
+    def world_direction(self, data: pin.Data, tangent: Vector) -> Vector:
+        """The play-plane direction ``tangent`` (shape (2,)) in world coordinates, shape (3,)."""
+        return np.asarray(data.oMi[self.x_joint].rotation.dot(tangent.dot(self.axes)))
 
 
 def _index_list(indices: Sequence[int] | NDArray[np.intp]) -> list[int]:

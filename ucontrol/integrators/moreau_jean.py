@@ -653,9 +653,11 @@ class MoreauJean:
         if tangents is not None and friction_impulse is not None:
             _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
         v_next = v_free + Minv_Jt.dot(solution.impulses)
-        q_next = self._advance_theta(state, v_next)
+        q_next = constraints.clamp_play(self._advance_theta(state, v_next))
         if self._bilateral is not None:  # held contacts' normal rows kept by the projection
-            held = J[:m][impulse[indices] > 0.0, : self.robot.nv]
+            held = np.vstack(
+                (J[:m][impulse[indices] > 0.0, : self.robot.nv], constraints.play_rows(q_next))
+            )
             q_next = self._project(q_next, held if held.size else None)
         self.memory = next_memory(impulse, rows, self.persistence_tolerance)
         return StepOutcome(

@@ -372,7 +372,7 @@ class SmoothDynamics:
         bilateral = self.bilateral
         drift = np.zeros(len(indices))
         drift_b = np.zeros(0 if bilateral is None else bilateral.size)
-        if bilateral is not None or np.any(np.asarray(indices) < self.constraints.n_contacts):
+        if bilateral is not None or self.constraints.has_drift(indices):
             model, data = self.model, self.data
             pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
             pin.updateFramePlacements(model, data)

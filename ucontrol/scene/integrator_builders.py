@@ -32,8 +32,8 @@ def build_integrator(
         InvalidParameterError: The scene has friction and the integrator is not
             ``moreau_jean`` (the others are frictionless), a ``qpsolvers:`` contact
             solver was asked for a scene with friction, the compliant integrator for a
-            scene with moving surfaces or bilateral constraints, or Coulomb joint friction
-            with an integrator other than ``moreau_jean``.
+            scene with moving surfaces or bilateral constraints, or Coulomb joint friction or
+            clearance joints with an integrator other than ``moreau_jean``.
     """
     name = scene.integrator.name
     if scene.integrator.impact_law != "newton" and name != "event_driven":
@@ -48,6 +48,13 @@ def build_integrator(
             name,
             "'moreau_jean' for contacts with friction (event_driven and compliant are "
             "frictionless)",
+        )
+    if scene.clearances and name != "moreau_jean":
+        raise InvalidParameterError(
+            "[integrator] name",
+            name,
+            "'moreau_jean' for scenes with [[clearance]] joints (a journal sliding on its "
+            f"bearing is an unending sequence of events for {name}; docs/clearance.md)",
         )
     if scene.constraints.bilateral is not None and name == "compliant":
         raise InvalidParameterError(

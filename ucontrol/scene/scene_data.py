@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
 from ucontrol.contact.bilateral import BilateralConstraint
+from ucontrol.contact.clearance_joint import ClearanceJoint
 from ucontrol.contact.collision_pair import CollisionPair
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.contact.joint_stop import JointStop
@@ -50,6 +51,8 @@ class SceneData:
             environment shapes or other links); the geometry is loaded only when there is one.
         bilateral: Bilateral constraints h(q) = 0 (loop closures, joint couplings); ``q0``
             must satisfy them to :data:`BILATERAL_TOLERANCE`.
+        clearances: Revolute joints with radial clearance (the robot has their play joints,
+            :func:`~ucontrol.model.joint_clearance.with_joint_clearance`).
         planar_axis: Unit normal of the plane the robot moves in, shape (3,): its frictional
             contacts are then planar (one tangent), else spatial (two); None: spatial.
         q0: Initial configuration of the links, shape (nq,).
@@ -80,6 +83,7 @@ class SceneData:
     sphere_contacts: tuple[SphereSphereContact, ...] = ()
     collision_pairs: tuple[CollisionPair, ...] = ()
     bilateral: tuple[BilateralConstraint, ...] = ()
+    clearances: tuple[ClearanceJoint, ...] = ()
     planar_axis: NDArray[np.float64] | None = None
     q0: NDArray[np.float64]
     v0: NDArray[np.float64]
@@ -126,7 +130,9 @@ class SceneData:
             self.planar_axis,
             collision_pairs=self.collision_pairs,
             bilateral=tuple(self.bilateral),
+            clearances=tuple(self.clearances),
         )
+        object.__setattr__(self, "clearances", tuple(self.clearances))
         object.__setattr__(self, "bilateral", tuple(self.bilateral))
         if constraints.bilateral is not None:
             residual = constraints.bilateral.residuals(self.q0)

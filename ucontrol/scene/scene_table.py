@@ -22,6 +22,7 @@ from ucontrol._validation import (
     table_type,
 )
 from ucontrol.contact.bilateral import BilateralConstraint, FrameClosure, JointCoupling
+from ucontrol.contact.clearance_joint import ClearanceJoint
 from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
 from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
@@ -47,6 +48,7 @@ _TOP_KEYS = {
     "shapes",
     "collision_pairs",
     "bilateral",
+    "clearance",
     "stops",
     "integrator",
     "controller",
@@ -96,6 +98,7 @@ _SPHERE_CONTACT_KEYS = {
     "name",
 }
 _STOP_KEYS = {"joint", "lower", "upper", "restitution"}
+_CLEARANCE_KEYS = {"joint", "clearance", "journal_radius", "restitution", "friction", "name"}
 _SHAPE_KEYS = {
     "halfspace": {"type", "point", "normal", "motion"},
     "box": {"type", "position", "rpy", "size", "motion"},
@@ -153,8 +156,13 @@ def scene_fields(
     robot = _robot(robot_table, base_dir)
     if "links" in robot_table:
         robot = _with_link_overrides(robot_table["links"], robot)
-    q0 = robot.check_configuration("q0", robot_table.get("q0", robot.neutral()))
-    v0 = robot.check_velocity("v0", robot_table.get("v0", np.zeros(robot.nv)))
+    q0 = robot_table.get("q0", robot.neutral())
+    v0 = robot_table.get("v0", np.zeros(robot.nv))
+    clearances = tuple(_clearance(spec) for spec in table.get("clearance", []))
+    if clearances:
+        robot, q0, v0 = _with_clearances(robot, clearances, q0, v0)
+    q0 = robot.check_configuration("q0", q0)
+    v0 = robot.check_velocity("v0", v0)
     flexible_table = robot_table.get("flexible")
     flexible, motor_q0, motor_v0 = None, None, None
     if flexible_table is not None:
@@ -188,6 +196,7 @@ def scene_fields(
         sphere_contacts=tuple(sphere_contacts),
         collision_pairs=tuple(collision_pairs),
         bilateral=bilateral,
+        clearances=clearances,
         planar_axis=None if planar_axis is None else as_vector("planar_axis", planar_axis, 3),
         stops=tuple(stops),
         q0=q0,
@@ -501,6 +510,35 @@ def _bilateral(spec: Any) -> BilateralConstraint:
         kind=kind,
         name=name,
     )
+
+
+def _clearance(spec: Any) -> ClearanceJoint:
+    """A ``[[clearance]]`` entry: a revolute joint with radial clearance."""
+    if not isinstance(spec, Mapping):
+        raise SceneError(f"[[clearance]] entries must be tables, got {spec!r}")
+    check_keys("[[clearance]]", spec, _CLEARANCE_KEYS)
+    return ClearanceJoint(
+        joint=str(require_key(spec, "[[clearance]]", "joint")),
+        clearance=require_key(spec, "[[clearance]]", "clearance"),
+        **{key: spec[key] for key in _CLEARANCE_KEYS - {"joint", "clearance"} if key in spec},
+    )
+
+
+def _with_clearances(
+    robot: RobotModel, clearances: Sequence[ClearanceJoint], q0: Any, v0: Any
+) -> tuple[RobotModel, Any, Any]:
+    """The robot with play at the clearance joints, and ``q0``, ``v0`` on it.
+
+    ``q0`` and ``v0`` may be written for the robot without play (both of its sizes): each
+    journal then starts centred, its play at rest.
+    """
+    from ucontrol.model.joint_clearance import ideal_to_play, with_joint_clearance
+
+    played = with_joint_clearance(robot, [clearance.joint for clearance in clearances])
+    if np.size(q0) == robot.nq and np.size(v0) == robot.nv:
+        q, v = robot.check_configuration("q0", q0), robot.check_velocity("v0", v0)
+        q0, v0 = ideal_to_play(robot, played, q, v)
+    return played, q0, v0
 
 
 def _flexible(

@@ -151,7 +151,7 @@ def constraint_units(log: Log, scene: Scene | None) -> list[tuple[str, str]]:
     model = scene.robot.model
     q_units, _ = coordinate_units(model, model.nq, model.nv)
     stops = [angle if q_units[q] == "rad" else contact for q, _ in constraints.stop_coordinates]
-    return [contact] * constraints.n_contacts + stops
+    return [contact] * constraints.n_contacts + stops + [contact] * len(constraints.clearances)
 
 
 def _unit_groups(units: list[str]) -> list[tuple[str, list[int]]]:
