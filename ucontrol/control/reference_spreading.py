@@ -195,7 +195,7 @@ class ReferenceSpreadingController(ImpedanceController):
         """
         t_i = self.impact_time(k)
         c, dc, f_d, _ = self.desired(max(t, t_i))
-        if t < t_i:
+        if t <= t_i:
             return c + self.post_velocity * (t - t_i), self.post_velocity.copy(), f_d
         sigma = (t - t_i) / self.settings.blend_time
         if sigma >= 1.0:
