@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import tomllib
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 import pytest
-from conftest import ROBOTS, load_experiment
+from conftest import load_experiment
+from panda_landing import dynamics, impact_map, scene_with, spec
 
 from ucontrol.control.controller import ContactState
 from ucontrol.control.reference_spreading import (
@@ -16,48 +15,17 @@ from ucontrol.control.reference_spreading import (
     SpreadingMode,
     SpreadingSettings,
 )
-from ucontrol.exceptions import InvalidParameterError, URDFError
-from ucontrol.model import example_robot_data_dir
+from ucontrol.exceptions import InvalidParameterError
 from ucontrol.scene import Scene
 
 CONTACT = "panda_hand_tcp/table"
 
 
-def _panda_spec() -> dict[str, Any]:
-    try:
-        example_robot_data_dir()
-    except URDFError:
-        pytest.skip("example-robot-data is not installed (extra `robots`)")
-    return tomllib.loads((ROBOTS / "panda_landing_rs.toml").read_text())
-
-
 def _controller(**changes: Any) -> tuple[Scene, ReferenceSpreadingController]:
-    spec = _panda_spec()
-    spec["controller"].update(changes)
-    scene = Scene.from_dict(spec, base_dir=ROBOTS, default_name="panda_landing_rs")
+    scene = scene_with({**spec()["controller"], **changes})
     controller = scene.build_controller()
     assert isinstance(controller, ReferenceSpreadingController)
     return scene, controller
-
-
-def _impact_map(M: np.ndarray, J_c: np.ndarray, v: np.ndarray, e: float) -> np.ndarray:
-    """v+ of the rigid impact on the rows J_c (n, nv): the KKT system of Newton's law."""
-    n, nv = J_c.shape
-    K = np.block([[M, -J_c.T], [J_c, np.zeros((n, n))]])
-    rhs = np.concatenate([M @ v, -e * (J_c @ v)])
-    return np.linalg.solve(K, rhs)[:nv]
-
-
-def _dynamics(scene: Scene, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """M (nv, nv) and the TCP's translational Jacobian (3, nv) at q."""
-    model = scene.robot.model
-    data = model.createData()
-    M = pin.crba(model, data, q)
-    M = np.triu(M) + np.triu(M, 1).T
-    pin.computeJointJacobians(model, data, q)
-    frame = model.getFrameId("panda_hand_tcp")
-    pin.updateFramePlacement(model, data, frame)
-    return M, pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)[:3]
 
 
 @pytest.mark.parametrize("e", [0.0, 0.5])
@@ -65,10 +33,9 @@ def test_post_velocity_is_the_rigid_impact_map(e: float) -> None:
     scene, controller = _controller(restitution=e)
     rng = np.random.default_rng(3)
     q = scene.q0 + 0.1 * rng.standard_normal(scene.robot.nq)
-    M, J = _dynamics(scene, q)
+    _, J = dynamics(scene, q)
     v_minus = rng.standard_normal(scene.robot.nv)  # null-space part included
-    J_c = np.array([[0.0, 0.0, 1.0]]) @ J  # the table's normal row
-    v_plus = _impact_map(M, J_c, v_minus, e)
+    v_plus = impact_map(scene, q, v_minus, e)
     predicted = controller.post_velocity_map(q, J @ v_minus)
     np.testing.assert_allclose(predicted, J @ v_plus, rtol=0.0, atol=1e-10)
     assert predicted[2] == pytest.approx(-e * (J @ v_minus)[2], abs=1e-10)
@@ -147,7 +114,7 @@ def test_invalid_settings_raise() -> None:
 
 @pytest.mark.slow
 def test_reference_spreading_lowers_the_panda_velocity_error_peak() -> None:
-    _panda_spec()
+    spec()
     compare = load_experiment("impact_control_compare")
     spreading = compare.run("panda", "reference spreading", landings=1)[0]
     brogliato = compare.run("panda", "Brogliato", landings=1)[0]
