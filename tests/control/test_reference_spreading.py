@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -121,3 +122,18 @@ def test_reference_spreading_lowers_the_panda_velocity_error_peak() -> None:
     # measured 0.258 / 0.0211 = 12.3 (docs/impact_control.md)
     assert brogliato.velocity_error > 8.0 * spreading.velocity_error
     assert spreading.impacts >= 1 and brogliato.impacts >= 1
+
+
+@pytest.mark.slow
+def test_comparison_script_writes_its_table(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    compare = load_experiment("impact_control_compare")
+    compare.main(["--landings", "1", "--tasks", "two_link", "--out", str(tmp_path)])
+    table = (tmp_path / "impact_control_compare.md").read_text().splitlines()
+    assert len(table) == 2 + len(compare.LAWS)
+    rows = {line.split("|")[2].strip(): line.split("|")[3:7] for line in table[2:]}
+    assert set(rows) == set(compare.LAWS)
+    for figures in rows.values():  # every landing met the ground and was measured
+        assert all(np.isfinite(float(x)) for x in figures) and float(figures[3]) >= 1
+    assert "Brogliato / reference spreading" in capsys.readouterr().out
