@@ -184,10 +184,10 @@ def _landing(
     i = log.constraint_index(name)
     steady = ~impact_mask(log)[:, i]
     force_rows = np.flatnonzero((t >= t_1) & (t <= t_1 + FORCE_WINDOW) & steady)
-    force_rows = force_rows[force_rows + 1 < len(log)]
-    # The impulse of row r + 1 is that of the step from row r.
-    dt = np.diff(t)[force_rows]
-    overshoot = log.impulse[force_rows + 1, i] / dt - log.lambda_d[force_rows, 0]
+    force_rows = force_rows[force_rows + 1 < len(log)]  # the last row has no step
+    # Row r's impulse is that of the step [t_r, t_r+1], under row r's torque and lambda_d.
+    force = log.impulse[force_rows, i] / (t[force_rows + 1] - t[force_rows])  # [N]
+    overshoot = force - log.lambda_d[force_rows, 0]
     return Landing(
         velocity_error=float(error.max()),
         torque_jump=float(jumps.max()),
