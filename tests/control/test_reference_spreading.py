@@ -137,3 +137,24 @@ def test_comparison_script_writes_its_table(
     for figures in rows.values():  # every landing met the ground and was measured
         assert all(np.isfinite(float(x)) for x in figures) and float(figures[3]) >= 1
     assert "Brogliato / reference spreading" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("invariant", [False, True])
+def test_interim_mode_feeds_back_no_velocity_an_impact_changes(invariant: bool) -> None:
+    scene, controller = _controller(impact_invariant=invariant)
+    t_i = controller.impact_time(0)
+    q = scene.q0
+    rng = np.random.default_rng(5)
+    v_minus = rng.standard_normal(scene.robot.nv)
+    controller(t_i - 1e-3, q, v_minus, _contacts(3e-4, -0.3, 0.0))
+    controller(t_i, q, v_minus, _contacts(0.0, 0.0, 0.0))  # the impact: interim mode
+    assert controller.mode is SpreadingMode.INTERIM
+    before = controller(t_i, q, v_minus, _contacts(0.0, 0.0, 0.0))
+    after = controller(t_i, q, impact_map(scene, q, v_minus, 0.0), _contacts(0.0, 0.0, 0.0))
+    assert controller.mode is SpreadingMode.INTERIM
+    np.testing.assert_allclose(after, before, rtol=0.0, atol=1e-9)
+    other = controller(t_i, q, rng.standard_normal(scene.robot.nv), _contacts(0.0, 0.0, 0.0))
+    if invariant:  # the invariant part of the velocity is still fed back
+        assert np.linalg.norm(other - before) > 1e-3
+    else:  # no velocity feedback at all
+        np.testing.assert_allclose(other, before, rtol=0.0, atol=1e-9)
