@@ -35,6 +35,14 @@ def scene_with(controller: dict[str, Any]) -> Scene:
     return Scene.from_dict(table, base_dir=ROBOTS, default_name="panda_landing")
 
 
+def build(controller: dict[str, Any], kind: type) -> tuple[Scene, Any]:
+    """The scene with another ``[controller]`` table and its controller, of class ``kind``."""
+    scene = scene_with(controller)
+    built = scene.build_controller()
+    assert isinstance(built, kind)
+    return scene, built
+
+
 def dynamics(scene: Scene, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """M (nv, nv) and the TCP's translational Jacobian (3, nv, world axes) at q."""
     model = scene.robot.model

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from panda_landing import SPREADING_KEYS, dynamics, impact_map, scene_with, spec
+from panda_landing import SPREADING_KEYS, build, dynamics, impact_map, spec
 
 from ucontrol.control.controller import ContactState
 from ucontrol.control.impedance_controller import ImpedanceController
@@ -17,10 +17,8 @@ from ucontrol.scene import Scene
 def _impedance(**changes: Any) -> tuple[Scene, ImpedanceController]:
     """The impedance law on the task of robots/panda_landing_rs.toml."""
     table = {k: v for k, v in spec()["controller"].items() if k not in SPREADING_KEYS}
-    scene = scene_with({**table, "type": "impedance", "joint_damping": 2.0, **changes})
-    controller = scene.build_controller()
-    assert isinstance(controller, ImpedanceController)
-    return scene, controller
+    changes = {"type": "impedance", "joint_damping": 2.0, **changes}
+    return build({**table, **changes}, ImpedanceController)
 
 
 @pytest.mark.parametrize("e", [0.0, 0.7])

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import load_experiment
-from panda_landing import dynamics, impact_map, scene_with, spec
+from panda_landing import build, dynamics, impact_map, spec
 
 from ucontrol.control.controller import ContactState
 from ucontrol.control.reference_spreading import (
@@ -23,10 +23,7 @@ CONTACT = "panda_hand_tcp/table"
 
 
 def _controller(**changes: Any) -> tuple[Scene, ReferenceSpreadingController]:
-    scene = scene_with({**spec()["controller"], **changes})
-    controller = scene.build_controller()
-    assert isinstance(controller, ReferenceSpreadingController)
-    return scene, controller
+    return build({**spec()["controller"], **changes}, ReferenceSpreadingController)
 
 
 @pytest.mark.parametrize("e", [0.0, 0.5])
