@@ -20,6 +20,12 @@ below it (``project = True``), so that at rest in contact the normal force is :m
 ``project = False`` the desired point stays below the surface by a depth d and the force at rest
 is :math:`f_d + n^T K_p n\, d` (a spring pressed by d).
 
+With ``impact_invariant = True``, within a window around each nominal impact every velocity
+fed back (:math:`\dot q` in the joint terms, :math:`J\dot q - \dot x_d` in the task term) is
+first projected on the velocities an impact on the contacts does not change
+(:meth:`ImpedanceController.invariant_projectors`, Yang & Posa), so that the torque does not
+jump with the velocity at impact.
+
 Unlike :class:`ucontrol.control.BrogliatoController` it has no phases and no transition design:
 it lands with the velocity the nominal path has when it meets the surface, and the impacts
 accumulate as the plant's restitution lets them.
@@ -63,6 +69,7 @@ LOG_FIELDS = {
     "lambda_d": "(n,)",
     "contact_force": "(n,)",
     "contact_window": "(n,)",
+    "task_velocity_desired": "(3,)",
 }
 
 
@@ -162,10 +169,15 @@ class ImpedanceController:
             nominal path is below it.
         force_rise_time: Rise time of :math:`f_d` in [s], > 0.
         force_fall_time: Fall time of :math:`f_d` in [s], > 0.
+        impact_invariant: Within ``invariant_window`` of a phase start, feed back only the
+            velocities an impact on the contacts leaves unchanged
+            (:meth:`invariant_projectors`, docs/impact_control.md).
+        invariant_window: Half-width in [s], > 0, of that window around each phase start.
 
     Raises:
         InvalidParameterError: The robot is not fully actuated, a contact acts on another
-            frame, a phase is longer than the period or shorter than its rise and fall.
+            frame, a phase is longer than the period or shorter than its rise and fall,
+            ``impact_invariant`` is not a bool or is on without contact phases.
         NotFoundError: A contact phase names a contact not in ``contacts``.
         PathThroughSurfaceError: The nominal path enters a surface of ``contacts`` deeper
             than :data:`ucontrol.control.desired_cycle.PATH_TOLERANCE` outside that
@@ -185,6 +197,8 @@ class ImpedanceController:
         project: bool = True,
         force_rise_time: float = 0.1,
         force_fall_time: float = 0.5,
+        impact_invariant: bool = False,
+        invariant_window: float = 0.1,
     ) -> None:
         if robot.nu != robot.nv:
             raise InvalidParameterError("robot", robot.name, "a fully actuated robot (nu = nv)")
@@ -199,6 +213,14 @@ class ImpedanceController:
         self.project = bool(project)
         self.force_rise_time = as_positive("force_rise_time", force_rise_time)
         self.force_fall_time = as_positive("force_fall_time", force_fall_time)
+        if not isinstance(impact_invariant, bool):
+            raise InvalidParameterError("impact_invariant", impact_invariant, "true or false")
+        self.impact_invariant = impact_invariant
+        self.invariant_window = as_positive("invariant_window", invariant_window)
+        if impact_invariant and not contact_phases:
+            raise InvalidParameterError(
+                "impact_invariant", impact_invariant, "contact phases whose impacts it ignores"
+            )
         by_name = {contact.name: contact for contact in contacts}
         for contact in contacts:
             if contact.frame != frame:
@@ -251,6 +273,8 @@ class ImpedanceController:
         self.force_desired = np.zeros(n)
         self.contact_force = np.zeros(n)
         self.window = np.zeros(n, dtype=bool)
+        self.dx_desired = np.zeros(3)
+        self.velocity_error = np.zeros(3)
 
     def desired(self, t: float) -> tuple[Vector, Vector, Vector, NDArray[np.bool_]]:
         r"""Desired position [m] and velocity [m/s] (3,), :math:`f_d` [N] (n,) and windows (n,).
@@ -279,28 +303,120 @@ class ImpedanceController:
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Torques, shape (nu,), in [N m] (or [N] for prismatic joints)."""
+        self._read_contacts(contacts)
+        x_d, dx_d, f_d, window = self.desired(t)
+        tau = self._task_torque(q, v, x_d, dx_d, f_d, self._invariant_at(t), damped=True)
+        self.x_desired, self.force_desired, self.window = x_d, f_d, window
+        return tau if self._actuated is None else tau[self._actuated]
+
+    def _read_contacts(self, contacts: ContactState) -> list[int]:
+        """Read the contacts' mean forces; returns their indices among the plant's."""
         if self._plant_index is None:
             self._plant_index = _find_contacts([c.name for c in self.contacts], contacts.names)
         impulse, dt, contact_force = contacts.impulse.tolist(), contacts.dt, self.contact_force
         for i, j in enumerate(self._plant_index):  # their ContactState.force, in place
             contact_force[i] = impulse[j] / dt  # [N]
+        return self._plant_index
+
+    def _invariant_at(self, t: float) -> bool:
+        """Whether the impact-invariant projection acts at ``t`` [s] (near a phase start)."""
+        if not self.impact_invariant:
+            return False
+        period = float(self.path.period)
+        for phase in self.contact_phases:
+            offset = (t - phase.start + 0.5 * period) % period - 0.5 * period  # [s]
+            if abs(offset) <= self.invariant_window:
+                return True
+        return False
+
+    def invariant_projectors(self, q: Vector) -> tuple[Matrix, Matrix]:
+        r"""The impact-invariant projectors at ``q``: joint space (nv, nv) and task space (3, 3).
+
+        :math:`P = I - M^{-1} J_c^T (J_c M^{-1} J_c^T)^{-1} J_c` with :math:`J_c = N J` (the
+        normal rows of the controller's contacts, all on the task frame) and
+        :math:`P_x = I - \Lambda^{-1} N^T (N \Lambda^{-1} N^T)^{-1} N`,
+        :math:`\Lambda^{-1} = J M^{-1} J^T`, so that :math:`J P = P_x J`; both annihilate
+        the velocity change :math:`M^{-1} J_c^T P_n` of any impact on these contacts.
+
+        Args:
+            q: Configuration, shape (nq,).
+        """
+        model, data = self._model, self._data
+        pin.crba(model, data, q)  # upper triangle of M, before the world Jacobians
+        M = np.triu(data.M) + np.triu(data.M, 1).T
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacement(model, data, self.frame_id)
+        J = pin.getFrameJacobian(model, data, self.frame_id, _LWA)[:3]
+        return self._projectors(M, J)
+
+    def _projectors(self, M: Matrix, J: Matrix) -> tuple[Matrix, Matrix]:
+        """:meth:`invariant_projectors` from M (nv, nv) and the task Jacobian J (3, nv)."""
+        N = self._normals  # (n, 3)
+        Minv_Jt = np.linalg.solve(M, J.T)  # (nv, 3)
+        Lambda_inv = J @ Minv_Jt  # [m/(N s^2)] (3, 3)
+        Lambda_inv_Nt = Lambda_inv @ N.T
+        G = np.linalg.solve(N @ Lambda_inv_Nt, np.eye(len(N)))  # (n, n)
+        P_x = np.eye(3) - Lambda_inv_Nt @ G @ N
+        P = self._identity - Minv_Jt @ N.T @ G @ N @ J
+        return P, P_x
+
+    def _task_torque(
+        self,
+        q: Vector,
+        v: Vector,
+        x_d: Vector,
+        dx_d: Vector,
+        f_d: Vector,
+        invariant: bool,
+        *,
+        damped: bool,
+        ddx_d: Vector | None = None,
+    ) -> Vector:
+        r"""The law at (q, v) for one desired point, velocity and force; shape (nv,).
+
+        Args:
+            q: Configuration, shape (nq,).
+            v: Velocity, shape (nv,).
+            x_d: Desired position of the frame [m], (3,).
+            dx_d: Desired velocity [m/s], (3,).
+            f_d: Desired contact forces [N], (n,).
+            invariant: Feed back only the impact-invariant part of the velocities.
+            damped: Feed back the velocities at all (off: position terms and feedforward).
+            ddx_d: Desired acceleration [m/s²] (3,) fed forward through the task inertia,
+                :math:`J^T \Lambda \ddot x_d`, :math:`\Lambda = (J M^{-1} J^T)^+`; none
+                when None.
+        """
         model, data, gains = self._model, self._data, self.gains
+        self.dx_desired = dx_d
+        if invariant:
+            P, P_x = self.invariant_projectors(q)
+            v = P @ v  # the velocity an impact on the contacts leaves unchanged [rad/s]
+            dx_d = P_x @ dx_d
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacement(model, data, self.frame_id)
         J = pin.getFrameJacobian(model, data, self.frame_id, _LWA)[:3]
         x = self._position  # the frame position in data, until the next call [m]
-        x_d, dx_d, f_d, window = self.desired(t)
-        force = gains.stiffness @ (x_d - x) + gains.damping @ (dx_d - J @ v)  # [N]
+        self.velocity_error = J @ v - dx_d  # [m/s]
+        force = gains.stiffness @ (x_d - x)  # [N]
+        if damped:
+            force -= gains.damping @ self.velocity_error
         force -= self._normals.T @ f_d
+        if ddx_d is not None:
+            pin.crba(model, data, q)  # upper triangle of M; the world Jacobians stay
+            M = np.triu(data.M) + np.triu(data.M, 1).T
+            Lambda = _pseudo_inverse(J @ np.linalg.solve(M, J.T), 1e-10)  # [kg] (planar: rank 2)
+            force += Lambda @ ddx_d  # [N]
         tau = pin.computeGeneralizedGravity(model, data, q) + J.T @ force
-        if gains.joint_damping > 0.0:
+        if damped and gains.joint_damping > 0.0:
             tau -= gains.joint_damping * v
         if gains.has_posture:
             N = self._identity - _pseudo_inverse(J, 1e-10) @ J  # symmetric projector
             posture = gains.posture_stiffness * pin.difference(model, q, self.posture)
-            tau += N @ (posture - gains.posture_damping * v)
-        self.x, self.x_desired, self.force_desired, self.window = x, x_d, f_d, window
-        return tau if self._actuated is None else tau[self._actuated]
+            if damped:
+                posture = posture - gains.posture_damping * v
+            tau += N @ posture
+        self.x = x
+        return tau
 
     def prepare_log(self, log: Log) -> None:
         """Declare the fields of :data:`LOG_FIELDS` and the contact names (metadata)."""
@@ -317,12 +433,14 @@ class ImpedanceController:
         if self._log_fields is None or self._log_fields[0] is not log:
             self._log_fields = (log, log.extra_fields(list(LOG_FIELDS)))
         k = len(log)
-        task_position, task_desired, lambda_d, contact_force, contact_window = self._log_fields[1]
+        fields = self._log_fields[1]  # in the order of LOG_FIELDS
+        task_position, task_desired, lambda_d, contact_force, contact_window, dx_desired = fields
         task_position[k] = self.x
         task_desired[k] = self.x_desired
         lambda_d[k] = self.force_desired
         contact_force[k] = self.contact_force
         contact_window[k] = self.window  # as 0 / 1
+        dx_desired[k] = self.dx_desired
 
 
 def _find_contacts(wanted: list[str], names: list[str]) -> list[int]:

@@ -24,13 +24,19 @@ from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import NotFoundError, SceneError
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.model_uncertainty import perturbed_robot
-from ucontrol.scene.impedance_table import IMPEDANCE_KEYS, impedance_from_table
+from ucontrol.scene.impedance_table import (
+    IMPEDANCE_KEYS,
+    impedance_arguments,
+    impedance_from_table,
+)
 from ucontrol.scene.juggling_table import JUGGLING_KEYS, juggling_from_table
 
 if TYPE_CHECKING:
     from ucontrol.scene.scene_data import SceneData
 
 _BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
+#: Keys of ``type = "reference_spreading"`` beyond the impedance ones (``SpreadingSettings``).
+_SPREADING_KEYS = ("restitution", "blend_time", "interim_time", "impact_speed", "contact_gap")
 _CONTROLLER_KEYS = {
     "zero": {"type"},
     "joint_pd": {"type", "kp", "kd", "q_ref", "gravity_compensation"},
@@ -50,6 +56,7 @@ _CONTROLLER_KEYS = {
         *CYCLE_KEYS,
     },
     "impedance": IMPEDANCE_KEYS,
+    "reference_spreading": {*IMPEDANCE_KEYS, *_SPREADING_KEYS},
     "juggling": JUGGLING_KEYS,
 }
 # Every controller may run on its own model of the scene ([controller.model]).
@@ -192,10 +199,23 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
     return BrogliatoController(robot, task, cycle, gains, posture=posture)
 
 
+def _reference_spreading(scene: SceneData, table: Mapping[str, Any]) -> Controller:
+    """The ``type = "reference_spreading"`` controller: the impedance keys and the settings."""
+    from ucontrol.control.reference_spreading import (
+        ReferenceSpreadingController,
+        SpreadingSettings,
+    )
+
+    settings = SpreadingSettings(**{key: table[key] for key in _SPREADING_KEYS if key in table})
+    general = {key: value for key, value in table.items() if key not in _SPREADING_KEYS}
+    return ReferenceSpreadingController(**impedance_arguments(scene, general), settings=settings)
+
+
 _BUILDERS: dict[str, Callable[[SceneData, Mapping[str, Any]], Controller]] = {
     "zero": _zero,
     "joint_pd": _joint_pd,
     "brogliato": _brogliato,
     "impedance": impedance_from_table,
+    "reference_spreading": _reference_spreading,
     "juggling": juggling_from_table,
 }

@@ -29,8 +29,11 @@ IMPEDANCE_KEYS = {
     "path",
     "contact_phases",
     "designed_cycle",
+    "impact_invariant",
+    "invariant_window",
     *_GAIN_KEYS,
 }
+_OPTION_KEYS = ("force_rise_time", "force_fall_time", "impact_invariant", "invariant_window")
 
 
 def impedance_from_table(scene: SceneData, table: Mapping[str, Any]) -> ImpedanceController:
@@ -39,7 +42,8 @@ def impedance_from_table(scene: SceneData, table: Mapping[str, Any]) -> Impedanc
     Keys (docs/task_paths.md): ``frame``, ``stiffness``, ``damping`` (required);
     ``joint_damping``, ``posture_stiffness``, ``posture_damping``, ``posture`` (default the
     scene's q0), ``contacts`` (default the scene's contacts on ``frame``), ``project``,
-    ``force_rise_time``, ``force_fall_time``, ``check_reach`` (default true: inverse kinematics
+    ``force_rise_time``, ``force_fall_time``, ``impact_invariant`` and ``invariant_window``
+    (docs/impact_control.md), ``check_reach`` (default true: inverse kinematics
     along the path from q0, :func:`ucontrol.control.path_reach.check_reach`), the
     ``[controller.path]`` table (:func:`ucontrol.control.path_table.path_from_table`) and
     optional ``[[controller.contact_phases]]`` (contact, start, end, force), or instead of
@@ -55,14 +59,24 @@ def impedance_from_table(scene: SceneData, table: Mapping[str, Any]) -> Impedanc
         PathOutOfReachError: The path leaves the frame's workspace.
         PathThroughSurfaceError: The path crosses a surface outside its contact phase.
     """
+    check_keys("[controller]", table, IMPEDANCE_KEYS)
+    return ImpedanceController(**impedance_arguments(scene, table))
+
+
+def impedance_arguments(scene: SceneData, table: Mapping[str, Any]) -> dict[str, Any]:
+    """The keyword arguments of :class:`ImpedanceController` a checked table declares.
+
+    Shared by the task-space laws built on it (``impedance``, ``reference_spreading``); the
+    keys and errors are those of :func:`impedance_from_table`, whose caller checked the keys.
+    """
     section = "[controller]"
-    check_keys(section, table, IMPEDANCE_KEYS)
     if scene.flexible is not None:
         raise InvalidParameterError(
             f"{section} type",
             table.get("type", "impedance"),
-            "a controller for flexible joints ('brogliato' or 'joint_pd'): 'impedance' drives "
-            "rigid joints and the scene declares [robot.flexible]",
+            f"a controller for flexible joints ('brogliato' or 'joint_pd'): "
+            f"{table.get('type', 'impedance')!r} drives rigid joints and the scene declares "
+            "[robot.flexible]",
         )
     frame = str(require_key(table, section, "frame"))
     tracked = tracked_contacts(table, frame, scene.contacts)
@@ -73,19 +87,19 @@ def impedance_from_table(scene: SceneData, table: Mapping[str, Any]) -> Impedanc
         damping=require_key(table, section, "damping"),
         **{key: table[key] for key in _GAIN_KEYS[2:] if key in table},
     )
-    for key in ("project", "check_reach"):
+    for key in ("project", "check_reach", "impact_invariant"):
         if key in table and not isinstance(table[key], bool):
             raise InvalidParameterError(f"{section} {key}", table[key], "true or false")
     if table.get("check_reach", True):
         check_reach(path, scene.robot, frame, scene.q0)
-    return ImpedanceController(
-        scene.robot,
-        frame,
-        path,
-        gains,
-        contacts=tracked,
-        contact_phases=phases,
-        posture=table.get("posture", scene.q0),
-        project=table.get("project", True),
-        **{key: table[key] for key in ("force_rise_time", "force_fall_time") if key in table},
-    )
+    return {
+        "robot": scene.robot,
+        "frame": frame,
+        "path": path,
+        "gains": gains,
+        "contacts": tracked,
+        "contact_phases": phases,
+        "posture": table.get("posture", scene.q0),
+        "project": table.get("project", True),
+        **{key: table[key] for key in _OPTION_KEYS if key in table},
+    }
