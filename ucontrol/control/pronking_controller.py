@@ -70,7 +70,7 @@ if TYPE_CHECKING:
     from ucontrol.model.robot_model import RobotModel
 
 _REGULARIZATION = 1e-4  # ε of the force QP [1/N²·N²]: a small weight on the forces' norm
-_MIN_STROKE = 1e-3  # [m] the thrust law's distance to the touchdown height never falls below
+_MIN_STROKE = 1e-9  # [m] guards the thrust law against a zero distance to the touchdown height
 
 
 @dataclass(frozen=True, kw_only=True)
