@@ -13,7 +13,11 @@ from scipy.integrate import solve_ivp
 from tests.conftest import load_experiment
 from ucontrol.control import ContactState
 from ucontrol.control.phase import Phase
-from ucontrol.control.pronking_controller import PronkingController, PronkSettings
+from ucontrol.control.pronking_controller import (
+    _REGULARIZATION,
+    PronkingController,
+    PronkSettings,
+)
 from ucontrol.exceptions import (
     InvalidParameterError,
     NotFoundError,
@@ -249,3 +253,24 @@ def test_feet_and_contacts_must_pair_and_hang_below_a_joint(pronk_scene):
         PronkingController(
             pronk_scene.robot, feet=["base_link"], contacts=[0], settings=settings, **common
         )
+
+
+def test_feasible_optimum_is_proxsuites_solution(pronk_scene):
+    """Inside the pyramids the closed-form optimum equals proxsuite's solution of the QP."""
+    controller = pronk_scene.build_controller()
+    q = _standing(pronk_scene)
+    v = np.zeros(pronk_scene.robot.nv)
+    v[:3] = [0.1, -0.05, -0.2]  # [m/s]: a sideways, backward and downward demand
+    controller(0.0, q, v, _contacts(pronk_scene, q))
+    closed_form = controller._forces.copy()
+    A = controller._A  # of this call's feet and centre of mass
+    f = closed_form.ravel()
+    # the wrench it was computed for: f = A^T y with (A A^T + eps I) y = w
+    wrench = A @ f + _REGULARIZATION * np.linalg.pinv(A.T) @ f
+    H = A.T @ A + _REGULARIZATION * np.eye(12)
+    box = np.full(12, 1e20)
+    x = controller._qp.solve(
+        H, -A.T @ wrench, controller._C, controller._lower, controller._upper, -box, box
+    ).x
+    assert np.max(np.abs(closed_form[:, :2])) > 0.1  # [N] a demand with tangential forces
+    np.testing.assert_allclose(x.reshape(4, 3), closed_form, rtol=0.0, atol=1e-6)

@@ -58,6 +58,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import NDArray
 
 from ucontrol._validation import as_float, as_int, as_non_negative, as_positive, as_vector
 from ucontrol.control.controller import ContactState, Vector
@@ -256,9 +257,29 @@ class PronkingController:
             C[5 * i + 4, cols] = normal
             upper[5 * i + 4] = self.settings.max_normal_force
         self._C = C
+        self._A = np.zeros((6, 3 * n))  # the wrench of the feet's forces about the centre of mass
+        self._A[:3] = np.tile(np.eye(3), n)
+        self._eps6 = _REGULARIZATION * np.eye(6)
+        self._stance_cache: dict[bytes, tuple[Vector, Vector, Vector, Vector]] = {}
         self._lower = np.full(5 * n, -INFINITY)
         self._lower[4::5] = 0.0
         self._upper = upper
+
+    def _stance_rows(self, touching: NDArray[np.bool_]) -> tuple[Vector, Vector, Vector, Vector]:
+        """The force columns, constraint rows and bounds of the feet in contact (cached)."""
+        key = touching.tobytes()
+        rows = self._stance_cache.get(key)
+        if rows is None:
+            columns = np.repeat(touching, 3)
+            inequalities = np.repeat(touching, 5)
+            rows = (
+                columns,
+                self._C[np.ix_(inequalities, columns)],
+                self._lower[inequalities],
+                self._upper[inequalities],
+            )
+            self._stance_cache[key] = rows
+        return rows
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Joint torques, shape (nu,)."""
@@ -271,7 +292,9 @@ class PronkingController:
         feet = np.array([data.oMf[f].translation for f in self._frames])  # (n_feet, 3)
         gaps = contacts.gap[self._contacts]
         touching = gaps <= s.contact_gap
-        ground = float(np.mean(feet @ self.up - gaps))  # feet centres' level on the ground [m]
+        ground = (
+            float((feet @ self.up - gaps).sum()) / gaps.size
+        )  # feet centres' level on the ground [m]
         h, h_dot = float(c @ self.up) - ground, float(c_dot @ self.up)
         if self._c0 is None:
             self._c0 = c.copy()
@@ -359,17 +382,26 @@ class PronkingController:
         attitude = pin.log3(R @ self._R_d.T)  # [rad], world
         inertia = data.Ig.inertia  # centroidal rotational inertia [kg m²]
         torque = inertia @ (-s.attitude_stiffness * attitude - s.attitude_damping * omega)
-        n = len(self._frames)
-        A = np.zeros((6, 3 * n))
-        for i in range(n):
-            A[:3, 3 * i : 3 * i + 3] = np.eye(3)
-            A[3:, 3 * i : 3 * i + 3] = pin.skew(feet[i] - c)
+        A, r = self._A, feet - c  # A = [I ... I; [r_1]x ... [r_n]x], r [m]
+        A[3, 1::3], A[3, 2::3] = -r[:, 2], r[:, 1]
+        A[4, 0::3], A[4, 2::3] = r[:, 2], -r[:, 0]
+        A[5, 0::3], A[5, 1::3] = -r[:, 1], r[:, 0]
         wrench = np.concatenate([force, torque])
-        H = A.T @ A + _REGULARIZATION * np.eye(3 * n)
-        g = -A.T @ wrench
-        box = np.repeat(np.where(touching, INFINITY, 0.0), 3)
-        result = self._qp.solve(H, g, self._C, self._lower, self._upper, -box, box)
-        return np.array(result.x).reshape(n, 3)
+        columns, C, lower, upper = self._stance_rows(touching)
+        A_touching = A[:, columns]
+        # The unconstrained optimum (A^T A + eps I)^-1 A^T w = A^T (A A^T + eps I)^-1 w: when it
+        # is feasible it is the (strictly convex) QP's solution, without proxsuite.
+        f = A_touching.T @ np.linalg.solve(A_touching @ A_touching.T + self._eps6, wrench)
+        Cf = C @ f
+        if np.all(Cf >= lower) and np.all(Cf <= upper):
+            forces = np.zeros(A.shape[1])
+            forces[columns] = f
+            return forces.reshape(-1, 3)
+        H = A.T @ A
+        H.flat[:: H.shape[0] + 1] += _REGULARIZATION
+        box = np.where(columns, INFINITY, 0.0)
+        result = self._qp.solve(H, -A.T @ wrench, self._C, self._lower, self._upper, -box, box)
+        return np.array(result.x).reshape(-1, 3)
 
     def prepare_log(self, log: Log) -> None:
         """Declare ``phase``, ``hops``, ``com_height`` [m] and ``foot_force_command`` [N]."""
