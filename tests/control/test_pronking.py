@@ -24,6 +24,7 @@ from ucontrol.exceptions import (
     SceneError,
     UnknownKeyError,
 )
+from ucontrol.model import RobotModel
 from ucontrol.scene import Scene
 from ucontrol.simulate import simulate
 
@@ -274,3 +275,24 @@ def test_feasible_optimum_is_proxsuites_solution(pronk_scene):
     ).x
     assert np.max(np.abs(closed_form[:, :2])) > 0.1  # [N] a demand with tangential forces
     np.testing.assert_allclose(x.reshape(4, 3), closed_form, rtol=0.0, atol=1e-6)
+
+
+def test_leg_joint_with_several_coordinates_is_refused():
+    """A spherical hip (nq = 4, nv = 3) has no joint-space posture error of the PD's form."""
+    model = pin.Model()
+    base = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "base")
+    model.appendBodyToJoint(base, pin.Inertia.FromBox(1.0, 0.2, 0.2, 0.1), pin.SE3.Identity())
+    hip = model.addJoint(base, pin.JointModelSpherical(), pin.SE3.Identity(), "hip")
+    model.appendBodyToJoint(hip, pin.Inertia.FromSphere(0.1, 0.02), pin.SE3.Identity())
+    placement = pin.SE3(np.eye(3), np.array([0.0, 0.0, -0.2]))
+    model.addFrame(pin.Frame("foot", hip, 0, placement, pin.FrameType.OP_FRAME))
+    robot = RobotModel(model)
+    with pytest.raises(InvalidParameterError, match="one configuration coordinate"):
+        PronkingController(
+            robot,
+            feet=["foot"],
+            contacts=[0],
+            normals=np.array([[0.0, 0.0, 1.0]]),
+            posture=pin.neutral(model),
+            settings=PronkSettings(stand_height=0.1, apex=0.3),
+        )

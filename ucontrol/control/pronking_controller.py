@@ -70,7 +70,12 @@ if TYPE_CHECKING:
     from ucontrol.log import Log
     from ucontrol.model.robot_model import RobotModel
 
-_REGULARIZATION = 1e-4  # ε of the force QP [1/N²·N²]: a small weight on the forces' norm
+Mask = NDArray[np.bool_]
+Index = NDArray[np.int64]
+#: The force columns, the inequality rows and their bounds of one set of feet in contact.
+_StanceRows = tuple[Mask, Vector, Vector, Vector]
+
+_REGULARIZATION = 1e-4  # ε of the force QP: the weight of ||f||² [N²] beside the wrench's residual
 _MIN_STROKE = 1e-9  # [m] guards the thrust law against a zero distance to the touchdown height
 
 
@@ -163,7 +168,7 @@ class PronkingController:
         settings: PronkSettings,
     ) -> None:
         model = robot.model
-        if model.joints[1].shortname() != "JointModelFreeFlyer":
+        if model.njoints < 2 or model.joints[1].shortname() != "JointModelFreeFlyer":
             raise InvalidParameterError("robot", robot.name, "a robot on a free-flyer base")
         if len(feet) != len(contacts) or not feet:
             raise InvalidParameterError(
@@ -184,6 +189,13 @@ class PronkingController:
         in_legs = np.concatenate(self._legs)
         self._others = np.setdiff1d(self._actuated, in_legs)
         self._q_of_v = _configuration_index(model)
+        if np.any(self._q_of_v[self._actuated] < 0):
+            raise InvalidParameterError(
+                "robot",
+                robot.name,
+                "actuated joints with one configuration coordinate per velocity (revolute, "
+                "prismatic) for the pronking controller",
+            )
         self.g = float(np.linalg.norm(robot.gravity))
         self.up = -robot.gravity / self.g
         self.mass = float(pin.computeTotalMass(model))  # [kg]
@@ -201,7 +213,7 @@ class PronkingController:
         self._forces = np.zeros((len(feet), 3))
         self._height = math.nan
 
-    def _leg(self, frame: int, name: str) -> Vector:
+    def _leg(self, frame: int, name: str) -> Index:
         """Actuated velocity indices of the joints between the base and a foot."""
         model = self._model
         actuated = set(self._actuated.tolist())
@@ -260,25 +272,26 @@ class PronkingController:
         self._A = np.zeros((6, 3 * n))  # the wrench of the feet's forces about the centre of mass
         self._A[:3] = np.tile(np.eye(3), n)
         self._eps6 = _REGULARIZATION * np.eye(6)
-        self._stance_cache: dict[bytes, tuple[Vector, Vector, Vector, Vector]] = {}
+        self._stance_cache: dict[bytes, _StanceRows] = {}
         self._lower = np.full(5 * n, -INFINITY)
         self._lower[4::5] = 0.0
         self._upper = upper
 
-    def _stance_rows(self, touching: NDArray[np.bool_]) -> tuple[Vector, Vector, Vector, Vector]:
+    def _stance_rows(self, touching: Mask) -> _StanceRows:
         """The force columns, constraint rows and bounds of the feet in contact (cached)."""
         key = touching.tobytes()
-        rows = self._stance_cache.get(key)
-        if rows is None:
-            columns = np.repeat(touching, 3)
-            inequalities = np.repeat(touching, 5)
-            rows = (
-                columns,
-                self._C[np.ix_(inequalities, columns)],
-                self._lower[inequalities],
-                self._upper[inequalities],
-            )
-            self._stance_cache[key] = rows
+        cached = self._stance_cache.get(key)
+        if cached is not None:
+            return cached
+        columns = np.repeat(touching, 3)
+        inequalities = np.repeat(touching, 5)
+        rows: _StanceRows = (
+            columns,
+            self._C[np.ix_(inequalities, columns)],
+            self._lower[inequalities],
+            self._upper[inequalities],
+        )
+        self._stance_cache[key] = rows
         return rows
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
@@ -304,7 +317,8 @@ class PronkingController:
         gravity = pin.computeGeneralizedGravity(model, data, q)
         self._forces[:] = 0.0
         if self.phase != Phase.FREE and touching.any():
-            self._forces = self._distribute(q, v, c, c_dot, h, h_dot, feet, touching)
+            offset = c - self._c0  # [m] from where the centre of mass was at the first call
+            self._forces = self._distribute(v, c, c_dot, offset, h, h_dot, feet, touching)
         for i, leg in enumerate(self._legs):
             if self.phase != Phase.FREE and touching[i]:
                 J = pin.getFrameJacobian(
@@ -319,7 +333,7 @@ class PronkingController:
             tau[self._others] = self._hold(q, v, self._others) + gravity[self._others]
         return tau[self._actuated]
 
-    def _hold(self, q: Vector, v: Vector, joints: Vector) -> Vector:
+    def _hold(self, q: Vector, v: Vector, joints: Index) -> Vector:
         """Joint PD toward the posture on velocity indices ``joints``, shape (len(joints),)."""
         s, rows = self.settings, self._q_of_v[joints]
         return s.kp * (self.posture[rows] - q[rows]) - s.kd * v[joints]
@@ -360,19 +374,17 @@ class PronkingController:
 
     def _distribute(
         self,
-        q: Vector,
         v: Vector,
         c: Vector,
         c_dot: Vector,
+        offset: Vector,
         h: float,
         h_dot: float,
         feet: Vector,
-        touching: Vector,
+        touching: Mask,
     ) -> Vector:
         """The feet's forces (world) realizing the desired momentum rate, shape (n_feet, 3)."""
         s, data = self.settings, self._data
-        assert self._c0 is not None
-        offset = c - self._c0
         horizontal = -s.horizontal_stiffness * offset - s.horizontal_damping * c_dot
         horizontal -= (horizontal @ self.up) * self.up
         acceleration = self._height_acceleration(h, h_dot) * self.up + horizontal
@@ -428,7 +440,7 @@ def _tangent_basis(normal: Vector) -> Vector:
     return np.array([t1, np.cross(normal, t1)])
 
 
-def _configuration_index(model: pin.Model) -> Vector:
+def _configuration_index(model: pin.Model) -> Index:
     """Configuration index of each velocity index of a one-coordinate joint, shape (nv,)."""
     index = np.full(model.nv, -1, dtype=np.int64)
     for joint in model.joints[1:]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -15,19 +16,10 @@ if TYPE_CHECKING:
     from ucontrol.scene.scene_data import SceneData
 
 #: Gains and limits of the table passed on to :class:`PronkSettings` as they are.
-_SETTING_KEYS = (
-    "hops",
-    "kp",
-    "kd",
-    "height_stiffness",
-    "height_damping",
-    "horizontal_stiffness",
-    "horizontal_damping",
-    "attitude_stiffness",
-    "attitude_damping",
-    "max_normal_force",
-    "contact_gap",
-    "apex_gain",
+_SETTING_KEYS = tuple(
+    field.name
+    for field in dataclasses.fields(PronkSettings)
+    if field.name not in {"stand_height", "apex", "friction"}
 )
 #: Keys of a ``[controller] type = "pronk"`` table.
 PRONK_KEYS = {"type", "feet", "posture", "stand_height", "apex", "friction", *_SETTING_KEYS}
