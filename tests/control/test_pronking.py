@@ -312,3 +312,12 @@ def test_solo_lands_with_a_sideways_speed_and_a_tumble():
     scene = Scene.from_dict(table, base_dir=ROBOTS)
     log = simulate(scene, progress=False).log
     _check_run("solo_landing", scene, log, hops=0, max_tilt=15.0)
+
+
+@pytest.mark.slow
+def test_experiment_runs_briefly(tmp_path: Path) -> None:
+    """experiments/solo_pronk.py's table and figure, on 0.4 s of each scene."""
+    load_experiment("solo_pronk").main(["--duration", "0.4", "--out", str(tmp_path)])
+    rows = (tmp_path / "solo_pronk.md").read_text().splitlines()
+    assert [row.split("|")[1].strip() for row in rows[2:]] == ["solo_landing", "solo_pronk"]
+    assert (tmp_path / "solo_pronk.png").stat().st_size > 10_000
