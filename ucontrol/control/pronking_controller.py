@@ -14,7 +14,8 @@ their gaps, :math:`n_\uparrow = -\hat g` the upward direction).
     a_{xy} = -k_{xy}(c - c_0)_{xy} - d_{xy}\,\dot c_{xy}, \qquad
     T = I_c\,\big(-k_R \log(R R_d^T)^\vee - d_R\, \omega\big),
 
-is distributed over the feet in contact by a small QP (proxsuite) in the feet's forces
+(:math:`c_0` the centre of mass at the first call: the robot hops in place) is distributed over
+the feet in contact by a small QP (proxsuite) in the feet's forces
 :math:`f_i` with friction pyramids of coefficient :math:`\mu_c`,
 
 .. math::
@@ -24,7 +25,8 @@ is distributed over the feet in contact by a small QP (proxsuite) in the feet's 
     \quad \text{s.t.} \quad |f_i \cdot t_{ij}| \le \mu_c\, f_i \cdot n_i,\;
     0 \le f_i \cdot n_i \le f_\text{max},
 
-and produced by the joints of each stance leg statically,
+(its unconstrained optimum :math:`A^T (A A^T + \epsilon I)^{-1} w` when that lies in the
+pyramids: it is then the QP's solution) and produced by the joints of each stance leg statically,
 :math:`\tau_\text{leg} = g_\text{leg}(q) - J_{i,\text{leg}}^T f_i` (g the generalized gravity,
 J_i the foot's linear Jacobian): gravity compensation distributed over the feet plus a
 virtual spring-damper on the centre of mass. A leg whose foot is in the air, and every leg in
