@@ -85,7 +85,7 @@ def _statics(controller: PronkingController, scene: Scene, q: np.ndarray, tau: n
     pin.updateFramePlacements(model, data)
     residual = gravity.copy()
     residual[scene.robot.actuated] -= tau
-    for name, force in zip(FEET, controller._forces, strict=True):
+    for name, force in zip(FEET, controller.forces, strict=True):
         J = pin.getFrameJacobian(
             model, data, model.getFrameId(name), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         )[:3]
@@ -108,7 +108,7 @@ def test_standing_torques_and_forces_solve_the_full_statics(pronk_scene):
     mass = float(pin.computeTotalMass(scene.robot.model))
     weight = mass * G  # [N]
     assert controller.phase == Phase.CONSTRAINED
-    assert controller._forces[:, 2].sum() == pytest.approx(weight, rel=2e-4)
+    assert controller.forces[:, 2].sum() == pytest.approx(weight, rel=2e-4)
     assert np.max(np.abs(_statics(controller, scene, q, tau))) < 1e-3 * weight
 
 
@@ -124,7 +124,7 @@ def test_commanded_forces_stay_in_the_friction_pyramids(pronk_scene):
     controller(1e-3, shifted, v, _contacts(scene, shifted))
     mu = controller.settings.friction
     assert mu == pytest.approx(0.8 * 0.7)  # the default margin on the scene's mu
-    f = controller._forces
+    f = controller.forces
     tangential = np.abs(f[:, :2])
     assert np.all(tangential <= mu * f[:, 2:3] + 1e-6)
     assert np.max(tangential[:, 0] - mu * f[:, 2]) > -1e-4  # some foot at its pyramid's face
@@ -265,7 +265,7 @@ def test_feasible_optimum_is_proxsuites_solution(pronk_scene):
     v = np.zeros(pronk_scene.robot.nv)
     v[:3] = [0.1, -0.05, -0.2]  # [m/s]: a sideways, backward and downward demand
     controller(0.0, q, v, _contacts(pronk_scene, q))
-    closed_form = controller._forces.copy()
+    closed_form = controller.forces.copy()
     A = controller._A  # of this call's feet and centre of mass
     f = closed_form.ravel()
     # the wrench it was computed for: f = A^T y with (A A^T + eps I) y = w

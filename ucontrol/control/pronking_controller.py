@@ -360,6 +360,11 @@ class PronkingController:
             self.hops_done += 1
             self._flight_apex = h
 
+    @property
+    def forces(self) -> Vector:
+        """The feet's forces (world) the last call commanded, in [N], shape (n_feet, 3)."""
+        return self._forces.copy()
+
     def takeoff_speed(self) -> float:
         """The take-off speed v_to the next thrust aims at, in [m/s]."""
         s = self.settings
