@@ -30,6 +30,7 @@ from ucontrol.scene.impedance_table import (
     impedance_from_table,
 )
 from ucontrol.scene.juggling_table import JUGGLING_KEYS, juggling_from_table
+from ucontrol.scene.pronk_table import PRONK_KEYS, pronk_from_table
 
 if TYPE_CHECKING:
     from ucontrol.scene.scene_data import SceneData
@@ -58,6 +59,7 @@ _CONTROLLER_KEYS = {
     "impedance": IMPEDANCE_KEYS,
     "reference_spreading": {*IMPEDANCE_KEYS, *_SPREADING_KEYS},
     "juggling": JUGGLING_KEYS,
+    "pronk": PRONK_KEYS,
 }
 # Every controller may run on its own model of the scene ([controller.model]).
 _CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
@@ -218,4 +220,5 @@ _BUILDERS: dict[str, Callable[[SceneData, Mapping[str, Any]], Controller]] = {
     "impedance": impedance_from_table,
     "reference_spreading": _reference_spreading,
     "juggling": juggling_from_table,
+    "pronk": pronk_from_table,
 }

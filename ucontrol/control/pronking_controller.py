@@ -1,0 +1,458 @@
+r"""Landing and pronking of a floating-base robot on point feet: a stance/thrust/flight machine.
+
+The controller sees the configuration, the velocity and the feet's gaps (a foot is *in contact*
+when its gap is at most ``contact_gap``); it never reads the plant's impulses. Heights are those
+of the centre of mass above the level of the feet's centres on the ground,
+:math:`h = c \cdot n_\uparrow - \overline{(p_i \cdot n_\uparrow - g_i)}` (mean over the feet, g_i
+their gaps, :math:`n_\uparrow = -\hat g` the upward direction).
+
+**Stance** (at least one foot in contact). A desired rate of change of the centroidal momentum,
+
+.. math::
+
+    F = m\,(\ddot h_d\, n_\uparrow + a_{xy} - g), \qquad
+    a_{xy} = -k_{xy}(c - c_0)_{xy} - d_{xy}\,\dot c_{xy}, \qquad
+    T = I_c\,\big(-k_R \log(R R_d^T)^\vee - d_R\, \omega\big),
+
+(:math:`c_0` the centre of mass at the first call: the robot hops in place) is distributed over
+the feet in contact by a small QP (proxsuite) in the feet's forces
+:math:`f_i` with friction pyramids of coefficient :math:`\mu_c`,
+
+.. math::
+
+    \min_f \Big\| \sum_i \begin{bmatrix} f_i \\ (p_i - c) \times f_i \end{bmatrix}
+      - \begin{bmatrix} F \\ T \end{bmatrix} \Big\|^2 + \epsilon \|f\|^2
+    \quad \text{s.t.} \quad |f_i \cdot t_{ij}| \le \mu_c\, f_i \cdot n_i,\;
+    0 \le f_i \cdot n_i \le f_\text{max},
+
+(its unconstrained optimum :math:`A^T (A A^T + \epsilon I)^{-1} w` when that lies in the
+pyramids: it is then the QP's solution) and produced by the joints of each stance leg statically,
+:math:`\tau_\text{leg} = g_\text{leg}(q) - J_{i,\text{leg}}^T f_i` (g the generalized gravity,
+J_i the foot's linear Jacobian): gravity compensation distributed over the feet plus a
+virtual spring-damper on the centre of mass. A leg whose foot is in the air, and every leg in
+flight, holds the touchdown posture by a joint PD,
+:math:`\tau = K_p (q_\text{td} - q) - K_d \dot q` (plus its gravity when some foot carries the
+robot; none in free fall).
+
+**Height law.** Landing and standing (phase CONSTRAINED): :math:`\ddot h_d = k_h (h_s - h) -
+d_h \dot h` toward the standing height :math:`h_s`. Thrust (phase TAKEOFF), from the bottom of
+the compression (:math:`\dot h \ge 0`) while hops remain: the constant acceleration that reaches
+the take-off speed :math:`v_\text{to}` at the touchdown height :math:`h_\text{td}` (the height
+with the legs at the touchdown posture),
+
+.. math::
+
+    \ddot h_d = \frac{v_\text{to}^2 - \dot h^2}{2\,(h_\text{td} - h)}, \qquad
+    v_\text{to}^2 = 2 g (H - h_\text{td}) + \delta_k,
+
+with H the commanded apex; the thrust ends at :math:`h \ge h_\text{td}` (phase FREE, flight).
+After each flight the measured apex :math:`H_k` corrects the energy of the next thrust,
+:math:`\delta_{k+1} = \delta_k + 2 g\, k_a (H - H_k)` (``apex_gain`` :math:`k_a`; 0 disables).
+Touchdown (phase CONSTRAINED again): a foot in contact while :math:`\dot h < 0`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ucontrol._validation import as_float, as_int, as_non_negative, as_positive, as_vector
+from ucontrol.control.controller import ContactState, Vector
+from ucontrol.control.phase import Phase
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.solvers.proxsuite_qp import INFINITY, WarmStartedQP
+
+if TYPE_CHECKING:
+    from ucontrol.log import Log
+    from ucontrol.model.robot_model import RobotModel
+
+Mask = NDArray[np.bool_]
+Index = NDArray[np.int64]
+#: The force columns, the inequality rows and their bounds of one set of feet in contact.
+_StanceRows = tuple[Mask, Vector, Vector, Vector]
+
+_REGULARIZATION = 1e-4  # ε of the force QP: the weight of ||f||² [N²] beside the wrench's residual
+_MIN_STROKE = 1e-9  # [m] guards the thrust law against a zero distance to the touchdown height
+
+
+@dataclass(frozen=True, kw_only=True)
+class PronkSettings:
+    """Targets and gains of :class:`PronkingController`.
+
+    Attributes:
+        stand_height: Height h_s of the centre of mass in stance, in [m].
+        apex: Commanded apex H of the centre of mass in the hops, in [m].
+        hops: Number of hops; then the robot stands.
+        kp: Joint stiffness of the legs in the air, in [N m/rad].
+        kd: Joint damping of the legs in the air, in [N m s/rad].
+        height_stiffness: k_h in [1/s²].
+        height_damping: d_h in [1/s].
+        horizontal_stiffness: k_xy in [1/s²].
+        horizontal_damping: d_xy in [1/s].
+        attitude_stiffness: k_R in [1/s²].
+        attitude_damping: d_R in [1/s].
+        friction: Coefficient μ_c of the pyramids the commanded forces keep in (>= 0).
+        max_normal_force: f_max per foot in [N].
+        contact_gap: A foot with a gap at most this is in contact, in [m].
+        apex_gain: k_a of the apex correction (0: none).
+    """
+
+    stand_height: float
+    apex: float
+    hops: int = 0
+    kp: float = 20.0
+    kd: float = 0.5
+    height_stiffness: float = 150.0
+    height_damping: float = 18.0
+    horizontal_stiffness: float = 50.0
+    horizontal_damping: float = 14.0
+    attitude_stiffness: float = 150.0
+    attitude_damping: float = 25.0
+    friction: float = 0.5
+    max_normal_force: float = INFINITY
+    contact_gap: float = 1e-3
+    apex_gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "stand_height", as_positive("stand_height", self.stand_height))
+        object.__setattr__(self, "apex", as_float("apex", self.apex))
+        object.__setattr__(self, "hops", as_int("hops", self.hops, 0))
+        for key in (
+            "kp",
+            "kd",
+            "height_stiffness",
+            "height_damping",
+            "horizontal_stiffness",
+            "horizontal_damping",
+            "attitude_stiffness",
+            "attitude_damping",
+            "friction",
+            "apex_gain",
+        ):
+            object.__setattr__(self, key, as_non_negative(key, getattr(self, key)))
+        for key in ("max_normal_force", "contact_gap"):
+            object.__setattr__(self, key, as_positive(key, getattr(self, key)))
+
+
+class PronkingController:
+    """Land, pronk ``hops`` times to a commanded apex, then stand (module docstring: the law).
+
+    Args:
+        robot: A robot on a free-flyer base (the controller keeps its own Pinocchio data).
+        feet: Names of the feet's frames (point contacts).
+        contacts: Index of each foot's constraint in the :class:`ContactState` arrays.
+        normals: Each foot's ground normal (world), shape (n_feet, 3).
+        posture: Touchdown posture, shape (nq,): the legs' joints hold it in the air, its base
+            orientation is the attitude R_d held in stance.
+        settings: Heights, hops and gains.
+
+    Raises:
+        InvalidParameterError: A robot without a free-flyer base, feet and contacts of
+            different lengths, a foot on no leg, or heights out of order
+            (``stand_height < h_td < apex`` when hopping, h_td the posture's height).
+        FrameNotFoundError: A foot frame the robot does not have.
+    """
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        *,
+        feet: Sequence[str],
+        contacts: Sequence[int],
+        normals: Vector,
+        posture: Vector,
+        settings: PronkSettings,
+    ) -> None:
+        model = robot.model
+        if model.njoints < 2 or model.joints[1].shortname() != "JointModelFreeFlyer":
+            raise InvalidParameterError("robot", robot.name, "a robot on a free-flyer base")
+        if len(feet) != len(contacts) or not feet:
+            raise InvalidParameterError(
+                "contacts", list(contacts), f"one constraint index per foot ({len(feet)} feet)"
+            )
+        self.robot = robot
+        self.settings = settings
+        self._model, self._data = model, pin.Data(model)
+        self._frames = [robot.frame_id(name) for name in feet]
+        self.feet = tuple(str(name) for name in feet)
+        self._contacts = np.array(contacts, dtype=np.int64)
+        normals = np.asarray(normals, dtype=float).reshape(len(feet), 3)
+        self._normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+        self._tangents = np.array([_tangent_basis(n) for n in self._normals])  # (n_feet, 2, 3)
+        self.posture = as_vector("posture", posture, robot.nq)
+        self._actuated = robot.actuated
+        self._legs = [self._leg(frame, name) for frame, name in zip(self._frames, feet)]
+        in_legs = np.concatenate(self._legs)
+        self._others = np.setdiff1d(self._actuated, in_legs)
+        self._q_of_v = _configuration_index(model)
+        if np.any(self._q_of_v[self._actuated] < 0):
+            raise InvalidParameterError(
+                "robot",
+                robot.name,
+                "actuated joints with one configuration coordinate per velocity (revolute, "
+                "prismatic) for the pronking controller",
+            )
+        self.g = float(np.linalg.norm(robot.gravity))
+        self.up = -robot.gravity / self.g
+        self.mass = float(pin.computeTotalMass(model))  # [kg]
+        self.touchdown_height = self._posture_height()
+        self._check_heights()
+        self._R_d = pin.Quaternion(self.posture[3:7]).normalized().matrix()
+        self._qp = WarmStartedQP(eps_abs=1e-8)
+        self._build_constraints()
+        self.phase: Phase | None = None  # set by the first call, from the feet's gaps
+        self.hops_done = 0
+        self.apexes: list[float] = []
+        self._energy_correction = 0.0  # δ_k [m²/s²]
+        self._flight_apex = -math.inf
+        self._c0: Vector | None = None
+        self._forces = np.zeros((len(feet), 3))
+        self._height = math.nan
+
+    def _leg(self, frame: int, name: str) -> Index:
+        """Actuated velocity indices of the joints between the base and a foot."""
+        model = self._model
+        actuated = set(self._actuated.tolist())
+        leg = np.array(
+            [
+                index
+                for j in model.supports[model.frames[frame].parentJoint]
+                if j > 1  # neither the universe nor the free-flyer
+                for index in range(
+                    model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv
+                )
+                if index in actuated
+            ],
+            dtype=np.int64,
+        )
+        if leg.size == 0:
+            raise InvalidParameterError("feet", name, "a frame below some actuated joint")
+        return leg
+
+    def _posture_height(self) -> float:
+        """Height h_td of the centre of mass above the lowest foot at the posture, in [m]."""
+        model, data, q = self._model, self._data, self.posture
+        c = pin.centerOfMass(model, data, q)
+        pin.framesForwardKinematics(model, data, q)
+        lowest = min(float(data.oMf[f].translation @ self.up) for f in self._frames)
+        return float(c @ self.up) - lowest
+
+    def _check_heights(self) -> None:
+        s = self.settings
+        if s.stand_height >= self.touchdown_height:
+            raise InvalidParameterError(
+                "stand_height",
+                s.stand_height,
+                f"< {self.touchdown_height:.4g} m, the height at the touchdown posture",
+            )
+        if s.hops > 0 and s.apex <= self.touchdown_height:
+            raise InvalidParameterError(
+                "apex", s.apex, f"> {self.touchdown_height:.4g} m, the touchdown height"
+            )
+
+    def _build_constraints(self) -> None:
+        """The friction pyramids and normal bounds of the force QP, rows (5 n_feet, 3 n_feet)."""
+        n, mu = len(self._frames), self.settings.friction
+        C = np.zeros((5 * n, 3 * n))
+        upper = np.zeros(5 * n)
+        for i in range(n):
+            normal, (t1, t2) = self._normals[i], self._tangents[i]
+            cols = slice(3 * i, 3 * i + 3)
+            C[5 * i + 0, cols] = t1 - mu * normal
+            C[5 * i + 1, cols] = -t1 - mu * normal
+            C[5 * i + 2, cols] = t2 - mu * normal
+            C[5 * i + 3, cols] = -t2 - mu * normal
+            C[5 * i + 4, cols] = normal
+            upper[5 * i + 4] = self.settings.max_normal_force
+        self._C = C
+        self._A = np.zeros((6, 3 * n))  # the wrench of the feet's forces about the centre of mass
+        self._A[:3] = np.tile(np.eye(3), n)
+        self._eps6 = _REGULARIZATION * np.eye(6)
+        self._stance_cache: dict[bytes, _StanceRows] = {}
+        self._lower = np.full(5 * n, -INFINITY)
+        self._lower[4::5] = 0.0
+        self._upper = upper
+
+    def _stance_rows(self, touching: Mask) -> _StanceRows:
+        """The force columns, constraint rows and bounds of the feet in contact (cached)."""
+        key = touching.tobytes()
+        cached = self._stance_cache.get(key)
+        if cached is not None:
+            return cached
+        columns = np.repeat(touching, 3)
+        inequalities = np.repeat(touching, 5)
+        rows: _StanceRows = (
+            columns,
+            self._C[np.ix_(inequalities, columns)],
+            self._lower[inequalities],
+            self._upper[inequalities],
+        )
+        self._stance_cache[key] = rows
+        return rows
+
+    def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
+        """Joint torques, shape (nu,)."""
+        model, data, s = self._model, self._data, self.settings
+        pin.ccrba(model, data, q, v)  # centre of mass, centroidal inertia and momentum
+        c = data.com[0].copy()
+        c_dot = data.hg.linear / self.mass  # [m/s]
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        feet = np.array([data.oMf[f].translation for f in self._frames])  # (n_feet, 3)
+        gaps = contacts.gap[self._contacts]
+        touching = gaps <= s.contact_gap
+        ground = (
+            float((feet @ self.up - gaps).sum()) / gaps.size
+        )  # feet centres' level on the ground [m]
+        h, h_dot = float(c @ self.up) - ground, float(c_dot @ self.up)
+        if self._c0 is None:
+            self._c0 = c.copy()
+        self._update_phase(h, h_dot, bool(touching.any()))
+        self._height = h
+        tau = np.zeros(model.nv)
+        gravity = pin.computeGeneralizedGravity(model, data, q)
+        self._forces[:] = 0.0
+        if self.phase != Phase.FREE and touching.any():
+            offset = c - self._c0  # [m] from where the centre of mass was at the first call
+            self._forces = self._distribute(v, c, c_dot, offset, h, h_dot, feet, touching)
+        for i, leg in enumerate(self._legs):
+            if self.phase != Phase.FREE and touching[i]:
+                J = pin.getFrameJacobian(
+                    model, data, self._frames[i], pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+                )[:3]
+                tau[leg] = gravity[leg] - J[:, leg].T @ self._forces[i]
+            else:
+                tau[leg] = self._hold(q, v, leg)
+                if self.phase != Phase.FREE:
+                    tau[leg] += gravity[leg]
+        if self._others.size:
+            tau[self._others] = self._hold(q, v, self._others) + gravity[self._others]
+        return tau[self._actuated]
+
+    def _hold(self, q: Vector, v: Vector, joints: Index) -> Vector:
+        """Joint PD toward the posture on velocity indices ``joints``, shape (len(joints),)."""
+        s, rows = self.settings, self._q_of_v[joints]
+        return s.kp * (self.posture[rows] - q[rows]) - s.kd * v[joints]
+
+    def _update_phase(self, h: float, h_dot: float, touching: bool) -> None:
+        s = self.settings
+        if self.phase is None:
+            self.phase = Phase.CONSTRAINED if touching else Phase.FREE
+        if self.phase == Phase.FREE:
+            self._flight_apex = max(self._flight_apex, h)
+            if touching and h_dot < 0.0:  # touchdown
+                self.phase = Phase.CONSTRAINED
+                if math.isfinite(self._flight_apex) and self.hops_done > 0:
+                    self.apexes.append(self._flight_apex)
+                    error = s.apex - self._flight_apex  # [m]
+                    self._energy_correction += 2.0 * self.g * s.apex_gain * error
+        elif self.phase == Phase.CONSTRAINED:
+            if self.hops_done < s.hops and h_dot >= 0.0 and touching:  # bottom of the stroke
+                self.phase = Phase.TAKEOFF
+        elif h >= self.touchdown_height or not touching:  # thrust ends: take-off
+            self.phase = Phase.FREE
+            self.hops_done += 1
+            self._flight_apex = h
+
+    @property
+    def forces(self) -> Vector:
+        """The feet's forces (world) the last call commanded, in [N], shape (n_feet, 3)."""
+        return self._forces.copy()
+
+    def takeoff_speed(self) -> float:
+        """The take-off speed v_to the next thrust aims at, in [m/s]."""
+        s = self.settings
+        energy = 2.0 * self.g * (s.apex - self.touchdown_height) + self._energy_correction
+        return math.sqrt(max(energy, 0.0))
+
+    def _height_acceleration(self, h: float, h_dot: float) -> float:
+        """The desired vertical acceleration of the centre of mass, in [m/s²]."""
+        s = self.settings
+        if self.phase == Phase.TAKEOFF:
+            stroke = max(self.touchdown_height - h, _MIN_STROKE)  # [m]
+            return max((self.takeoff_speed() ** 2 - h_dot * h_dot) / (2.0 * stroke), 0.0)
+        return s.height_stiffness * (s.stand_height - h) - s.height_damping * h_dot
+
+    def _distribute(
+        self,
+        v: Vector,
+        c: Vector,
+        c_dot: Vector,
+        offset: Vector,
+        h: float,
+        h_dot: float,
+        feet: Vector,
+        touching: Mask,
+    ) -> Vector:
+        """The feet's forces (world) realizing the desired momentum rate, shape (n_feet, 3)."""
+        s, data = self.settings, self._data
+        horizontal = -s.horizontal_stiffness * offset - s.horizontal_damping * c_dot
+        horizontal -= (horizontal @ self.up) * self.up
+        acceleration = self._height_acceleration(h, h_dot) * self.up + horizontal
+        force = self.mass * (acceleration + self.g * self.up)  # [N]
+        R = data.oMi[1].rotation
+        omega = R @ v[3:6]  # base angular velocity, world [rad/s]
+        attitude = pin.log3(R @ self._R_d.T)  # [rad], world
+        inertia = data.Ig.inertia  # centroidal rotational inertia [kg m²]
+        torque = inertia @ (-s.attitude_stiffness * attitude - s.attitude_damping * omega)
+        A, r = self._A, feet - c  # A = [I ... I; [r_1]x ... [r_n]x], r [m]
+        A[3, 1::3], A[3, 2::3] = -r[:, 2], r[:, 1]
+        A[4, 0::3], A[4, 2::3] = r[:, 2], -r[:, 0]
+        A[5, 0::3], A[5, 1::3] = -r[:, 1], r[:, 0]
+        wrench = np.concatenate([force, torque])
+        columns, C, lower, upper = self._stance_rows(touching)
+        A_touching = A[:, columns]
+        # The unconstrained optimum (A^T A + eps I)^-1 A^T w = A^T (A A^T + eps I)^-1 w: when it
+        # is feasible it is the (strictly convex) QP's solution, without proxsuite.
+        f = A_touching.T @ np.linalg.solve(A_touching @ A_touching.T + self._eps6, wrench)
+        Cf = C @ f
+        if np.all(Cf >= lower) and np.all(Cf <= upper):
+            forces = np.zeros(A.shape[1])
+            forces[columns] = f
+            return forces.reshape(-1, 3)
+        H = A.T @ A
+        H.flat[:: H.shape[0] + 1] += _REGULARIZATION
+        box = np.where(columns, INFINITY, 0.0)
+        result = self._qp.solve(H, -A.T @ wrench, self._C, self._lower, self._upper, -box, box)
+        return np.array(result.x).reshape(-1, 3)
+
+    def prepare_log(self, log: Log) -> None:
+        """Declare ``phase``, ``hops``, ``com_height`` [m] and ``foot_force_command`` [N]."""
+        log.add_field("phase", (), dtype=np.int64)
+        log.add_field("hops", (), dtype=np.int64)
+        log.add_field("com_height", ())
+        log.add_field("foot_force_command", (len(self._frames), 3))
+        log.metadata["controller"] = "pronk"
+        log.metadata["feet"] = list(self.feet)
+
+    def record(self, log: Log) -> None:
+        """Write the current phase, hop count, height and commanded forces."""
+        log.record_extra("phase", int(Phase.FREE if self.phase is None else self.phase))
+        log.record_extra("hops", self.hops_done)
+        log.record_extra("com_height", self._height)
+        log.record_extra("foot_force_command", self._forces)
+
+
+def _tangent_basis(normal: Vector) -> Vector:
+    """Two unit tangents orthogonal to ``normal`` and to each other, shape (2, 3)."""
+    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    t1 = np.cross(normal, helper)
+    t1 /= np.linalg.norm(t1)
+    return np.array([t1, np.cross(normal, t1)])
+
+
+def _configuration_index(model: pin.Model) -> Index:
+    """Configuration index of each velocity index of a one-coordinate joint, shape (nv,)."""
+    index = np.full(model.nv, -1, dtype=np.int64)
+    for joint in model.joints[1:]:
+        if joint.nq == joint.nv:
+            index[joint.idx_v : joint.idx_v + joint.nv] = np.arange(
+                joint.idx_q, joint.idx_q + joint.nq
+            )
+    return index
