@@ -7,10 +7,10 @@ book's stability framework needs (docs/stability_check.md gives the derivation):
 - ``jump_bound``: the jumps of V over the accumulation of impacts are bounded; the bound
   :math:`J = \tfrac12 \|s_q^+\|_M^2` is that of the first impact (approach velocity
   :math:`v_0`, restitution e), the later ones being :math:`-\tfrac12 (1 - e^2) m_n v_k^2 \le 0`;
-- ``finite_accumulation``: the law pulls the contact towards the surface with an acceleration
-  :math:`g(t) = -(\ddot x_d + c\,\dot x_d + k\,x_d) \ge g_{min} > 0` and
-  :math:`e\rho < 1`, so that the impacts accumulate within
-  :math:`t_\infty - t_0 \le T(e|v_0|) / (1 - e\rho)`;
+- ``finite_accumulation``: along the contact normal the closed loop is
+  :math:`\ddot x + c\dot x + kx = -g(t)`; its flights are followed exactly until the
+  target rests at -d, after which the pull kd > 0 and the restitution e bound the remaining
+  flights, so that the impacts accumulate within a computed :math:`t_\infty - t_0`;
 - ``accumulation_before_takeoff``: :math:`t_0` + that bound + the rest time ends before the
   takeoff :math:`t_d`;
 - ``positive_force``: the designed :math:`\lambda_d > 0` on the constrained phase
@@ -20,7 +20,8 @@ The bounds are computed for the cycle tracked exactly up to :math:`\tau_0`
 (:math:`V(\tau_0) = 0`, the depth of :math:`V_1(\tau_0)` given), along the contact normal with
 the effective mass :math:`m_n = (J_n M^{-1} J_n^T)^{-1}` at the landing configuration. What
 cannot be bounded a priori is listed in :attr:`StabilityCheck.not_computed`; after a run,
-:func:`compare_with_run` sets the measured quantities (:func:`weak_stability`) beside the bounds.
+:func:`compare_with_run` sets the measured quantities
+(:func:`~ucontrol.analysis.weak_stability.weak_stability`) beside the bounds.
 """
 
 from __future__ import annotations
@@ -138,9 +139,12 @@ class ContactCheck:
         first_impact: :math:`t_0`, when the approach target crosses the surface.
         approach_velocity: :math:`v_0 < 0`, the target's normal velocity there, in [m/s].
         effective_mass: :math:`m_n` at the landing configuration in [kg].
-        pull_min: :math:`g_{min}` in [m/s²] over :math:`[t_0, t_d]`.
-        pull_max: :math:`g_{max}` in [m/s²].
-        rebound_ratio: :math:`e\rho`, bound on the ratio of successive rebound velocities.
+        pull_min: Smallest pull towards the surface in [m/s²] of the tail bound: kd once
+            the target rests, or :math:`g_{min}` over the remaining samples when the impacts
+            accumulate before.
+        pull_max: Largest one in [m/s²] (kd, or :math:`g_{max}`).
+        rebound_ratio: Bound on the ratio of successive rebound velocities in the tail
+            (e, or :math:`e\rho`).
         jump_bound: J in [J], bound on the sum of the jumps of V over the accumulation.
         accumulation_time_bound: Bound on :math:`t_\infty - t_0` in [s] (inf if none).
         takeoff: :math:`t_d` of the first cycle.
@@ -374,9 +378,9 @@ def _check_contact(
             bound,
             math.inf,
             (
-                f"the impacts accumulate within t_inf - t0 <= {bound:.4g} s (pull towards the "
-                f"surface >= {g_min:.4g} m/s², rebound ratio <= {ratio:.4g} once they "
-                "accumulate)"
+                f"the impacts accumulate within t_inf - t0 <= {bound:.4g} s (flights followed "
+                f"until the target rests, then a pull towards the surface >= {g_min:.4g} m/s² "
+                f"and a rebound ratio <= {ratio:.4g})"
                 if math.isfinite(bound)
                 else "no finite accumulation is guaranteed: the pull towards the surface "
                 f"falls to {g_min:.4g} m/s² and a rebound does not land before t_d "
