@@ -56,6 +56,25 @@ def test_first_impact_is_where_the_approach_cubic_crosses_the_surface() -> None:
     assert check.approach_velocity == pytest.approx(velocity, rel=1e-3)
 
 
+@pytest.mark.slow
+def test_impulse_on_a_held_contact_is_the_one_the_plant_applies() -> None:
+    """Two constraints: at the wall's first impact the ground (held) takes the predicted impulse.
+
+    The plant's ground impulse over that step is the predicted impulse plus lambda_d h.
+    """
+    scene = load_scene("two_link_two_constraints")
+    wall = check_scene(scene).contacts[1]
+    assert wall.contact == "end_effector/wall"
+    assert [c.name for c in wall.conditions if c.name == "held_contacts_stay_closed"]
+    log = simulate(scene, duration=wall.first_impact + 0.01).log
+    ground, w = log.constraint_index("end_effector/ground"), log.constraint_index(wall.contact)
+    row = int(np.flatnonzero(log.impulse[:, w] > 0.0)[0])
+    h = float(log.t[row + 1] - log.t[row])  # [s]
+    lambda_d = float(log.lambda_d[row, 0])  # [N]
+    measured = float(log.impulse[row, ground]) - lambda_d * h  # [N s]
+    assert measured == pytest.approx(wall.held_impulses[0], rel=0.05)
+
+
 def test_accumulation_bound_of_an_undamped_ball_is_the_bouncing_ball_time() -> None:
     """Flights 2u/g and rebounds e u: t_inf - t0 = 2 u / (g (1 - e)) (c -> 0)."""
     u, g, e = 0.3, 9.81, 0.6

@@ -11,6 +11,8 @@ book's stability framework needs (docs/stability_check.md gives the derivation):
   :math:`\ddot x + c\dot x + kx = -g(t)`; its flights are followed exactly until the
   target rests at -d, after which the pull kd > 0 and the restitution e bound the remaining
   flights, so that the impacts accumulate within a computed :math:`t_\infty - t_0`;
+- ``held_contacts_stay_closed`` (when another contact is in its constrained phase at this
+  one's first impact): the impulse it takes and its force just after are positive;
 - ``accumulation_before_takeoff``: :math:`t_0` + that bound + the rest time ends before the
   takeoff :math:`t_d`;
 - ``positive_force``: the designed :math:`\lambda_d > 0` on the constrained phase
@@ -60,8 +62,8 @@ NOT_COMPUTED = (
     "at the surface while the law pulls towards the virtual target): measured after a run "
     "as transition_rise",
     "the departure of the contact force from lambda_d in the constrained phase, which "
-    "depends on the tracking error left at t_f: measured after a run as "
-    "min_constrained_force",
+    "depends on the tracking error left at t_f and, in discrete time, on how the controller "
+    "measures the force over impact steps: measured after a run as min_constrained_force",
     "the jumps for V(tau0) > 0: the bounds are those of the cycle tracked exactly up to tau0",
 )
 
@@ -110,8 +112,9 @@ class Condition:
     """One condition of the check.
 
     Attributes:
-        name: ``jump_bound``, ``finite_accumulation``, ``accumulation_before_takeoff`` or
-            ``positive_force``.
+        name: ``jump_bound``, ``finite_accumulation``, ``held_contacts_stay_closed`` (when
+            other contacts are in their constrained phase at this one's first impact),
+            ``accumulation_before_takeoff`` or ``positive_force``.
         holds: Whether it holds.
         value: The computed quantity (unit in ``statement``).
         limit: What it is compared with.
@@ -150,6 +153,8 @@ class ContactCheck:
         takeoff: :math:`t_d` of the first cycle.
         min_desired_force: Smallest :math:`\lambda_d` on :math:`[t_f, t_d)` in [N].
         conditions: The conditions of this contact.
+        held_impulses: Impulse [N s] of each contact held in its constrained phase at this
+            contact's first impact (empty when none is held).
     """
 
     contact: str
@@ -167,6 +172,7 @@ class ContactCheck:
     takeoff: float
     min_desired_force: float
     conditions: list[Condition]
+    held_impulses: list[float] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -312,11 +318,17 @@ def check_stability(
         "depth_min": cycle.depth_min,
         "rest_time": cycle.rest_time,
     }
-    contacts = [
-        _check_contact(controller, plant, restitutions[phase.contact], i, q_start, V1_tau0)
-        for i, phase in enumerate(cycle.contact_phases)
-    ]
-    return StabilityCheck(scene=name, gains=settings, V1_tau0=V1_tau0, contacts=contacts)
+    contacts: dict[int, ContactCheck] = {}
+    held: list[tuple[float, float, int, int]] = []  # (t_f bound, t_d, task row, contact)
+    machine = PhaseMachine(controller.task, cycle)
+    for i in sorted(range(len(cycle.contact_phases)), key=machine.approach_time):
+        restitution = restitutions[cycle.contact_phases[i].contact]
+        result = _check_contact(controller, plant, restitution, i, q_start, V1_tau0, held)
+        contacts[i] = result
+        t_f = result.first_impact + result.accumulation_time_bound + cycle.rest_time
+        held.append((t_f, result.takeoff, int(machine.coordinates[i]), i))
+    ordered = [contacts[i] for i in range(len(contacts))]
+    return StabilityCheck(scene=name, gains=settings, V1_tau0=V1_tau0, contacts=ordered)
 
 
 def _check_contact(
@@ -326,8 +338,13 @@ def _check_contact(
     i: int,
     q_start: Vector,
     V1_tau0: float,
+    held: Sequence[tuple[float, float, int, int]] = (),
 ) -> ContactCheck:
-    """The quantities and conditions of declared contact ``i`` in the first cycle."""
+    """The quantities and conditions of declared contact ``i`` in the first cycle.
+
+    ``held`` lists the (t_f bound, t_d, task row, contact) of the contacts checked before: those in
+    their constrained phase at this contact's first impact stay closed through its impacts.
+    """
     task, cycle, gains = controller.task, controller.cycle, controller.gains
     gamma1, gamma2, e = float(gains.gamma1), float(gains.gamma2), float(restitution)
     machine = PhaseMachine(task, cycle)
@@ -359,7 +376,9 @@ def _check_contact(
     t0, X0, v0 = float(t[k0]), samples[k0, 0].copy(), float(samples[k0, 1, j])
     X0[j] = 0.0
     q_land = _landing_configuration(controller, plant, X0, t0, q_start)
-    m_n, jump = _impact(controller, plant, q_land, j, v0, e)
+    kept = [(contact, row) for t_f, t_off, row, contact in held if t_f < t0 < t_off]
+    rows = [row for _, row in kept]
+    m_n, jump, held_impulses, s_jump, J = _impact(controller, plant, q_land, j, v0, e, rows)
     reduced = _ReducedNormal(gamma1 / m_n, gamma2, e, t[k0:], samples[k0:, :, j])
     bound, g_min, g_max, ratio = reduced.accumulation_bound(t0, v0, tau0 + cycle.approach_time)
     conditions = [
@@ -379,8 +398,8 @@ def _check_contact(
             math.inf,
             (
                 f"the impacts accumulate within t_inf - t0 <= {bound:.4g} s (flights followed "
-                f"until the target rests, then a pull towards the surface >= {g_min:.4g} m/s² "
-                f"and a rebound ratio <= {ratio:.4g})"
+                f"exactly, then a pull towards the surface >= {g_min:.4g} m/s² and a rebound "
+                f"ratio <= {ratio:.4g} bound the rest)"
                 if math.isfinite(bound)
                 else "no finite accumulation is guaranteed: the pull towards the surface "
                 f"falls to {g_min:.4g} m/s² and a rebound does not land before t_d "
@@ -389,6 +408,23 @@ def _check_contact(
             used,
         ),
     ]
+    if rows:
+        forces = _held_forces(controller, plant, q_land, J, rows, s_jump, t0, kept)
+        names = ", ".join(task.names[row] for row in rows)
+        stays_closed = bool(held_impulses.min() >= 0.0 and forces.min() > 0.0)
+        conditions.append(
+            Condition(
+                "held_contacts_stay_closed",
+                stays_closed,
+                float(forces.min()),
+                0.0,
+                f"the first impact keeps {names} (in its constrained phase) closed: impulse "
+                f"{', '.join(f'{p:.4g}' for p in held_impulses)} N s >= 0 and force just after "
+                f"it {', '.join(f'{f:.4g}' for f in forces)} N > 0"
+                + ("" if stays_closed else "; it opens, and the bounds above assume it does not"),
+                {"gamma1": gamma1, "force_gain": float(gains.force_gain), "restitution": e},
+            )
+        )
     t_f = t0 + bound + cycle.rest_time
     conditions.append(
         Condition(
@@ -415,7 +451,7 @@ def _check_contact(
     )
     return ContactCheck(
         contact, e, depth, tau0, t0, v0, m_n, g_min, g_max, ratio, jump, bound, t_d,
-        min_force, conditions,
+        min_force, conditions, held_impulses.tolist(),
     )  # fmt: skip
 
 
@@ -453,25 +489,79 @@ class _Point:
         return (self.point, *([np.zeros(3)] * order))
 
 
+def _held_forces(
+    controller: _Controller,
+    plant: RobotModel,
+    q: Vector,
+    J: Vector,
+    rows: Sequence[int],
+    s_jump: Vector,
+    t0: float,
+    kept: Sequence[tuple[int, int]],
+) -> Vector:
+    r"""Contact forces [N] of the held rows just after another contact's first impact, (h,).
+
+    On the held rows s = 0 and :math:`\dot s = 0`, so the closed loop
+    :math:`\bar M\dot s + \bar C s + \gamma_1 s = (1 + K_f)(\lambda - \lambda_d)` gives
+    :math:`\lambda_h = \lambda_{d,h} - \bar M_{hF}\bar M_{FF}^{-1}\gamma_1 s_F / (1 + K_f)`
+    with F the other rows, where s is the jump of the impact (C̄ s neglected) and
+    :math:`\bar M = (J M^{-1} J^T)^{-1}`.
+    """
+    gains, cycle = controller.gains, controller.cycle
+    M_task = np.linalg.inv(J @ np.linalg.solve(plant.mass_matrix(q), J.T))  # [kg]
+    free = [row for row in range(J.shape[0]) if row not in rows]
+    s_dot = -np.linalg.solve(M_task[np.ix_(free, free)], float(gains.gamma1) * s_jump[free])
+    push = M_task[np.ix_(list(rows), free)] @ s_dot / (1.0 + float(gains.force_gain))  # [N]
+    machine = PhaseMachine(controller.task, cycle)
+    desired = np.array(
+        [cycle.desired_force(cycle.contact_phases[i], t0, machine.takeoff_time(i)) for i, _ in kept]
+    )
+    return desired + push
+
+
 def _impact(
-    controller: _Controller, plant: RobotModel, q: Vector, j: int, v0: float, e: float
-) -> tuple[float, float]:
-    r"""Effective mass :math:`m_n` [kg] and V after the first impact [J] at ``q``.
+    controller: _Controller,
+    plant: RobotModel,
+    q: Vector,
+    j: int,
+    v0: float,
+    e: float,
+    held: Sequence[int] = (),
+) -> tuple[float, float, Vector, Vector, Vector]:
+    r"""Effective mass, V after the first impact, held impulses, jump of s, task Jacobian.
+
+    Returns :math:`m_n` [kg], V [J], the held rows' impulses [N s] (h,), the jump
+    :math:`J\Delta\dot q` of the task velocity, so of s on the (unclipped) target [m/s] (m,),
+    and J (m, nv) at ``q``.
 
     Before it the robot tracks the target exactly; after it V is built on the reference
     clipped at the surface: :math:`s_q^+ = J^+ e_j v_0 + \Delta\dot q`,
-    :math:`\Delta\dot q = -(1 + e) M_p^{-1} J_n^T m_n v_0` (Newton's law on the plant).
+    :math:`\Delta\dot q = -(1 + e) W J_n^T m_n v_0` (Newton's law on the plant), with
+    :math:`m_n = (J_n W J_n^T)^{-1}` and W the plant's inverse inertia :math:`M^{-1}`, or, with
+    the task rows ``held`` closed through the impact, :math:`M^{-1}` restricted to their
+    tangent space: :math:`W = M^{-1} - M^{-1} J_h^T (J_h M^{-1} J_h^T)^{-1} J_h M^{-1}`; the
+    impulses the held rows then take, :math:`P_h = -(J_h M^{-1} J_h^T)^{-1} J_h M^{-1} J_n^T P_n`
+    (shape (h,)), must be >= 0 for them to stay closed.
     """
     task = controller.task
     J = task.A @ plant.frame_jacobian(q, task.frame)[:3]  # (m, nv)
     J_n = J[j]
-    M_plant = plant.mass_matrix(q)
-    m_n = 1.0 / float(J_n @ np.linalg.solve(M_plant, J_n))  # [kg]
-    jump_velocity = -(1.0 + e) * np.linalg.solve(M_plant, J_n) * m_n * v0  # [rad/s]
+    W = np.linalg.inv(plant.mass_matrix(q))  # [1/kg], mixed units
+    held_impulses = np.zeros(0)
+    if held:
+        J_h = J[list(held)]
+        W_Jt = W @ J_h.T
+        coupling = np.linalg.solve(J_h @ W_Jt, W_Jt.T)  # (J_h W J_h^T)^-1 J_h W, (h, nv)
+        W = W - W_Jt @ coupling
+    m_n = 1.0 / float(J_n @ W @ J_n)  # [kg]
+    impulse = -(1.0 + e) * m_n * v0  # P_n > 0 [N s]
+    if held:  # what the held rows must take for their velocity to stay 0: -(...)^-1 J_h W J_n^T P_n
+        held_impulses = -(coupling @ J_n) * impulse  # [N s]
+    jump_velocity = (W @ J_n) * impulse  # [rad/s]
     J_pinv = np.linalg.solve(J @ J.T, J).T
     s_q = J_pinv[:, j] * v0 + jump_velocity
     M = controller.robot.mass_matrix(q)
-    return m_n, float(0.5 * s_q @ M @ s_q)
+    return m_n, float(0.5 * s_q @ M @ s_q), held_impulses, J @ jump_velocity, J
 
 
 class _ReducedNormal:
@@ -524,14 +614,29 @@ class _ReducedNormal:
         return time - t0 + _tail(u, g, self.c, self.e), g, g, self.e
 
     def _bounded_tail(self, time: float, index: int, u: float) -> tuple[float, ...]:
-        g_min, g_max = float(self.pull[index:].min()), float(self.pull[index:].max())
-        if not g_min > 0.0:
-            return math.inf, g_min, g_max, math.inf
-        height = u**2 / (2.0 * g_min)  # [m]
-        ratio = self.e * math.sqrt((g_max + self.k * height) / g_min)
-        if not ratio < 1.0:
-            return math.inf, g_min, g_max, ratio
-        return time - float(self.t[0]) + _tail(u, g_min, self.c, ratio), g_min, g_max, ratio
+        r"""The bound once the impacts accumulate at sample ``index``, before the target rests.
+
+        Over a window of W seconds the pull lies in :math:`[g_{min}, g_{max}]`; if the flights
+        bounded with those values (rebound ratio :math:`e\sqrt{(g_{max} + kH)/g_{min}}`) end
+        within W, every one of them starts and ends in the window, so the bound holds. W
+        doubles from 1 ms until it does, or the samples run out (inf).
+        """
+        window, rate = 1e-3, 1.0 / float(self.t[1] - self.t[0])  # [s], samples per [s]
+        g_min = g_max = ratio = math.nan
+        while True:
+            stop = index + int(window * rate) + 1
+            pull = self.pull[index:stop]
+            g_min, g_max = float(pull.min()), float(pull.max())
+            if g_min > 0.0:
+                height = u**2 / (2.0 * g_min)  # [m]
+                ratio = self.e * math.sqrt((g_max + self.k * height) / g_min)
+                if ratio < 1.0:
+                    tail = _tail(u, g_min, self.c, ratio)
+                    if tail <= window:
+                        return time - float(self.t[0]) + tail, g_min, g_max, ratio
+            if stop >= self.pull.size:
+                return math.inf, g_min, g_max, ratio
+            window *= 2.0
 
     def _landing(self, index: int, u: float) -> tuple[int, float] | None:
         """Sample and velocity [m/s] of the landing of a flight launched at ``u`` [m/s].
@@ -652,7 +757,7 @@ def compare_with_run(check: StabilityCheck, log: Log) -> dict[str, Any]:
         cycles = []
         for cycle in report.cycles:
             measured = {
-                "impact_jumps": cycle.impact_jumps,
+                "impact_jumps": cycle.contact_impact_jumps[i],
                 "accumulation_time": cycle.accumulation_time[i],
                 "first_impact_velocity": cycle.first_impact_velocity[i],
                 "min_constrained_force": cycle.min_constrained_force[i],
@@ -662,7 +767,7 @@ def compare_with_run(check: StabilityCheck, log: Log) -> dict[str, Any]:
                     "index": cycle.index,
                     "V_tau0": cycle.V_tau0,
                     **{key: _json(value) for key, value in measured.items()},
-                    "jump_bound_holds": cycle.impact_jumps <= contact.jump_bound,
+                    "jump_bound_holds": cycle.contact_impact_jumps[i] <= contact.jump_bound,
                     "accumulation_bound_holds": _at_most(
                         measured["accumulation_time"], contact.accumulation_time_bound
                     ),

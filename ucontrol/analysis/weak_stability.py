@@ -45,6 +45,8 @@ class CycleStability:
         V_end: V at the last row of the cycle (just before :math:`\tau_0^{k+1}`).
         first_impact_velocity: Per declared contact, its normal velocity at the start of the
             step of its first impact in [m/s] (< 0; NaN without impact).
+        contact_impact_jumps: Per declared contact, the sum of the jumps of V over the steps
+            of its impacts before its :math:`t_f` (signed).
         accumulation_time: Per declared contact, from the start of the step of its first
             impact to the end of the step of its last impact before :math:`t_f`, in [s]
             (NaN without :math:`t_f`).
@@ -62,6 +64,7 @@ class CycleStability:
     omega_max_rise: float
     V_end: float
     first_impact_velocity: list[float]
+    contact_impact_jumps: list[float]
     accumulation_time: list[float]
     min_constrained_force: list[float]
 
@@ -134,17 +137,20 @@ def _cycle(log: Log, cycle: CycleEvents) -> CycleStability:
 
 
 def _contact_measures(log: Log, cycle: CycleEvents) -> dict[str, list[float]]:
-    """First-impact velocity, accumulation time and constrained force of each contact."""
+    """First-impact velocity, jumps of V, accumulation time and constrained force per contact."""
     columns = [log.constraint_index(name) for name in log.metadata["controller_contacts"]]
     impacts = impact_mask(log)
     dt = np.diff(log.t, append=log.t[-1])  # length of the step from each row [s]
     rows = np.arange(cycle.start, cycle.stop)
-    velocity, accumulation, force = [], [], []
+    velocity, jumps, accumulation, force = [], [], [], []
+    last_row = len(log) - 1
     for i, column in enumerate(columns):
         t_0, t_f = cycle.first_impact[i], cycle.accumulation_end[i]
         end = t_f if math.isfinite(t_f) else math.inf  # [s]
         hits = rows[impacts[rows, column] & (log.t[rows] < end)]
         velocity.append(float(log.normal_velocity[hits[0], column]) if hits.size else math.nan)
+        steps = hits[hits < last_row]
+        jumps.append(float((log.V[steps + 1] - log.V[steps]).sum()))
         if hits.size and math.isfinite(t_0) and math.isfinite(t_f):
             last = hits[-1]
             accumulation.append(float(log.t[last] + dt[last] - log.t[hits[0]]))
@@ -154,6 +160,7 @@ def _contact_measures(log: Log, cycle: CycleEvents) -> dict[str, list[float]]:
         force.append(float(log.contact_force[held, i].min()) if held.size else math.nan)
     return {
         "first_impact_velocity": velocity,
+        "contact_impact_jumps": jumps,
         "accumulation_time": accumulation,
         "min_constrained_force": force,
     }
