@@ -1,10 +1,13 @@
-"""Command line: ``ucontrol run``, ``convergence``, ``bench``, ``view`` and ``plot``.
+"""Command line: ``ucontrol run``, ``check``, ``convergence``, ``bench``, ``view`` and ``plot``.
 
-``run`` simulates a scene, ``convergence`` measures error against run time, ``bench`` times its
+``run`` simulates a scene, ``check`` evaluates the weak-stability conditions of its Brogliato
+cycle before a run, ``convergence`` measures error against run time, ``bench`` times its
 step against Pinocchio's ADMM and PGS loops, ``view`` replays a saved run in meshcat (or exports
 it as HTML) and ``plot`` draws its figures:
 
 ``ucontrol run [SCENE] --out DIR [--dt H] [--duration T] [--integrator NAME] [--view]``;
+``ucontrol check [SCENE] [--set KEY=VALUE ...] [--V1-tau0 J] [--run DIR]`` (exit status 1 when
+a condition fails);
 ``ucontrol convergence [SCENE] --out DIR [--duration T] [--dts H ...] [--tolerances ...]``;
 ``ucontrol bench [SCENE] [--steps N] [--repeats R] [--warmup W] [--dt H] [--out FILE]``;
 ``ucontrol view DIR [--scene FILE] [--html FILE]``; ``ucontrol plot DIR [--out FIGURES]``.
@@ -96,6 +99,41 @@ def _parser() -> argparse.ArgumentParser:
         "--view",
         action="store_true",
         help="draw the run live in meshcat (in real time, once a browser has the viewer open)",
+    )
+    check = commands.add_parser(
+        "check",
+        help="check the weak-stability conditions of a scene's Brogliato cycle before a run "
+        "(exit status 1 when one fails)",
+        description="Evaluate, for the scene's desired cycle and gains, the conditions of the "
+        "book's weak stability over cycles (ch. 8, Lemma 8.1): the bound on the jumps of V over "
+        "an accumulation of impacts, the finite accumulation and its time bound before the "
+        "takeoff, a positive desired force in the constrained phase. Prints each condition "
+        "with its numbers; exit status 0 when all hold, 1 when one fails, 2 on bad input "
+        "(docs/stability_check.md).",
+    )
+    check.add_argument("scene", nargs="?", help=_SCENE_HELP)
+    check.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="set a scene key, as `ucontrol run --set`; repeatable",
+    )
+    check.add_argument(
+        "--V1-tau0",
+        type=float,
+        default=0.0,
+        metavar="J",
+        help="V1 at the start of the approach in [J], which sets the virtual depth (default 0: "
+        "the cycle tracked exactly)",
+    )
+    check.add_argument(
+        "--run",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="a run directory of the scene: write the bounds beside the quantities measured on "
+        "its cycles into DIR/summary.json (key stability_check)",
     )
     study = commands.add_parser(
         "convergence",
@@ -282,6 +320,39 @@ def _run(args: argparse.Namespace) -> int:
         _wait_for_interrupt()
         server.close()
     return 0
+
+
+def _check(args: argparse.Namespace) -> int:
+    """``ucontrol check``: the a-priori weak-stability check, optionally beside a run."""
+    import json
+
+    from ucontrol.analysis.stability_check import (
+        EXIT_CONDITION_FAILS,
+        check_scene,
+        compare_with_run,
+    )
+    from ucontrol.campaign.overrides import scene_with_overrides
+    from ucontrol.saved_run import SavedRun
+    from ucontrol.scene import load_scene
+
+    scene = scene_with_overrides(args.scene, args.set) if args.set else load_scene(args.scene)
+    result = check_scene(scene, V1_tau0=args.V1_tau0)
+    print(result.report())
+    if args.run is not None:
+        run = SavedRun.load(args.run, scene.source)
+        path = args.run / "summary.json"
+        summary = json.loads(path.read_text()) if path.is_file() else {}
+        summary["stability_check"] = compare_with_run(result, run.log)
+        path.write_text(json.dumps(summary, indent=2) + "\n")
+        print(f"wrote the bounds beside the measured cycles into {path}")
+    for failure in result.failures:
+        print(
+            f"ucontrol: condition {failure.name} fails: {failure.statement} ("
+            + ", ".join(f"{key} = {value:g}" for key, value in failure.gains.items())
+            + ")",
+            file=sys.stderr,
+        )
+    return 0 if result.holds else EXIT_CONDITION_FAILS
 
 
 def _live_viewer(scene: Scene) -> tuple[MeshcatServer, LiveViewer]:
@@ -480,6 +551,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = _parser().parse_args(argv)
         commands = {
             "run": _run,
+            "check": _check,
             "convergence": _convergence,
             "bench": _bench,
             "view": _view,

@@ -15,6 +15,7 @@ floor that error leaves once the cycle is periodic; with a smallest virtual dept
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from itertools import pairwise
 from typing import Any
@@ -23,7 +24,7 @@ import numpy as np
 
 from ucontrol.analysis.cycles import CycleEvents, cycle_events, finite_or_none
 from ucontrol.analysis.impacts import impact_mask
-from ucontrol.control.phase import TRANSITION_PHASES
+from ucontrol.control.phase import TRANSITION_PHASES, Phase
 from ucontrol.log import Log
 
 
@@ -42,6 +43,15 @@ class CycleStability:
         omega_max_rise: Largest increase of V above its running minimum within one
             :math:`\Omega` phase of the cycle (0 when V never increases there).
         V_end: V at the last row of the cycle (just before :math:`\tau_0^{k+1}`).
+        first_impact_velocity: Per declared contact, its normal velocity at the start of the
+            step of its first impact in [m/s] (< 0; NaN without impact).
+        contact_impact_jumps: Per declared contact, the sum of the jumps of V over the steps
+            of its impacts before its :math:`t_f` (signed).
+        accumulation_time: Per declared contact, from the start of the step of its first
+            impact to the end of the step of its last impact before :math:`t_f`, in [s]
+            (NaN without :math:`t_f`).
+        min_constrained_force: Per declared contact, its smallest measured contact force over
+            the rows of its constrained phase in [N] (NaN without one).
     """
 
     index: int
@@ -53,6 +63,10 @@ class CycleStability:
     impact_jumps: float
     omega_max_rise: float
     V_end: float
+    first_impact_velocity: list[float]
+    contact_impact_jumps: list[float]
+    accumulation_time: list[float]
+    min_constrained_force: list[float]
 
 
 @dataclass(frozen=True)
@@ -87,11 +101,7 @@ class WeakStabilityReport:
             "V_tau0_ratio": [b / a if a > 0.0 else None for a, b in pairwise(self.V_tau0)],
             "max_omega_rise": max((c.omega_max_rise for c in self.cycles), default=0.0),
             "cycles": [
-                {
-                    key: finite_or_none(value) if isinstance(value, float) else value
-                    for key, value in vars(cycle).items()
-                }
-                for cycle in self.cycles
+                {key: _json(value) for key, value in vars(cycle).items()} for cycle in self.cycles
             ],
         }
 
@@ -122,7 +132,45 @@ def _cycle(log: Log, cycle: CycleEvents) -> CycleStability:
         impact_jumps=float(rise[transiting & impacts].sum()),
         omega_max_rise=_max_rise(V, ~transiting),
         V_end=float(V[-1]),
+        **_contact_measures(log, cycle),
     )
+
+
+def _contact_measures(log: Log, cycle: CycleEvents) -> dict[str, list[float]]:
+    """First-impact velocity, jumps of V, accumulation time and constrained force per contact."""
+    columns = [log.constraint_index(name) for name in log.metadata["controller_contacts"]]
+    impacts = impact_mask(log)
+    dt = np.diff(log.t, append=log.t[-1])  # length of the step from each row [s]
+    rows = np.arange(cycle.start, cycle.stop)
+    velocity, jumps, accumulation, force = [], [], [], []
+    last_row = len(log) - 1
+    for i, column in enumerate(columns):
+        t_0, t_f = cycle.first_impact[i], cycle.accumulation_end[i]
+        end = t_f if math.isfinite(t_f) else math.inf  # [s]
+        hits = rows[impacts[rows, column] & (log.t[rows] < end)]
+        velocity.append(float(log.normal_velocity[hits[0], column]) if hits.size else math.nan)
+        steps = hits[hits < last_row]
+        jumps.append(float((log.V[steps + 1] - log.V[steps]).sum()))
+        if hits.size and math.isfinite(t_0) and math.isfinite(t_f):
+            last = hits[-1]
+            accumulation.append(float(log.t[last] + dt[last] - log.t[hits[0]]))
+        else:
+            accumulation.append(math.nan)
+        held = rows[log.contact_phase[rows, i] == int(Phase.CONSTRAINED)]
+        force.append(float(log.contact_force[held, i].min()) if held.size else math.nan)
+    return {
+        "first_impact_velocity": velocity,
+        "contact_impact_jumps": jumps,
+        "accumulation_time": accumulation,
+        "min_constrained_force": force,
+    }
+
+
+def _json(value: Any) -> Any:
+    """``value`` with non-finite floats as None, lists element-wise."""
+    if isinstance(value, list):
+        return [_json(item) for item in value]
+    return finite_or_none(value) if isinstance(value, float) else value
 
 
 def _max_rise(V: np.ndarray, mask: np.ndarray) -> float:
