@@ -138,7 +138,7 @@ def probe_basin(
     from tqdm.auto import tqdm
 
     points = np.atleast_2d(np.asarray(starts, dtype=float))
-    kwargs = {"max_strides": max_strides, "tol": tol}
+    kwargs: dict[str, Any] = {"max_strides": max_strides, "tol": tol}
     bar = tqdm(total=len(points), disable=None if progress is None else not progress, unit="start")
     outcomes: list[BasinOutcome] = []
     if client is None:
