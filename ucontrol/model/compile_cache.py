@@ -7,6 +7,9 @@ Shared by :mod:`ucontrol.model.compiled_function` (one library per casadi Functi
   sub-directory ``casadi``; each library is named by the SHA-256 of what it depends on (for a
   Function: its serialized form and the casadi version) and of the compiler command, so a
   changed source is rebuilt and an unchanged one never is.
+- Notice: the first build of a process, when stderr is a terminal, says so once on it (a
+  first run compiles its scene's laws, a fraction of a second to a few seconds; later runs
+  load them).
 - Concurrency: the build of an entry holds an exclusive ``fcntl`` lock on its lock file, and
   the library is written under a temporary name then renamed (atomic on POSIX): concurrent
   processes (tests, dask workers) build it once and never load a partial file.
@@ -20,6 +23,7 @@ import os
 import shlex
 import shutil
 import subprocess
+import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -30,6 +34,8 @@ CACHE_ENV = "UCONTROL_CACHE_DIR"
 CFLAGS = ("-O1", "-fPIC", "-shared")
 #: Seconds a build may take before it is abandoned for the fallback.
 BUILD_TIMEOUT_S = 300.0
+#: Whether this process has said on the terminal that it compiles (said once).
+_announced = False
 
 
 def cache_dir() -> Path:
@@ -78,6 +84,7 @@ def build_library(
         fcntl.flock(lock, fcntl.LOCK_EX)  # one builder; the others wait, then find it built
         if library.is_file():
             return library
+        _announce(directory)
         with tempfile.TemporaryDirectory(dir=directory) as work:
             path = Path(work) / f"{stem}.c"
             path.write_text(source if isinstance(source, str) else source())
@@ -90,3 +97,16 @@ def build_library(
             )
             os.replace(target, library)  # atomic: readers see no partial library
     return library
+
+
+def _announce(directory: Path) -> None:
+    """Say once per process, on a terminal, that compiled code is being built into the cache."""
+    global _announced
+    if _announced or not sys.stderr.isatty():
+        return
+    _announced = True
+    print(
+        f"ucontrol: compiling this scene's laws into {directory} (first run only; later runs "
+        "load them)",
+        file=sys.stderr,
+    )
