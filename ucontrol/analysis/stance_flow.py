@@ -166,12 +166,18 @@ class StanceFlow:
         )
         return M, data.nle.copy(), np.vstack((normal, tangent)), drift
 
-    def acceleration(self, q: Vector, v: Vector, stance: int) -> tuple[Vector, Vector]:
-        """Joint acceleration (nv,) and the stance foot's force (normal, tangents) in [N]."""
+    def acceleration(
+        self, q: Vector, v: Vector, stance: int, tau: Vector | None = None
+    ) -> tuple[Vector, Vector]:
+        """Joint acceleration (nv,) and the stance foot's force (normal, tangents) in [N].
+
+        ``tau`` (nv,) is a generalized force [N m] or [N] on the joints, default none.
+        """
         M, h, J, drift = self._rows(q, v, stance)
         k = J.shape[0]
         kkt = np.block([[M, -J.T], [J, np.zeros((k, k))]])
-        solution = np.linalg.solve(kkt, np.concatenate((-h, -drift)))
+        force = -h if tau is None else tau - h
+        solution = np.linalg.solve(kkt, np.concatenate((force, -drift)))
         return solution[: self.robot.nv], solution[self.robot.nv :]
 
     def heel_strike(self, q: Vector, v_minus: Vector, foot: int) -> tuple[Vector, Vector]:

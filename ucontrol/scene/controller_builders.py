@@ -26,6 +26,7 @@ from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.model_uncertainty import perturbed_robot
 from ucontrol.scene.impedance_table import IMPEDANCE_KEYS, impedance_from_table
 from ucontrol.scene.juggling_table import JUGGLING_KEYS, juggling_from_table
+from ucontrol.scene.raibert_table import RAIBERT_KEYS, raibert_from_table
 
 if TYPE_CHECKING:
     from ucontrol.scene.scene_data import SceneData
@@ -51,6 +52,7 @@ _CONTROLLER_KEYS = {
     },
     "impedance": IMPEDANCE_KEYS,
     "juggling": JUGGLING_KEYS,
+    "raibert": RAIBERT_KEYS,
 }
 # Every controller may run on its own model of the scene ([controller.model]).
 _CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
@@ -198,4 +200,5 @@ _BUILDERS: dict[str, Callable[[SceneData, Mapping[str, Any]], Controller]] = {
     "brogliato": _brogliato,
     "impedance": impedance_from_table,
     "juggling": juggling_from_table,
+    "raibert": raibert_from_table,
 }
