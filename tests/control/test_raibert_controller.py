@@ -7,6 +7,7 @@ import tomllib
 import numpy as np
 import pytest
 
+from ucontrol.analysis.hop_flow import logged_apexes
 from ucontrol.campaign.overrides import apply_overrides
 from ucontrol.control.raibert_controller import RaibertController, RaibertSettings
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, UnknownKeyError
@@ -25,11 +26,7 @@ def _scene(**overrides: object) -> Scene:
 
 
 def _apexes(q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Hip heights [m] at the apexes (ż crossing 0 downwards, linear in the step) and indices."""
-    z, z_dot = q[:, 1], v[:, 1]
-    k = np.flatnonzero((z_dot[:-1] > 0.0) & (z_dot[1:] <= 0.0))
-    share = z_dot[k] / (z_dot[k] - z_dot[k + 1])
-    return z[k] + share * (z[k + 1] - z[k]), k
+    return logged_apexes(q[:, 1], v[:, 1])
 
 
 def test_fifty_hops_at_the_commanded_apex() -> None:

@@ -27,14 +27,12 @@ finite-difference Jacobian accurate to about 1e-6 (docs/legged.md).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
-from scipy.integrate import solve_ivp
 
 from ucontrol._validation import as_non_negative, as_positive
 from ucontrol.analysis.stance_flow import StanceFlow
@@ -105,7 +103,7 @@ class HopFlow:
             raise InvalidParameterError(
                 "constraints", constraints.names, "exactly one point contact (the foot)"
             )
-        self.stance = StanceFlow(constraints, rtol=rtol, atol=atol)
+        self.stance = StanceFlow(constraints, rtol=rtol, atol=atol, max_duration=max_duration)
         robot = constraints.robot
         joint = robot.model.joints[robot.joint_id(height_joint)]
         if joint.nv != 1:
@@ -188,14 +186,14 @@ class HopFlow:
         while t < self.max_duration:
             # flight: to the apex after a stance, or to a touchdown
             if landed and section == "apex":
-                solution = self._solve(self._flight_rate, t, y, [apex, touchdown])
+                solution = self.stance.solve(self._flight_rate, t, y, [apex, touchdown])
                 if solution.t_events[0].size:
                     q_end, v_end = self._split(solution.y_events[0][0])
                     return Hop(float(solution.t_events[0][0]), q_end, v_end, stance_time)
                 fired = solution.t_events[1]
                 y_event = solution.y_events[1]
             else:
-                solution = self._solve(self._flight_rate, t, y, [touchdown])
+                solution = self.stance.solve(self._flight_rate, t, y, [touchdown])
                 fired, y_event = solution.t_events[0], solution.y_events[0]
             if not fired.size:
                 break
@@ -208,7 +206,7 @@ class HopFlow:
                 return Hop(t, y[:nv].copy(), v_plus, stance_time)
             # stance: to the lift-off
             start = t
-            solution = self._solve(stance_rate, t, y, [lift_off, slip])
+            solution = self.stance.solve(stance_rate, t, y, [lift_off, slip])
             if solution.t_events[1].size:
                 raise StrideError(float(solution.t_events[1][0]), "the foot would slip")
             if not solution.t_events[0].size:
@@ -217,23 +215,23 @@ class HopFlow:
             stance_time, landed = t - start, True
         raise StrideError(self.max_duration, f"no {section} (the section is never crossed)")
 
-    def _solve(
-        self, rate: Callable[[float, Vector], Vector], t: float, y: Vector, events: list[Any]
-    ) -> Any:
-        """solve_ivp from (t, y) to :attr:`max_duration` or the first terminal event."""
-        solution = solve_ivp(
-            rate,
-            (t, self.max_duration),
-            y,
-            method="DOP853",
-            rtol=self.rtol,
-            atol=self.atol,
-            events=events,
-        )
-        if solution.status == -1:
-            raise StrideError(float(solution.t[-1]), f"solve_ivp failed: {solution.message}")
-        return solution
-
     def _split(self, y: Vector) -> tuple[Vector, Vector]:
         nv = self.robot.nv
         return y[:nv].copy(), y[nv:].copy()
+
+
+def logged_apexes(height: Vector, rate: Vector) -> tuple[Vector, NDArray[np.int64]]:
+    """The apexes of a logged run: the body's height where its vertical rate crosses 0 down.
+
+    Args:
+        height: The body's height at each sample in [m], shape (n,).
+        rate: Its vertical velocity in [m/s], shape (n,).
+
+    Returns:
+        The heights at the crossings [m], linear between the two samples around each, and the
+        index of the sample before each crossing.
+    """
+    height, rate = np.asarray(height, dtype=float), np.asarray(rate, dtype=float)
+    k = np.flatnonzero((rate[:-1] > 0.0) & (rate[1:] <= 0.0))
+    share = rate[k] / (rate[k] - rate[k + 1])
+    return height[k] + share * (height[k + 1] - height[k]), k

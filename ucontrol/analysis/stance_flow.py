@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -238,17 +239,7 @@ class StanceFlow:
         lift_off.terminal, lift_off.direction = True, -1.0  # type: ignore[attr-defined]
         slip.terminal, slip.direction = True, -1.0  # type: ignore[attr-defined]
         events = [strike_event(i) for i in others] + [lift_off, slip]
-        solution = solve_ivp(
-            rate,
-            (0.0, self.max_duration),
-            y0,
-            method="DOP853",
-            rtol=self.rtol,
-            atol=self.atol,
-            events=events,
-        )
-        if solution.status == -1:
-            raise StrideError(float(solution.t[-1]), f"solve_ivp failed: {solution.message}")
+        solution = self.solve(rate, 0.0, y0, events)
         fired = [k for k, times in enumerate(solution.t_events) if len(times)]
         if not fired:
             raise StrideError(
@@ -266,6 +257,27 @@ class StanceFlow:
         v_plus, impulse = self.heel_strike(q_end, v_minus, foot)
         self._check_strike(q_end, v_plus, impulse, stance, foot, t_end)
         return Stride(t_end, q_end, v_plus, v_minus, foot, impulse)
+
+    def solve(
+        self, rate: Callable[[float, Vector], Vector], t: float, y: Vector, events: list[Any]
+    ) -> Any:
+        """solve_ivp (DOP853) from (t [s], y) to :attr:`max_duration` or a terminal event.
+
+        Raises:
+            StrideError: solve_ivp failed.
+        """
+        solution = solve_ivp(
+            rate,
+            (t, self.max_duration),
+            y,
+            method="DOP853",
+            rtol=self.rtol,
+            atol=self.atol,
+            events=events,
+        )
+        if solution.status == -1:
+            raise StrideError(float(solution.t[-1]), f"solve_ivp failed: {solution.message}")
+        return solution
 
     def _behind(self, q: Vector, foot: int, stance: int) -> float:
         """How far ``foot`` is behind the stance foot along :attr:`ahead` in [m] (0 if ahead)."""

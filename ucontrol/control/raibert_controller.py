@@ -14,7 +14,8 @@ plant's impulses; the stance sub-phases from the leg's own rate and length.
   :math:`\psi_d - \theta` with :math:`\sin\psi_d = -x_f / l_0`.
 - **Stance, compression** (:math:`\dot l \le 0`): the spring alone.
 - **Stance, thrust** (:math:`\dot l > 0`, :math:`l < l_0`): the spring plus a thrust
-  :math:`F = (E_d - E) / (l_0 - l)`, clipped to :math:`[0, F_{max}]`, with the vertical energy
+  :math:`F = (E_d - E) / (l_0 - l)`, clipped to :math:`[-F_{max}, F_{max}]` (a negative
+  thrust brakes a hop that is too high), with the vertical energy
   :math:`E = m g\, l\cos\psi + \tfrac12 m \dot z^2 + \tfrac12 k (l_0 - l)^2` of the mass m above
   the leg joint over the foot. Along a vertical stance :math:`\dot E = F \dot l` makes
   :math:`(E_d - E)/(l_0 - l)` constant: the thrust is constant, fixed by the bottom state,
@@ -53,7 +54,7 @@ if TYPE_CHECKING:
 
 #: Phase codes written to the log's ``phase`` field.
 FLIGHT, COMPRESSION, THRUST, EXTENDED = 0, 1, 2, 3
-#: Largest |sin| of the commanded leg angle (about 44 degrees).
+#: Largest absolute sine of the commanded leg angle (about 44 degrees).
 _MAX_SIN_PSI = 0.7
 
 
@@ -74,7 +75,7 @@ class RaibertSettings:
         hip_kd: Flight hip damping in [N m s/rad].
         attitude_kp: Stance attitude stiffness in [N m/rad].
         attitude_kd: Stance attitude damping in [N m s/rad].
-        max_thrust: Largest thrust F in [N].
+        max_thrust: Largest thrust :math:`|F|` in [N].
         contact_gap: Foot gap in [m] at or below which the foot counts as on the ground.
     """
 
@@ -225,7 +226,7 @@ class RaibertController:
         z_off = s.leg_length * cos_psi  # hip height at full extension [m]
         rho = (m + self.foot_mass) / m
         target = m * g * z_off + m * g * (s.apex - z_off) * rho**2  # [J]
-        return float(np.clip((target - energy) / (s.leg_length - l), 0.0, s.max_thrust))
+        return float(np.clip((target - energy) / (s.leg_length - l), -s.max_thrust, s.max_thrust))
 
     def prepare_log(self, log: Log) -> None:
         """Declare ``phase`` (0 flight, 1 compression, 2 thrust, 3 extended)."""
