@@ -13,13 +13,17 @@ Jacobian find_gait computed).
 
 from __future__ import annotations
 
+import tomllib
+
 import numpy as np
 import pytest
 
 from ucontrol.analysis.gait import find_gait
 from ucontrol.analysis.hop_flow import HopFlow
-from ucontrol.exceptions import InvalidParameterError, StrideError
-from ucontrol.scene import load_scene
+from ucontrol.campaign.overrides import apply_overrides
+from ucontrol.exceptions import InvalidParameterError, JointNotFoundError, StrideError
+from ucontrol.scene import Scene, load_scene
+from ucontrol.scene.builtin_scenes import builtin_scene
 
 #: |multiplier - closed loop's| accepted (issue 28: 1e-4).
 MULTIPLIER_TOLERANCE = 1e-4
@@ -99,3 +103,35 @@ def test_an_apex_never_reached_is_a_stride_error(hopper) -> None:  # type: ignor
     short = HopFlow(flow.constraints, flow.law, max_duration=0.3)
     with pytest.raises(StrideError, match="never crossed"):
         short.apex(np.array([0.0, 0.8, 0.0, 0.0, 0.5]), np.zeros(5))
+
+
+def _flow_with_friction(mu: float) -> HopFlow:
+    path = builtin_scene("hopper")
+    table = apply_overrides(tomllib.loads(path.read_text()), {"contacts.0.friction": mu})
+    scene = Scene.from_dict(table, base_dir=path.parent)
+    return HopFlow(scene.constraints, scene.build_controller())
+
+
+def test_a_touchdown_outside_the_cone_is_a_stride_error() -> None:
+    """At 1 m/s the touchdown's |P_t| / P_n is 0.49: mu = 0.3 cannot hold it."""
+    flow = _flow_with_friction(0.3)
+    with pytest.raises(StrideError, match="not a sticking one"):
+        flow.apex(np.array([0.0, 0.8, 0.0, 0.0, 0.5]), np.array([1.0, 0.0, 0.0, 0.0, 0.0]))
+
+
+def test_a_slipping_stance_is_a_stride_error() -> None:
+    """A pitch rate of 0.5 rad/s: the stance attitude torque pulls the foot out of mu = 0.2."""
+    flow = _flow_with_friction(0.2)
+    with pytest.raises(StrideError, match="slip"):
+        flow.apex(np.array([0.0, 0.8, 0.0, 0.0, 0.5]), np.array([0.0, 0.0, 0.5, 0.0, 0.0]))
+
+
+def test_a_flow_needs_one_foot_and_a_prismatic_height(hopper) -> None:  # type: ignore[no-untyped-def]
+    flow, _, _ = hopper
+    walker = load_scene("compass_walker")
+    with pytest.raises(InvalidParameterError, match="exactly one point contact"):
+        HopFlow(walker.constraints, flow.law)
+    with pytest.raises(JointNotFoundError, match="free"):
+        HopFlow(flow.constraints, flow.law, height_joint="free")
+    with pytest.raises(InvalidParameterError, match="prismatic"):
+        HopFlow(flow.constraints, flow.law, height_joint="pitch")

@@ -87,3 +87,11 @@ def test_bad_tables_are_refused() -> None:
 def test_a_passive_hip_is_refused() -> None:
     with pytest.raises(InvalidParameterError, match="hip"):
         _scene(**{"robot.passive": ["x", "z", "pitch", "hip"]}).build_controller()
+
+
+def test_a_joint_of_several_coordinates_is_refused() -> None:
+    ball = load_scene("free_ball").robot
+    with pytest.raises(InvalidParameterError, match="root_joint"):
+        RaibertController(
+            ball, contact=0, settings=RaibertSettings(apex=0.8), joints=("root_joint",) * 5
+        )

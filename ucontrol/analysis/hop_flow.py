@@ -84,8 +84,8 @@ class HopFlow:
             the lift-off.
 
     Raises:
-        InvalidParameterError: Not exactly one contact, or the height joint has more than one
-            velocity coordinate (a :class:`JointNotFoundError` if it does not exist).
+        InvalidParameterError: Not exactly one contact, or the height joint is not prismatic.
+        JointNotFoundError: The height joint does not exist.
     """
 
     def __init__(
@@ -106,7 +106,7 @@ class HopFlow:
         self.stance = StanceFlow(constraints, rtol=rtol, atol=atol, max_duration=max_duration)
         robot = constraints.robot
         joint = robot.model.joints[robot.joint_id(height_joint)]
-        if joint.nv != 1:
+        if not joint.shortname().startswith("JointModelP"):  # PX, PY, PZ, PrismaticUnaligned
             raise InvalidParameterError("height_joint", height_joint, "a prismatic joint")
         self._height = int(joint.idx_v)
         self.constraints = constraints
