@@ -13,8 +13,8 @@ from ucontrol.simulate import SimulationResult
 
 #: The scene's commanded apex above the ground [m] (robots/hopper.toml).
 COMMAND = 0.8
-#: Hops left out of the apex error: the recovery from the push or the step.
-SETTLING_HOPS = 3
+#: Hops the apex error is taken over: the last ones, after the recovery from a push or a step.
+LAST_HOPS = 3
 #: |pitch| [rad] beyond which the hopper has fallen.
 FALLEN_PITCH = 0.6
 
@@ -39,8 +39,8 @@ def hops(result: SimulationResult) -> int:
 
 
 def apex_error(result: SimulationResult) -> float:
-    """Largest |apex - command| / command after the settling hops (NaN with too few hops)."""
-    apexes = apexes_above_ground(result)[SETTLING_HOPS:]
+    """Largest |apex - command| / command over the last hops (NaN without a hop)."""
+    apexes = apexes_above_ground(result)[-LAST_HOPS:]
     if apexes.size == 0:
         return float("nan")
     return float(np.max(np.abs(apexes - COMMAND)) / COMMAND)
