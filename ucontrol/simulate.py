@@ -138,6 +138,7 @@ def simulate(
     try:
         loop.share_plant_data()
         for k in range(n_steps):
+            loop.push(k)
             state = loop.sample(k * h)
             if k % hold == 0:
                 loop.control(k * h, state)
@@ -145,6 +146,7 @@ def simulate(
             if k % 1000 == 0:
                 last_checkpoint = _report_progress(bar, k + 1, log, out_dir, last_checkpoint)
         k = n_steps
+        loop.push(n_steps)
         loop.sample(n_steps * h)
         loop.finish()
         if bar is not None:
@@ -256,6 +258,11 @@ class _ClosedLoop:
             self.actuators = Actuators(scene.actuators, robot, period)
         self.measured_q, self.measured_v, self.commanded_u = self.q, self.v, self.u
         self.plant_model = robot.model
+        # The scene's velocity changes by sample index (the links' coordinates come first).
+        self.pushes: dict[int, NDArray[np.float64]] = {}
+        for push in scene.pushes:
+            k = push.sample(integrator.dt)
+            self.pushes[k] = self.pushes.get(k, np.zeros(robot.nv)) + push.velocity
         self.shares_plant_data = False
 
     def share_plant_data(self) -> None:
@@ -281,6 +288,13 @@ class _ClosedLoop:
         if self.shares_plant_data:
             self.controller.use_plant_data(None)  # type: ignore[attr-defined]
             self.shares_plant_data = False
+
+    def push(self, k: int) -> None:
+        """Add the pushes of sample k to the velocity (the scene's ``[[pushes]]``)."""
+        change = self.pushes.get(k)
+        if change is not None:
+            self.v = self.v.copy()
+            self.v[: self.nv] += change
 
     def sample(self, t: float) -> PlantEvaluation:
         """Evaluate the plant at t [s] and open the log row of that sample."""
@@ -489,23 +503,27 @@ def _report_physics(scene: Scene, log: Log, summary: dict[str, Any]) -> None:
     plastic = summary.get("n_plastic_steps", 0)
     if plastic and restitutions.size and np.all(restitutions == 1.0):
         warnings.warn(PlasticRedoWarning(plastic), stacklevel=4)
-    _report_energy_gain(log, summary)
+    dt = float(log.t[1] - log.t[0]) if len(log) > 1 else 0.0  # the run's step [s]
+    pushed = [push.sample(dt) for push in scene.pushes] if dt > 0.0 else []
+    _report_energy_gain(log, summary, pushed)
     if scene.constraints.bilateral is not None:
         _report_bilateral(scene.constraints.bilateral, log, summary)
     if summary.get("integrator") == "moreau_jean":
         _report_iteration_cap(scene.integrator.max_iter, log, summary)
 
 
-def _report_energy_gain(log: Log, summary: dict[str, Any]) -> None:
+def _report_energy_gain(log: Log, summary: dict[str, Any], pushed: list[int]) -> None:
     r"""The largest rise of the energy, net of the actuators' work, over steps without impact.
 
-    The gains :math:`E_{k+1} - E_k - W_k` of the steps without impact are accumulated and
+    The gains :math:`E_{k+1} - E_k - W_k` of the steps without impact and without a push
+    (``pushed``: the sample indices of the scene's pushes) are accumulated and
     the largest rise of that sum (after its lowest point before) is compared with
     :data:`ENERGY_GAIN_BOUND` :math:`(1 + \max_k |E_k|)` [J].
     """
     steps = max(len(log) - 1, 0)
     gain = np.diff(log.energy[: steps + 1]) - step_work(log)  # [J] per step
     gain[impact_mask(log)[:steps].any(axis=1)] = 0.0
+    gain[[k - 1 for k in pushed if 0 < k <= steps]] = 0.0  # the step that ends at a push
     accumulated = np.concatenate(([0.0], np.cumsum(gain)))
     low = np.minimum.accumulate(accumulated)
     end = int(np.argmax(accumulated - low))

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -166,12 +167,18 @@ class StanceFlow:
         )
         return M, data.nle.copy(), np.vstack((normal, tangent)), drift
 
-    def acceleration(self, q: Vector, v: Vector, stance: int) -> tuple[Vector, Vector]:
-        """Joint acceleration (nv,) and the stance foot's force (normal, tangents) in [N]."""
+    def acceleration(
+        self, q: Vector, v: Vector, stance: int, tau: Vector | None = None
+    ) -> tuple[Vector, Vector]:
+        """Joint acceleration (nv,) and the stance foot's force (normal, tangents) in [N].
+
+        ``tau`` (nv,) is a generalized force [N m] or [N] on the joints, default none.
+        """
         M, h, J, drift = self._rows(q, v, stance)
         k = J.shape[0]
         kkt = np.block([[M, -J.T], [J, np.zeros((k, k))]])
-        solution = np.linalg.solve(kkt, np.concatenate((-h, -drift)))
+        force = -h if tau is None else tau - h
+        solution = np.linalg.solve(kkt, np.concatenate((force, -drift)))
         return solution[: self.robot.nv], solution[self.robot.nv :]
 
     def heel_strike(self, q: Vector, v_minus: Vector, foot: int) -> tuple[Vector, Vector]:
@@ -232,17 +239,7 @@ class StanceFlow:
         lift_off.terminal, lift_off.direction = True, -1.0  # type: ignore[attr-defined]
         slip.terminal, slip.direction = True, -1.0  # type: ignore[attr-defined]
         events = [strike_event(i) for i in others] + [lift_off, slip]
-        solution = solve_ivp(
-            rate,
-            (0.0, self.max_duration),
-            y0,
-            method="DOP853",
-            rtol=self.rtol,
-            atol=self.atol,
-            events=events,
-        )
-        if solution.status == -1:
-            raise StrideError(float(solution.t[-1]), f"solve_ivp failed: {solution.message}")
+        solution = self.solve(rate, 0.0, y0, events)
         fired = [k for k, times in enumerate(solution.t_events) if len(times)]
         if not fired:
             raise StrideError(
@@ -260,6 +257,27 @@ class StanceFlow:
         v_plus, impulse = self.heel_strike(q_end, v_minus, foot)
         self._check_strike(q_end, v_plus, impulse, stance, foot, t_end)
         return Stride(t_end, q_end, v_plus, v_minus, foot, impulse)
+
+    def solve(
+        self, rate: Callable[[float, Vector], Vector], t: float, y: Vector, events: list[Any]
+    ) -> Any:
+        """solve_ivp (DOP853) from (t [s], y) to :attr:`max_duration` or a terminal event.
+
+        Raises:
+            StrideError: solve_ivp failed.
+        """
+        solution = solve_ivp(
+            rate,
+            (t, self.max_duration),
+            y,
+            method="DOP853",
+            rtol=self.rtol,
+            atol=self.atol,
+            events=events,
+        )
+        if solution.status == -1:
+            raise StrideError(float(solution.t[-1]), f"solve_ivp failed: {solution.message}")
+        return solution
 
     def _behind(self, q: Vector, foot: int, stance: int) -> float:
         """How far ``foot`` is behind the stance foot along :attr:`ahead` in [m] (0 if ahead)."""

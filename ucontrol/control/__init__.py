@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from ucontrol.control.phase import Event, Phase
     from ucontrol.control.phase_machine import DesiredState, PhaseMachine
     from ucontrol.control.polyline_path import PolylinePath
+    from ucontrol.control.raibert_controller import RaibertController, RaibertSettings
     from ucontrol.control.segment_path import SegmentPath
     from ucontrol.control.spline_path import SplinePath
     from ucontrol.control.task_coordinates import TaskCoordinates, TaskState
@@ -63,6 +64,8 @@ __all__ = [
     "Phase",
     "PhaseMachine",
     "PolylinePath",
+    "RaibertController",
+    "RaibertSettings",
     "SegmentPath",
     "SplinePath",
     "TaskCoordinates",
@@ -99,6 +102,8 @@ _MODULES = {
     "Phase": "ucontrol.control.phase",
     "PhaseMachine": "ucontrol.control.phase_machine",
     "PolylinePath": "ucontrol.control.polyline_path",
+    "RaibertController": "ucontrol.control.raibert_controller",
+    "RaibertSettings": "ucontrol.control.raibert_controller",
     "SegmentPath": "ucontrol.control.segment_path",
     "SplinePath": "ucontrol.control.spline_path",
     "TaskCoordinates": "ucontrol.control.task_coordinates",

@@ -31,6 +31,7 @@ from ucontrol.scene.impedance_table import (
 )
 from ucontrol.scene.juggling_table import JUGGLING_KEYS, juggling_from_table
 from ucontrol.scene.pronk_table import PRONK_KEYS, pronk_from_table
+from ucontrol.scene.raibert_table import RAIBERT_KEYS, raibert_from_table
 
 if TYPE_CHECKING:
     from ucontrol.scene.scene_data import SceneData
@@ -60,6 +61,7 @@ _CONTROLLER_KEYS = {
     "reference_spreading": {*IMPEDANCE_KEYS, *_SPREADING_KEYS},
     "juggling": JUGGLING_KEYS,
     "pronk": PRONK_KEYS,
+    "raibert": RAIBERT_KEYS,
 }
 # Every controller may run on its own model of the scene ([controller.model]).
 _CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
@@ -221,4 +223,5 @@ _BUILDERS: dict[str, Callable[[SceneData, Mapping[str, Any]], Controller]] = {
     "reference_spreading": _reference_spreading,
     "juggling": juggling_from_table,
     "pronk": pronk_from_table,
+    "raibert": raibert_from_table,
 }

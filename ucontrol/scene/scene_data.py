@@ -29,6 +29,7 @@ from ucontrol.model.inertia_check import check_inertias, check_mass_matrix
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.scene.integrator_settings import IntegratorSettings
+from ucontrol.scene.push import Push
 
 if TYPE_CHECKING:
     from ucontrol.sensors.sensor_settings import ActuatorSettings, SensorSettings
@@ -72,6 +73,7 @@ class SceneData:
         sensors: What the controller measures (noise, quantisation, velocity estimate,
             delay), or None: it reads the true state.
         actuators: Torque saturation and rate limits between controller and plant, or None.
+        pushes: Velocity changes of the robot at given times (:class:`~ucontrol.scene.push.Push`).
         source: The TOML file the scene was loaded from, or None for a scene built in code;
             :func:`ucontrol.simulate` records it in the log (``scene_path``) for replays.
     """
@@ -97,6 +99,7 @@ class SceneData:
     reference: Mapping[str, Any] | None = None
     sensors: SensorSettings | None = None
     actuators: ActuatorSettings | None = None
+    pushes: tuple[Push, ...] = ()
     source: Path | None = None
 
     def __post_init__(self) -> None:

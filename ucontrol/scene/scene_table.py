@@ -34,6 +34,7 @@ from ucontrol.model.robot_model import RobotModel
 from ucontrol.model.urdf_path import resolve_urdf
 from ucontrol.scene.controller_builders import check_controller_table
 from ucontrol.scene.integrator_settings import IntegratorSettings
+from ucontrol.scene.push import Push
 
 #: Analytic references a scene may declare in its ``[reference]`` table.
 REFERENCES = ("bouncing_ball",)
@@ -56,6 +57,7 @@ _TOP_KEYS = {
     "sensors",
     "actuators",
     "joint_friction",
+    "pushes",
 }
 _ROBOT_KEYS = {
     "urdf",
@@ -210,6 +212,7 @@ def scene_fields(
         reference=table.get("reference"),
         **_sensors_and_actuators(table),
         joint_friction=_joint_friction(table, robot),
+        pushes=tuple(Push.from_table(spec, robot.nv) for spec in table.get("pushes", [])),
     )
 
 
