@@ -59,6 +59,7 @@ from scipy.integrate import solve_ivp
 
 from ucontrol._validation import as_positive, as_vector
 from ucontrol.exceptions import InvalidParameterError, ShapeError, SolverError
+from ucontrol.integrators.frictional_impact import stick_force, terminal_event
 
 Vector = NDArray[np.float64]
 
@@ -589,8 +590,8 @@ def _friction_forces(
     f_t[stick] = 0.0
     if stick.any():
         S = np.flatnonzero(stick)
-        rhs = -(Ws[m + S, :m] @ f_n + Ws[np.ix_(m + S, m + np.flatnonzero(~stick))] @ f_t[~stick])
-        f_t[S] = np.linalg.lstsq(Ws[np.ix_(m + S, m + S)], rhs, rcond=1e-12)[0]
+        load = Ws[m + S, :m] @ f_n + Ws[np.ix_(m + S, m + np.flatnonzero(~stick))] @ f_t[~stick]
+        f_t[S] = stick_force(Ws[np.ix_(m + S, m + S)], load)
     return f_t
 
 
@@ -670,12 +671,7 @@ def _adaptive_friction(
 
 
 def _crossing(k: int, direction: float) -> Any:
-    def event(t: float, y: Vector) -> float:
-        return float(y[k])
-
-    event.terminal = True  # type: ignore[attr-defined]
-    event.direction = direction  # type: ignore[attr-defined]
-    return event
+    return terminal_event(lambda t, y: float(y[k]), direction)
 
 
 def _cone_event(
@@ -688,6 +684,4 @@ def _cone_event(
         f_t = _friction_forces(Ws, mu, f_n, stick, sigma)
         return float(mu[j] * f_n[j] - abs(f_t[j]))
 
-    event.terminal = True  # type: ignore[attr-defined]
-    event.direction = -1.0  # type: ignore[attr-defined]
-    return event
+    return terminal_event(event, -1.0)
