@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import load_experiment
 
 from ucontrol.exceptions import InvalidParameterError, ShapeError, SolverError
 from ucontrol.integrators import frictional_impact as module
@@ -20,6 +21,9 @@ from ucontrol.integrators.frictional_impact import (
     frictional_impact,
     frictional_impact_velocity,
 )
+
+#: Kane & Levinson's double pendulum: M and H at the links' angles (experiments/kane_pendulum.py).
+kane_pendulum = load_experiment("kane_pendulum").kane_pendulum
 
 _TOLERANCE = 1e-8  # post-impact velocity against the references, relative to |u-|
 LAWS = ("newton", "poisson", "energetic")
@@ -81,24 +85,6 @@ def rod(theta: float) -> tuple[np.ndarray, np.ndarray]:
     r = -0.5 * np.array([math.cos(theta), math.sin(theta)])
     M = np.diag([1.0, 1.0, 1.0 / 12.0])
     H = np.array([[0.0, 1.0, r[0]], [1.0, 0.0, -r[1]], [0.0, 0.0, 0.0]])
-    return M, H
-
-
-def kane_pendulum(theta1: float, theta2: float) -> tuple[np.ndarray, np.ndarray]:
-    """M and H of Kane & Levinson's double pendulum (two uniform links, m = 1 kg, L = 1 m).
-
-    Absolute angles from the downward vertical, upper link pinned at the origin; its tip hits
-    a horizontal surface: H rows normal (up), tangent (horizontal), out-of-plane (zero).
-    """
-    c12 = math.cos(theta1 - theta2)
-    M = np.array([[4.0 / 3.0, 0.5 * c12], [0.5 * c12, 1.0 / 3.0]])
-    H = np.array(
-        [
-            [math.sin(theta1), math.sin(theta2)],
-            [math.cos(theta1), math.cos(theta2)],
-            [0.0, 0.0],
-        ]
-    )
     return M, H
 
 
@@ -399,3 +385,11 @@ def test_no_slip_direction_is_a_solver_error() -> None:
     """Slip from rest needs a direction where the slip grows; none exists when sticking holds."""
     with pytest.raises(SolverError, match="no direction"):
         module.slip_direction(np.eye(3), 1.0)
+
+
+def test_kane_pendulum_experiment_runs(tmp_path) -> None:
+    ratios = load_experiment("kane_pendulum").main(["--points", "4", "--out", str(tmp_path)])
+    assert set(ratios) == set(LAWS)
+    assert ratios["newton"][-1] > 1.0 > ratios["energetic"].max()
+    assert (tmp_path / "kane_pendulum.png").is_file()
+    assert "| energetic |" in (tmp_path / "kane_pendulum.md").read_text()

@@ -9,7 +9,11 @@ the open constraints and :math:`\lambda_a = 0` (direction -1) for the closed one
 1. impact: the constraints at contact (:math:`g_a \le \varepsilon_g`) solve the velocity-level
    LCP of Moreau–Jean with :math:`v_\text{free} = v^-`,
    :math:`0 \le P \perp D P + (1 + e) \odot J v^- \ge 0`, Newton's restitution applying to
-   the closing constraints only;
+   the closing constraints only; or, with ``restitution_law`` ``"poisson"`` or
+   ``"energetic"``, a single constraint at contact follows that law
+   (:func:`~ucontrol.integrators.frictional_impact.frictional_impact`, frictionless here so
+   equal to Newton's impulse) and several simultaneous ones the LZB law (energetic) or a
+   refusal (Poisson: no multiple-impact Poisson law is provided);
 2. active set: the constraints left at contact with :math:`|u_a| \le \varepsilon_u` solve the
    acceleration-level LCP
    :math:`0 \le \lambda \perp D \lambda + (J a_\text{free} + \dot J v) \ge 0`,
@@ -78,6 +82,11 @@ from scipy.integrate import solve_ivp
 from ucontrol._validation import as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import IntegrationError, InvalidParameterError, SolverError
+from ucontrol.integrators.frictional_impact import (
+    FRICTIONAL_IMPACT_LAWS,
+    check_restitution,
+    frictional_impact,
+)
 from ucontrol.integrators.lzb_impact import LZBImpactLaw
 from ucontrol.integrators.methods import IVP_METHODS
 from ucontrol.integrators.smooth_dynamics import ConstraintTerms, SmoothDynamics
@@ -147,7 +156,11 @@ class EventDriven:
         acceleration_solver: Acceleration-level LCP solver; default a second one.
         max_events: Events allowed in one step before :class:`IntegrationError`.
         flexible: Flexible joints of the robot: the state then holds their motor coordinates.
-        impact_law: The LZB impact law in place of Newton's, or None.
+        impact_law: The LZB impact law in place of Newton's, or None; with
+            ``restitution_law = "energetic"`` the law of simultaneous impacts.
+        restitution_law: ``"newton"``, or ``"poisson"`` / ``"energetic"``: the law of an
+            impact at a single constraint, its restitution then Poisson's or Stronge's
+            coefficient (docs/impact_laws.md).
         joint_friction: Viscous friction of the link coordinates, a smooth force
             (:mod:`~ucontrol.integrators.smooth_dynamics`); Coulomb friction is refused.
 
@@ -184,9 +197,17 @@ class EventDriven:
         flexible: FlexibleJoints | None = None,
         impact_law: LZBImpactLaw | None = None,
         joint_friction: JointFriction | None = None,
+        restitution_law: str = "newton",
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
+        if restitution_law not in FRICTIONAL_IMPACT_LAWS:
+            raise InvalidParameterError(
+                "restitution_law", restitution_law, f"one of {FRICTIONAL_IMPACT_LAWS}"
+            )
+        for e in constraints.restitution:
+            check_restitution(restitution_law, e)
+        self.restitution_law = restitution_law
         self.robot = robot
         self.constraints = constraints
         self.flexible = flexible
@@ -357,6 +378,16 @@ class EventDriven:
         rule of the module docstring).
         """
         restitution = self.constraints.restitution[indices]
+        if self.restitution_law != "newton" and indices.size == 1:
+            return self._single_impact(terms, u_minus, restitution)
+        if self.restitution_law == "poisson":
+            raise InvalidParameterError(
+                "restitution_law",
+                "poisson",
+                f"'newton' or 'energetic' for simultaneous impacts (constraints "
+                f"{self._names(np.isin(np.arange(self._n), indices))} at contact together): "
+                "Poisson's law is provided for a single contact only",
+            )
         if self.impact_law is not None:
             law = self.impact_law.select(indices)
             if np.max(-restitution * u_minus) < self.zeno_velocity:  # an accumulation: plastic
@@ -368,6 +399,20 @@ class EventDriven:
         bounces = (u_minus < 0.0) & (-restitution * u_minus >= self.zeno_velocity)
         e = np.where(bounces, restitution, 0.0)
         return self.impact_solver.solve(terms.delassus(), (1.0 + e) * u_minus)
+
+    def _single_impact(
+        self, terms: ConstraintTerms, u_minus: Vector, restitution: Vector
+    ) -> ContactSolution:
+        """The impulse of Poisson's or the energetic law at one frictionless constraint."""
+        e = float(restitution[0]) if -restitution[0] * u_minus[0] >= self.zeno_velocity else 0.0
+        W = np.zeros((3, 3))
+        W[0, 0] = terms.delassus()[0, 0]
+        start = time.perf_counter()
+        result = frictional_impact(
+            W, [u_minus[0], 0.0, 0.0], friction=0.0, restitution=e, law=self.restitution_law
+        )
+        elapsed = time.perf_counter() - start
+        return ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)
 
     def _capture(self, terms: ConstraintTerms, v: Vector) -> tuple[Vector, Vector]:
         """Stop the constraints at contact that leave an impact slower than ``zeno_velocity``.

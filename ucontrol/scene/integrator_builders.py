@@ -40,14 +40,16 @@ def build_integrator(
         raise InvalidParameterError(
             "[integrator] impact_law",
             scene.integrator.impact_law,
-            f"'newton' with {name} (the LZB law is an impact law of event_driven)",
+            f"'newton' with {name} (the LZB, Poisson and energetic laws are impact laws of "
+            "event_driven; Moreau–Jean and compliant apply Newton's law)",
         )
     if scene.constraints.has_friction and name != "moreau_jean":
         raise InvalidParameterError(
             "[integrator] name",
             name,
             "'moreau_jean' for contacts with friction (event_driven and compliant are "
-            "frictionless)",
+            "frictionless; a single frictional impact map is "
+            "ucontrol.integrators.frictional_impact)",
         )
     if scene.constraints.bilateral is not None and name == "compliant":
         raise InvalidParameterError(
@@ -123,7 +125,10 @@ def _event_driven(scene: SceneData, dt: float) -> Integrator:
             eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
         ),
         flexible=scene.flexible,
-        impact_law=_lzb_law(scene) if settings.impact_law == "lzb" else None,
+        impact_law=_lzb_law(scene) if settings.impact_law in ("lzb", "energetic") else None,
+        restitution_law=(
+            settings.impact_law if settings.impact_law in ("poisson", "energetic") else "newton"
+        ),
         joint_friction=scene.joint_friction,
         **settings.solver_options(),
     )

@@ -54,9 +54,11 @@ class IntegratorSettings:
             that carried an impulse in the previous step active; 0 turns it off.
         newton_law: Whom Moreau–Jean's Newton law applies to: ``"closing"`` constraints (with
             the energy guard) or, ``"siconos"``, every active one (Siconos' convention).
-        impact_law: Impact law of event_driven, ``"newton"`` (generalized Newton law) or
+        impact_law: Impact law of event_driven, ``"newton"`` (generalized Newton law),
             ``"lzb"`` (Liu–Zhao–Brogliato's energetic law, docs/multiple_impacts.md; the
-            contacts' restitutions are then energetic coefficients).
+            contacts' restitutions are then energetic coefficients), ``"poisson"`` (Poisson's
+            kinetic coefficients, single impacts only) or ``"energetic"`` (Stronge's
+            coefficients; simultaneous impacts by the LZB law), docs/impact_laws.md.
         lzb_stiffness: Contact stiffness of the LZB law, one or one per constraint (only
             ratios matter with equal exponents).
         lzb_exponent: Elasticity exponent of the LZB law (1 linear, 1.5 Hertz), one or one per
