@@ -32,6 +32,17 @@ DOCS_FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
 V_MINUS = np.array([0.0, -1.0])
 
 
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--theta1", type=float, default=0.4, help="upper link angle [rad]")
+    parser.add_argument("--theta2", type=float, default=0.6, help="lower link angle [rad]")
+    parser.add_argument("--restitution", type=float, default=0.5, help="e of every law")
+    parser.add_argument("--max-friction", type=float, default=1.5, help="largest μ")
+    parser.add_argument("--points", type=int, default=61, help="friction coefficients")
+    parser.add_argument("--out", type=Path, default=DOCS_FIGURES, help="output folder")
+    return parser
+
+
 def kane_pendulum(theta1: float, theta2: float) -> tuple[np.ndarray, np.ndarray]:
     """Inertia M (2, 2) [kg m²] and contact Jacobian H (3, 2) [m] of the double pendulum.
 
@@ -100,17 +111,6 @@ def plot(ratios: dict[str, np.ndarray], frictions: np.ndarray, title: str, path:
     figure.savefig(path, dpi=110)
     plt.close(figure)
     return path
-
-
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--theta1", type=float, default=0.4, help="upper link angle [rad]")
-    parser.add_argument("--theta2", type=float, default=0.6, help="lower link angle [rad]")
-    parser.add_argument("--restitution", type=float, default=0.5, help="e of every law")
-    parser.add_argument("--max-friction", type=float, default=1.5, help="largest μ")
-    parser.add_argument("--points", type=int, default=61, help="friction coefficients")
-    parser.add_argument("--out", type=Path, default=DOCS_FIGURES, help="output folder")
-    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> dict[str, np.ndarray]:

@@ -21,6 +21,7 @@ from ucontrol.integrators.frictional_impact import (
     frictional_impact,
     frictional_impact_velocity,
 )
+from ucontrol.integrators.lzb_impact import LZBImpactLaw, lzb_impact_with_friction
 
 #: Kane & Levinson's double pendulum: M and H at the links' angles (experiments/kane_pendulum.py).
 kane_pendulum = load_experiment("kane_pendulum").kane_pendulum
@@ -393,3 +394,28 @@ def test_kane_pendulum_experiment_runs(tmp_path) -> None:
     assert ratios["newton"][-1] > 1.0 > ratios["energetic"].max()
     assert (tmp_path / "kane_pendulum.png").is_file()
     assert "| energetic |" in (tmp_path / "kane_pendulum.md").read_text()
+
+
+@pytest.mark.parametrize("exponent", [1.0, 1.5])
+def test_one_contact_lzb_with_friction_is_the_energetic_law(exponent: float) -> None:
+    """LZB's compliance form (impact time τ, planar friction) against the normal-impulse form."""
+    M, H = kane_pendulum(0.4, 0.6)
+    seen = set()
+    for v in ([0.0, -1.0], [1.0, -2.0]):
+        for mu in (0.1, 0.5, 1.0):
+            v_plus, result = frictional_impact_velocity(
+                M, H, v, friction=mu, restitution=0.5, law="energetic"
+            )
+            law = LZBImpactLaw(restitution=0.5, exponent=exponent)
+            lzb = lzb_impact_with_friction(law, M, H[:1], H[1:2], v, mu)
+            assert np.max(np.abs(lzb.v - v_plus)) < _TOLERANCE
+            seen.update(result.names())
+    assert {"stick", "reversal"} <= seen
+
+
+def test_lzb_refuses_3d_friction_at_several_contacts() -> None:
+    M = np.eye(4)
+    J = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+    J_t = np.eye(4)  # two tangents per contact
+    with pytest.raises(InvalidParameterError, match=r"J_t.*3D friction at several contacts"):
+        lzb_impact_with_friction(LZBImpactLaw(), M, J, J_t, -np.ones(4), 0.5)

@@ -2,25 +2,24 @@
 
 from __future__ import annotations
 
-import tomllib
+import dataclasses
 from typing import Any
 
 import numpy as np
 import pytest
 
-from ucontrol.exceptions import InvalidParameterError, SimulationError
+from ucontrol.exceptions import InvalidParameterError, ShapeError, SimulationError
 from ucontrol.integrators.event_driven import EventDriven
-from ucontrol.scene import Scene, builtin_scene
+from ucontrol.scene import Scene, builtin_scene, load_scene
 from ucontrol.simulate import simulate
 
-ROBOTS = builtin_scene().parent
+_SCENES = {name: load_scene(builtin_scene(name)) for name in ("ball", "newton_cradle")}
 
 
 def _scene(scene: str, **integrator: Any) -> Scene:
-    table = tomllib.loads((ROBOTS / f"{scene}.toml").read_text())
-    table.pop("reference", None)
-    table["integrator"].update(integrator)
-    return Scene.from_dict(table, base_dir=ROBOTS)
+    """A shipped scene with its ``[integrator]`` settings changed (checked again)."""
+    base = _SCENES[scene]
+    return dataclasses.replace(base, integrator=dataclasses.replace(base.integrator, **integrator))
 
 
 @pytest.mark.parametrize("law", ["poisson", "energetic"])
@@ -60,3 +59,36 @@ def test_unknown_restitution_law_is_refused() -> None:
     scene = _scene("ball", name="event_driven")
     with pytest.raises(InvalidParameterError, match=r"restitution_law.*'routh'"):
         EventDriven(scene.robot, scene.constraints, dt=1e-3, restitution_law="routh")
+
+
+def test_per_constraint_laws() -> None:
+    """One law per constraint: all energetic is the scalar law; mixed laws refuse together."""
+    scalar = simulate(_scene("newton_cradle", impact_law="energetic"), duration=0.05).log
+    listed = simulate(
+        _scene("newton_cradle", impact_law=["energetic", "energetic"]), duration=0.05
+    ).log
+    np.testing.assert_allclose(listed.v, scalar.v, rtol=0.0, atol=0.0)
+    newton = simulate(_scene("newton_cradle"), duration=0.05).log
+    listed = simulate(_scene("newton_cradle", impact_law=["newton", "newton"]), duration=0.05).log
+    np.testing.assert_allclose(listed.v, newton.v, rtol=0.0, atol=0.0)
+    with pytest.raises(SimulationError) as caught:
+        simulate(_scene("newton_cradle", impact_law=["energetic", "newton"]), duration=0.05)
+    assert "mixed laws" in str(caught.value.__cause__)
+
+
+@pytest.mark.parametrize(
+    ("laws", "error", "match"),
+    [
+        (["energetic"], ShapeError, r"impact_law"),
+        (["energetic", "lzb"], InvalidParameterError, r"impact_law.*'lzb'"),
+    ],
+)
+def test_per_constraint_law_lists_are_checked(laws: list[str], error: type, match: str) -> None:
+    with pytest.raises(error, match=match):
+        _scene("newton_cradle", impact_law=laws).build_integrator()
+
+
+def test_restitution_law_list_length_is_checked() -> None:
+    scene = _scene("ball", name="event_driven")
+    with pytest.raises(ShapeError, match="restitution_law"):
+        EventDriven(scene.robot, scene.constraints, dt=1e-3, restitution_law=["energetic"] * 5)

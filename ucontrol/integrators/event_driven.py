@@ -72,6 +72,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -81,7 +82,7 @@ from scipy.integrate import solve_ivp
 
 from ucontrol._validation import as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
-from ucontrol.exceptions import IntegrationError, InvalidParameterError, SolverError
+from ucontrol.exceptions import IntegrationError, InvalidParameterError, ShapeError, SolverError
 from ucontrol.integrators.frictional_impact import (
     FRICTIONAL_IMPACT_LAWS,
     check_restitution,
@@ -158,9 +159,12 @@ class EventDriven:
         flexible: Flexible joints of the robot: the state then holds their motor coordinates.
         impact_law: The LZB impact law in place of Newton's, or None; with
             ``restitution_law = "energetic"`` the law of simultaneous impacts.
-        restitution_law: ``"newton"``, or ``"poisson"`` / ``"energetic"``: the law of an
-            impact at a single constraint, its restitution then Poisson's or Stronge's
-            coefficient (docs/impact_laws.md).
+        restitution_law: ``"newton"``, ``"poisson"`` or ``"energetic"``, one for every
+            constraint or one per constraint (shape (n,)): the law of an impact at a single
+            constraint, its restitution then Poisson's or Stronge's coefficient
+            (docs/impact_laws.md). Simultaneous impacts need one law among the constraints at
+            contact: Newton's (generalized, or LZB's with ``impact_law`` and every law
+            ``"newton"``) or the energetic one (LZB's ``impact_law``).
         joint_friction: Viscous friction of the link coordinates, a smooth force
             (:mod:`~ucontrol.integrators.smooth_dynamics`); Coulomb friction is refused.
 
@@ -197,17 +201,24 @@ class EventDriven:
         flexible: FlexibleJoints | None = None,
         impact_law: LZBImpactLaw | None = None,
         joint_friction: JointFriction | None = None,
-        restitution_law: str = "newton",
+        restitution_law: str | Sequence[str] = "newton",
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
-        if restitution_law not in FRICTIONAL_IMPACT_LAWS:
-            raise InvalidParameterError(
-                "restitution_law", restitution_law, f"one of {FRICTIONAL_IMPACT_LAWS}"
-            )
-        for e in constraints.restitution:
-            check_restitution(restitution_law, e)
-        self.restitution_law = restitution_law
+        laws = (
+            [restitution_law] * constraints.size
+            if isinstance(restitution_law, str)
+            else list(restitution_law)
+        )
+        if len(laws) != constraints.size:
+            raise ShapeError("restitution_law", (constraints.size,), (len(laws),))
+        for law, e in zip(laws, constraints.restitution, strict=True):
+            if law not in FRICTIONAL_IMPACT_LAWS:
+                raise InvalidParameterError(
+                    "restitution_law", law, f"one of {FRICTIONAL_IMPACT_LAWS}"
+                )
+            check_restitution(law, e)
+        self.restitution_law = np.array(laws)
         self.robot = robot
         self.constraints = constraints
         self.flexible = flexible
@@ -222,6 +233,10 @@ class EventDriven:
             acceleration_solver if acceleration_solver is not None else ProxsuiteLCPSolver()
         )
         self.impact_law = impact_law
+        # ``impact_law`` alone (every restitution law Newton's): LZB for every impact
+        self._lzb_for_newton = impact_law is not None and bool(
+            np.all(self.restitution_law == "newton")
+        )
         self.joint_friction = joint_friction
         self._dynamics = SmoothDynamics(
             robot, constraints, flexible, joint_friction, integrator=self.name
@@ -378,17 +393,19 @@ class EventDriven:
         rule of the module docstring).
         """
         restitution = self.constraints.restitution[indices]
-        if self.restitution_law != "newton" and indices.size == 1:
-            return self._single_impact(terms, u_minus, restitution)
-        if self.restitution_law == "poisson":
+        laws = self.restitution_law[indices]
+        if indices.size == 1 and laws[0] != "newton":
+            return self._single_impact(terms, u_minus, restitution, str(laws[0]))
+        newton = bool(np.all(laws == "newton"))
+        if not (newton or (np.all(laws == "energetic") and self.impact_law is not None)):
             raise InvalidParameterError(
                 "restitution_law",
-                "poisson",
-                f"'newton' or 'energetic' for simultaneous impacts (constraints "
+                sorted(set(laws.tolist())),
+                f"one law for simultaneous impacts, 'newton' or 'energetic' (constraints "
                 f"{self._names(np.isin(np.arange(self._n), indices))} at contact together): "
-                "Poisson's law is provided for a single contact only",
+                "Poisson's law and mixed laws are provided for a single contact only",
             )
-        if self.impact_law is not None:
+        if self.impact_law is not None and (not newton or self._lzb_for_newton):
             law = self.impact_law.select(indices)
             if np.max(-restitution * u_minus) < self.zeno_velocity:  # an accumulation: plastic
                 law = dataclasses.replace(law, restitution=np.zeros(indices.size))
@@ -401,16 +418,14 @@ class EventDriven:
         return self.impact_solver.solve(terms.delassus(), (1.0 + e) * u_minus)
 
     def _single_impact(
-        self, terms: ConstraintTerms, u_minus: Vector, restitution: Vector
+        self, terms: ConstraintTerms, u_minus: Vector, restitution: Vector, law: str
     ) -> ContactSolution:
-        """The impulse of Poisson's or the energetic law at one frictionless constraint."""
+        """The impulse of Poisson's or the energetic ``law`` at one frictionless constraint."""
         e = float(restitution[0]) if -restitution[0] * u_minus[0] >= self.zeno_velocity else 0.0
         W = np.zeros((3, 3))
         W[0, 0] = terms.delassus()[0, 0]
         start = time.perf_counter()
-        result = frictional_impact(
-            W, [u_minus[0], 0.0, 0.0], friction=0.0, restitution=e, law=self.restitution_law
-        )
+        result = frictional_impact(W, [u_minus[0], 0.0, 0.0], friction=0.0, restitution=e, law=law)
         elapsed = time.perf_counter() - start
         return ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)
 

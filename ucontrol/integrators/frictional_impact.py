@@ -49,11 +49,12 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_float, as_vector
 from ucontrol.exceptions import InvalidParameterError, ShapeError, SolverError
+from ucontrol.integrators.methods import RESTITUTION_LAWS
 
 Vector = NDArray[np.float64]
 
 #: Restitution laws of one frictional impact (how the restitution phase ends).
-FRICTIONAL_IMPACT_LAWS = ("newton", "poisson", "energetic")
+FRICTIONAL_IMPACT_LAWS = RESTITUTION_LAWS
 
 #: Slip speed, relative to the pre-impact speed, at which slip counts as stopped.
 _SLIP_ZERO = 1e-13

@@ -523,7 +523,9 @@ def lzb_impact_with_friction(
     compliance force, :math:`f_t = -\mu f_n\,\mathrm{sign}(u_t)` while it slides, and while it
     sticks (:math:`u_t = 0`) the force that keeps :math:`\dot u_t = 0`, as long as
     :math:`|f_t| \le \mu f_n`. Velocities follow :math:`d(u_n, u_t)/d\tau = W (f_n, f_t)`,
-    :math:`W = H M^{-1} H^T`, :math:`H = (J; J_t)`. Adaptive integration only.
+    :math:`W = H M^{-1} H^T`, :math:`H = (J; J_t)`. Adaptive integration only. With one
+    contact this is Stronge's energetic law with friction
+    (:func:`~ucontrol.integrators.frictional_impact.frictional_impact`, tested equal).
 
     Args:
         law: Restitution, stiffness and exponent of the contacts (``gaps`` and ``rtol`` too).
@@ -534,7 +536,8 @@ def lzb_impact_with_friction(
         friction: Coulomb coefficients μ >= 0, scalar or shape (m,).
 
     Raises:
-        InvalidParameterError: A negative μ, or a fixed impulse step (not supported here).
+        InvalidParameterError: A negative μ, a fixed impulse step (not supported here), or
+            two tangent rows per contact at several contacts (3D friction, not provided).
         SolverError: The integration failed.
     """
     if law.impulse_step is not None:
@@ -545,6 +548,14 @@ def lzb_impact_with_friction(
     J = np.atleast_2d(np.asarray(J, dtype=float))
     J_t = np.atleast_2d(np.asarray(J_t, dtype=float))
     n, m = M.shape[0], J.shape[0]
+    if m > 1 and J_t.shape == (2 * m, n):
+        raise InvalidParameterError(
+            "J_t",
+            f"{2 * m} rows (two tangents per contact)",
+            f"{m} rows, one tangent per contact: the LZB law with 3D friction at several "
+            "contacts (the coupled directions in which stuck contacts start slipping) is not "
+            "provided; one contact in 3D is ucontrol.integrators.frictional_impact",
+        )
     if J.shape != (m, n) or J_t.shape != (m, n):
         raise ShapeError("J_t", (m, n), J_t.shape)
     v_minus = as_vector("v_minus", v_minus, n)

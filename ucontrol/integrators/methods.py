@@ -12,3 +12,6 @@ CONTACT_MODELS = ("linear", "hunt_crossley", "hunt_crossley_exact", "kuwabara_ko
 #: energetic law at a single contact (:mod:`ucontrol.integrators.frictional_impact`; the
 #: energetic law passes simultaneous impacts to LZB's).
 IMPACT_LAWS = ("newton", "lzb", "poisson", "energetic")
+#: Restitution laws of one contact (:mod:`ucontrol.integrators.frictional_impact`); a scene may
+#: give one per constraint.
+RESTITUTION_LAWS = ("newton", "poisson", "energetic")

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ucontrol.exceptions import InvalidParameterError
+from ucontrol.exceptions import InvalidParameterError, ShapeError
 from ucontrol.integrators.moreau_jean import MoreauJean
 from ucontrol.solvers.contact_solver_choice import build_contact_solvers
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
@@ -36,7 +36,8 @@ def build_integrator(
             with an integrator other than ``moreau_jean``.
     """
     name = scene.integrator.name
-    if scene.integrator.impact_law != "newton" and name != "event_driven":
+    laws = _impact_laws(scene)
+    if any(law != "newton" for law in laws) and name != "event_driven":
         raise InvalidParameterError(
             "[integrator] impact_law",
             scene.integrator.impact_law,
@@ -113,6 +114,7 @@ def _event_driven(scene: SceneData, dt: float) -> Integrator:
     from ucontrol.integrators.event_driven import EventDriven  # loads scipy.integrate
 
     settings = scene.integrator
+    laws = _impact_laws(scene)
     return EventDriven(
         scene.robot,
         scene.constraints,
@@ -125,13 +127,26 @@ def _event_driven(scene: SceneData, dt: float) -> Integrator:
             eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
         ),
         flexible=scene.flexible,
-        impact_law=_lzb_law(scene) if settings.impact_law in ("lzb", "energetic") else None,
-        restitution_law=(
-            settings.impact_law if settings.impact_law in ("poisson", "energetic") else "newton"
-        ),
+        impact_law=_lzb_law(scene) if {"lzb", "energetic"} & set(laws) else None,
+        restitution_law=["newton" if law == "lzb" else law for law in laws],
         joint_friction=scene.joint_friction,
         **settings.solver_options(),
     )
+
+
+def _impact_laws(scene: SceneData) -> list[str]:
+    """The impact law of every constraint of the scene, shape (n,).
+
+    Raises:
+        ShapeError: A per-constraint list of another length than the constraints'.
+    """
+    laws = scene.integrator.impact_law
+    n = scene.constraints.size
+    if isinstance(laws, str):
+        return [laws] * n
+    if len(laws) != n:
+        raise ShapeError("[integrator] impact_law", (n,), (len(laws),))
+    return list(laws)
 
 
 def _lzb_law(scene: SceneData) -> Any:

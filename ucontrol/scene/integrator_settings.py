@@ -8,7 +8,13 @@ from typing import Any
 
 from ucontrol._validation import as_float, as_in_interval, as_int, as_positive, as_vector
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
-from ucontrol.integrators.methods import CONTACT_MODELS, IMPACT_LAWS, INTEGRATORS, IVP_METHODS
+from ucontrol.integrators.methods import (
+    CONTACT_MODELS,
+    IMPACT_LAWS,
+    INTEGRATORS,
+    IVP_METHODS,
+    RESTITUTION_LAWS,
+)
 from ucontrol.integrators.moreau_jean import NEWTON_LAWS, ON_UNSOLVED, PERSISTENCE_TOLERANCE
 from ucontrol.solvers.contact_solver_choice import check_contact_solver
 
@@ -58,7 +64,9 @@ class IntegratorSettings:
             ``"lzb"`` (Liu–Zhao–Brogliato's energetic law, docs/multiple_impacts.md; the
             contacts' restitutions are then energetic coefficients), ``"poisson"`` (Poisson's
             kinetic coefficients, single impacts only) or ``"energetic"`` (Stronge's
-            coefficients; simultaneous impacts by the LZB law), docs/impact_laws.md.
+            coefficients; simultaneous impacts by the LZB law), docs/impact_laws.md; or a
+            list of ``"newton"``, ``"poisson"``, ``"energetic"``, one per constraint (the
+            contacts, then the stops, in the order of the scene).
         lzb_stiffness: Contact stiffness of the LZB law, one or one per constraint (only
             ratios matter with equal exponents).
         lzb_exponent: Elasticity exponent of the LZB law (1 linear, 1.5 Hertz), one or one per
@@ -95,7 +103,7 @@ class IntegratorSettings:
     persistence_tolerance: float = PERSISTENCE_TOLERANCE
     penetration_tolerance: float = 0.01
     newton_law: str = "closing"
-    impact_law: str = "newton"
+    impact_law: str | list[str] = "newton"
     lzb_stiffness: float | list[float] = 1.0
     lzb_exponent: float | list[float] = 1.5
     lzb_impulse_step: float | None = None
@@ -146,7 +154,13 @@ class IntegratorSettings:
         object.__setattr__(self, "zeno_velocity", as_positive("zeno_velocity", self.zeno_velocity))
         if self.newton_law not in NEWTON_LAWS:
             raise InvalidParameterError("newton_law", self.newton_law, f"one of {NEWTON_LAWS}")
-        if self.impact_law not in IMPACT_LAWS:
+        if isinstance(self.impact_law, list):
+            for law in self.impact_law:
+                if law not in RESTITUTION_LAWS:
+                    raise InvalidParameterError(
+                        "impact_law", law, f"one of {RESTITUTION_LAWS} in a per-constraint list"
+                    )
+        elif self.impact_law not in IMPACT_LAWS:
             raise InvalidParameterError("impact_law", self.impact_law, f"one of {IMPACT_LAWS}")
         for key in ("lzb_stiffness", "lzb_exponent"):
             value = getattr(self, key)
