@@ -1,4 +1,4 @@
-r"""Event-driven integration (the accuracy reference), frictionless.
+r"""Event-driven integration (the accuracy reference), frictionless between impacts.
 
 Between events the set :math:`I_2` of closed constraints (:math:`g_a = 0`, :math:`u_a = 0`) is
 fixed and the motion is smooth: :math:`M \dot v = \tau - h + J_{I_2}^T \lambda` with
@@ -37,6 +37,14 @@ held, so :func:`ucontrol.simulate` runs it like Moreau–Jean; the step ``h`` is
 and control period. Its impulse is that of the step: impacts plus :math:`\int \lambda\,dt`;
 its :attr:`~ucontrol.plant.StepOutcome.impacts` are the located times of the step's impacts
 (the events at which a closing constraint gets an impulse), to solve_ivp's event accuracy.
+
+**Frictional impacts.** A constraint with a friction coefficient and the ``"poisson"`` or
+``"energetic"`` restitution law has its impacts integrated with Coulomb's law by
+:func:`~ucontrol.integrators.frictional_impact.frictional_impact` on its normal and tangent rows
+(the step's impulse logs the normal part). There are no sliding or sticking phases between
+impacts: a frictional constraint that stays closed raises :class:`IntegrationError`, and an
+impact at several constraints, one frictional, :class:`InvalidParameterError`; fixed surfaces
+and no bilateral constraints (the scene builder checks both).
 
 **Bilateral constraints.** With :attr:`~ucontrol.contact.ConstraintSet.bilateral` (loop
 closures, joint couplings: rows :math:`J_b`, residual :math:`h(q)`) the bilateral rows are
@@ -77,6 +85,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
@@ -258,8 +267,11 @@ class EventDriven:
                 (nv + nf with flexible joints: the motor torques last).
 
         Raises:
-            IntegrationError: solve_ivp failed, the events stalled, or more than
-                ``max_events`` events fell in the step.
+            IntegrationError: solve_ivp failed, the events stalled, more than
+                ``max_events`` events fell in the step, or a frictional constraint stays
+                closed (no sliding or sticking phases).
+            InvalidParameterError: Simultaneous impacts the restitution laws do not cover
+                (Poisson's or mixed laws, or friction at one of the constraints).
             SolverError: An impact or acceleration LCP was not solved.
         """
         q, v, h = state.q, state.v, self.dt
@@ -351,12 +363,16 @@ class EventDriven:
         solutions = []
         impacts: tuple[int, ...] = ()
         if np.any(u_near < -self.closure_velocity):
-            solution = self._checked(self.impact_solver, self._impact(terms, u_near, indices))
+            if self.constraints.friction[indices].any():
+                solution, jump = self._frictional_impact(v, terms, u_near, indices)
+            else:
+                solution = self._checked(self.impact_solver, self._impact(terms, u_near, indices))
+                jump = terms.Minv_Jt @ solution.impulses
             solutions.append(solution)
             impulse[indices] = solution.impulses
             hit = (u_near < -self.closure_velocity) & (solution.impulses > 0.0)
             impacts = tuple(int(i) for i in indices[hit])
-            v = v + terms.Minv_Jt @ solution.impulses
+            v = v + jump
             v, capture = self._capture(terms, v)
             impulse[indices] += capture
             terms = dynamics.constraint_terms(q, v, tau, indices, t=time)
@@ -372,6 +388,14 @@ class EventDriven:
             )
             solutions.append(solution)
             closed[indices[rows[solution.velocity <= self.closure_acceleration]]] = True
+        if (closed & (self.constraints.friction > 0.0)).any():
+            raise IntegrationError(
+                self.name,
+                time,
+                f"constraints {self._names(closed & (self.constraints.friction > 0.0))} with "
+                "friction stay at contact: event_driven applies frictional impact laws but has "
+                "no sliding or sticking phases between impacts (use moreau_jean)",
+            )
         if closed.any() or self._bilateral:
             q, v = self._project(q, v, closed, time)
         return _Settled(
@@ -416,6 +440,51 @@ class EventDriven:
         bounces = (u_minus < 0.0) & (-restitution * u_minus >= self.zeno_velocity)
         e = np.where(bounces, restitution, 0.0)
         return self.impact_solver.solve(terms.delassus(), (1.0 + e) * u_minus)
+
+    def _frictional_impact(
+        self, v: Vector, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
+    ) -> tuple[ContactSolution, Vector]:
+        """Impulse and velocity jump of an impact at one constraint with Coulomb friction.
+
+        Darboux–Keller integration (:func:`frictional_impact`) with the constraint's law; the
+        pinocchio data hold the configuration of ``terms``.
+
+        Raises:
+            InvalidParameterError: Several constraints at contact together, one with friction
+                (the LZB law with friction is planar and not wired to event_driven).
+        """
+        if indices.size > 1:
+            raise InvalidParameterError(
+                "[[contacts]] friction",
+                self.constraints.friction[indices].tolist(),
+                f"0 at simultaneous impacts (constraints "
+                f"{self._names(np.isin(np.arange(self._n), indices))} at contact together): "
+                "event_driven has no multiple-impact law with friction",
+            )
+        index = int(indices[0])
+        dynamics = self._dynamics
+        rows, _ = self.constraints.tangent_rows(dynamics.data, indices)
+        Minv_rows = np.column_stack(
+            [pin.cholesky.solve(dynamics.model, dynamics.data, row) for row in rows]
+        )
+        pad = terms.Minv_Jt.shape[0] - Minv_rows.shape[0]  # motor coordinates: untouched
+        Minv_Ht = np.hstack((terms.Minv_Jt, np.vstack((Minv_rows, np.zeros((pad, rows.shape[0]))))))
+        H = np.vstack((terms.J[:, : rows.shape[1]], rows))
+        W = np.zeros((3, 3))
+        W[: H.shape[0], : H.shape[0]] = H @ Minv_Ht[: H.shape[1]]
+        u = np.zeros(3)
+        u[: H.shape[0]] = np.concatenate((u_minus, rows @ v[: rows.shape[1]]))
+        e = float(self.constraints.restitution[index])
+        law = str(self.restitution_law[index])
+        if -e * u_minus[0] < self.zeno_velocity:  # an accumulation: plastic
+            e = 0.0
+        start = time.perf_counter()
+        result = frictional_impact(
+            W, u, friction=float(self.constraints.friction[index]), restitution=e, law=law
+        )
+        elapsed = time.perf_counter() - start
+        solution = ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)
+        return solution, Minv_Ht @ result.impulse[: H.shape[0]]
 
     def _single_impact(
         self, terms: ConstraintTerms, u_minus: Vector, restitution: Vector, law: str

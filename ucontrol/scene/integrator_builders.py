@@ -44,13 +44,13 @@ def build_integrator(
             f"'newton' with {name} (the LZB, Poisson and energetic laws are impact laws of "
             "event_driven; Moreau–Jean and compliant apply Newton's law)",
         )
-    if scene.constraints.has_friction and name != "moreau_jean":
+    if scene.constraints.has_friction and name != "moreau_jean" and not _frictional_impacts(scene):
         raise InvalidParameterError(
             "[integrator] name",
             name,
-            "'moreau_jean' for contacts with friction (event_driven and compliant are "
-            "frictionless; a single frictional impact map is "
-            "ucontrol.integrators.frictional_impact)",
+            "'moreau_jean' for contacts with friction (compliant is frictionless; event_driven "
+            "takes frictional impacts only, with impact_law 'poisson' or 'energetic' at the "
+            "frictional contacts, fixed surfaces and no bilateral constraints)",
         )
     if scene.constraints.bilateral is not None and name == "compliant":
         raise InvalidParameterError(
@@ -131,6 +131,18 @@ def _event_driven(scene: SceneData, dt: float) -> Integrator:
         restitution_law=["newton" if law == "lzb" else law for law in laws],
         joint_friction=scene.joint_friction,
         **settings.solver_options(),
+    )
+
+
+def _frictional_impacts(scene: SceneData) -> bool:
+    """Whether event_driven may take the scene's frictional contacts (at impacts only)."""
+    constraints = scene.constraints
+    laws = np.array(_impact_laws(scene))
+    return (
+        scene.integrator.name == "event_driven"
+        and constraints.bilateral is None
+        and not constraints.time_dependent
+        and bool(np.all(np.isin(laws[constraints.friction > 0.0], ("poisson", "energetic"))))
     )
 
 
