@@ -419,3 +419,16 @@ def test_lzb_refuses_3d_friction_at_several_contacts() -> None:
     J_t = np.eye(4)  # two tangents per contact
     with pytest.raises(InvalidParameterError, match=r"J_t.*3D friction at several contacts"):
         lzb_impact_with_friction(LZBImpactLaw(), M, J, J_t, -np.ones(4), 0.5)
+
+
+def test_tangential_restitution_is_an_option_of_newtons_law() -> None:
+    M, H = rod(0.7)
+    W = H @ np.linalg.solve(M, H.T)
+    u = H @ np.array([0.8, -1.0, 0.0])
+    option = frictional_impact(
+        W, u, friction=0.3, restitution=0.5, law="newton", tangential_restitution=0.4
+    )
+    brach = brach_impact(W, u, restitution=0.5, tangential_restitution=0.4, friction=0.3)
+    np.testing.assert_array_equal(option.impulse, brach.impulse)
+    with pytest.raises(InvalidParameterError, match=r"tangential_restitution.*energetic"):
+        frictional_impact(W, u, friction=0.3, restitution=0.5, tangential_restitution=0.4)

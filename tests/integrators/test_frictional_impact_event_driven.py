@@ -224,3 +224,25 @@ def test_spinning_ball_strikes_a_rough_floor_in_3d(mu: float) -> None:
     if 3.5 * mu * P_n >= speed:  # rolling: the contact point leaves at rest tangentially
         rolling = v_world[:2] + r * np.array([-w_world[1], w_world[0]])
         assert np.abs(rolling).max() <= 1e-8
+
+
+@pytest.mark.parametrize("e_t", [-0.5, 0.0, 0.8])
+def test_rod_with_brach_tangential_restitution(e_t: float) -> None:
+    """Newton's law with Brach's e_t in event_driven: u_n⁺ = -e u_n⁻, u_t⁺ = -e_t u_t⁻."""
+    scene = _rough_rod(
+        0.6, [1.0, -1.0, 0.0], mu=5.0, impact_law="newton", tangential_restitution=e_t
+    )
+    log = simulate(scene, duration=0.2).log
+    p = 0.6  # no rotation before the impact
+    H = np.array([[0.0, 1.0, -0.5 * math.cos(p)], [1.0, 0.0, -0.5 * math.sin(p)]])
+    u_minus, u_plus = H @ np.array([1.0, -1.0, 0.0]), H @ log.v[-1]
+    assert u_plus[0] == pytest.approx(-0.6 * u_minus[0], abs=1e-10)
+    assert u_plus[1] == pytest.approx(-e_t * u_minus[1], abs=1e-10)
+
+
+def test_tangential_restitution_setting_is_checked() -> None:
+    with pytest.raises(InvalidParameterError, match=r"tangential_restitution.*1\.5"):
+        _rough_rod(0.6, [1.0, -1.0, 0.0], impact_law="newton", tangential_restitution=1.5)
+    scene = _scene("ball", name="event_driven")
+    with pytest.raises(InvalidParameterError, match=r"tangential_restitution"):
+        EventDriven(scene.robot, scene.constraints, dt=1e-3, tangential_restitution=-2.0)

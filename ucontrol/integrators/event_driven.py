@@ -89,7 +89,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from ucontrol._validation import as_positive
+from ucontrol._validation import as_in_interval, as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import IntegrationError, InvalidParameterError, ShapeError, SolverError
 from ucontrol.integrators.frictional_impact import (
@@ -174,6 +174,8 @@ class EventDriven:
             (docs/impact_laws.md). Simultaneous impacts need one law among the constraints at
             contact: Newton's (generalized, or LZB's with ``impact_law`` and every law
             ``"newton"``) or the energetic one (LZB's ``impact_law``).
+        tangential_restitution: Brach's e_t in [-1, 1], the option of Newton's law at the
+            impacts of frictional constraints (:func:`frictional_impact`), or None.
         joint_friction: Viscous friction of the link coordinates, a smooth force
             (:mod:`~ucontrol.integrators.smooth_dynamics`); Coulomb friction is refused.
 
@@ -211,6 +213,7 @@ class EventDriven:
         impact_law: LZBImpactLaw | None = None,
         joint_friction: JointFriction | None = None,
         restitution_law: str | Sequence[str] = "newton",
+        tangential_restitution: float | None = None,
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
@@ -228,6 +231,11 @@ class EventDriven:
                 )
             check_restitution(law, e)
         self.restitution_law = np.array(laws)
+        self.tangential_restitution = (
+            None
+            if tangential_restitution is None
+            else as_in_interval("tangential_restitution", tangential_restitution, -1.0, 1.0)
+        )
         self.robot = robot
         self.constraints = constraints
         self.flexible = flexible
@@ -480,7 +488,12 @@ class EventDriven:
             e = 0.0
         start = time.perf_counter()
         result = frictional_impact(
-            W, u, friction=float(self.constraints.friction[index]), restitution=e, law=law
+            W,
+            u,
+            friction=float(self.constraints.friction[index]),
+            restitution=e,
+            law=law,
+            tangential_restitution=self.tangential_restitution if law == "newton" else None,
         )
         elapsed = time.perf_counter() - start
         solution = ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)

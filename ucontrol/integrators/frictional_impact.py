@@ -113,6 +113,19 @@ def check_restitution(law: str, restitution: Any) -> float:
     return e
 
 
+def _checked_friction(friction: Any) -> float:
+    mu = as_float("friction", friction)
+    if not mu >= 0.0:
+        raise InvalidParameterError("friction", mu, ">= 0")
+    return mu
+
+
+def _no_impact(u_minus: Vector) -> FrictionalImpactResult:
+    """A separating contact: no impulse."""
+    zero = np.zeros(3)
+    return FrictionalImpactResult(zero, u_minus.copy(), 0.0, 0.0, 0.0, 0.0, (("end", 0.0),))
+
+
 def _checked_block(W: Any, u_minus: Any) -> tuple[Vector, Vector]:
     W = np.asarray(W, dtype=float)
     if W.shape != (3, 3):
@@ -137,8 +150,12 @@ def frictional_impact(
     restitution: float,
     law: str = "energetic",
     rtol: float = 1e-13,
+    tangential_restitution: float | None = None,
 ) -> FrictionalImpactResult:
     """Impulse and post-impact velocity of one frictional impact (Darboux–Keller).
+
+    With ``tangential_restitution`` (Newton's law only) the impact is Brach's instead,
+    :func:`brach_impact` with ``friction`` bounding the impulse ratio.
 
     Args:
         W: Delassus block ``H M⁻¹ Hᵀ`` of the contact in [1/kg], shape (3, 3), rows normal,
@@ -149,21 +166,32 @@ def frictional_impact(
         restitution: Coefficient e in [0, 1] of ``law``.
         law: ``"newton"``, ``"poisson"`` or ``"energetic"``.
         rtol: Relative tolerance of solve_ivp (absolute: ``rtol`` times 1e-2, scaled units).
+        tangential_restitution: Brach's e_t in [-1, 1] as an option of Newton's law, or None.
 
     Raises:
-        InvalidParameterError: An unknown law, e outside [0, 1], μ < 0, or a bad W.
+        InvalidParameterError: An unknown law, e outside [0, 1], μ < 0, a bad W, or a
+            tangential restitution with another law than Newton's.
         ShapeError: W or u_minus of the wrong shape.
         SolverError: The restitution never ends (a Newton target the velocity never reaches)
             or the integration failed.
     """
     e = check_restitution(law, restitution)
-    mu = as_float("friction", friction)
-    if not mu >= 0.0:
-        raise InvalidParameterError("friction", mu, ">= 0")
+    if tangential_restitution is not None:
+        if law != "newton":
+            raise InvalidParameterError(
+                "tangential_restitution", tangential_restitution, f"None with the {law} law"
+            )
+        return brach_impact(
+            W,
+            u_minus,
+            restitution=e,
+            tangential_restitution=tangential_restitution,
+            friction=friction,
+        )
+    mu = _checked_friction(friction)
     W, u_minus = _checked_block(W, u_minus)
     if u_minus[0] >= 0.0:
-        zero = np.zeros(3)
-        return FrictionalImpactResult(zero, u_minus.copy(), 0.0, 0.0, 0.0, 0.0, (("end", 0.0),))
+        return _no_impact(u_minus)
     speed = float(np.linalg.norm(u_minus))  # [m/s]
     impulse_unit = speed / W[0, 0]  # [N s]
     state = _Shock(W / W[0, 0], mu)
@@ -419,8 +447,7 @@ def brach_impact(
         raise InvalidParameterError("tangential_restitution", e_t, "in [-1, 1]")
     W, u_minus = _checked_block(W, u_minus)
     if u_minus[0] >= 0.0:
-        zero = np.zeros(3)
-        return FrictionalImpactResult(zero, u_minus.copy(), 0.0, 0.0, 0.0, 0.0, (("end", 0.0),))
+        return _no_impact(u_minus)
     target = np.concatenate(([-e * u_minus[0]], -e_t * u_minus[1:]))
     P = np.linalg.lstsq(W, target - u_minus, rcond=1e-12)[0]
     if not np.allclose(W @ P, target - u_minus, rtol=1e-9, atol=1e-12 * np.abs(u_minus).max()):
@@ -429,9 +456,7 @@ def brach_impact(
         )
     transitions = [("end", float(P[0]))]
     if friction is not None:
-        mu = as_float("friction", friction)
-        if not mu >= 0.0:
-            raise InvalidParameterError("friction", mu, ">= 0")
+        mu = _checked_friction(friction)
         slip = float(np.linalg.norm(u_minus[1:]))
         if np.linalg.norm(P[1:]) > mu * P[0] and slip > 0.0:
             phi = np.concatenate(([1.0], -mu * u_minus[1:] / slip))

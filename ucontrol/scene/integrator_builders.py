@@ -50,7 +50,8 @@ def build_integrator(
             name,
             "'moreau_jean' for contacts with friction (compliant is frictionless; event_driven "
             "takes frictional impacts only, with impact_law 'poisson' or 'energetic' at the "
-            "frictional contacts, fixed surfaces and no bilateral constraints)",
+            "frictional contacts, or Newton's with a tangential_restitution, fixed surfaces "
+            "and no bilateral constraints)",
         )
     if scene.constraints.bilateral is not None and name == "compliant":
         raise InvalidParameterError(
@@ -129,6 +130,7 @@ def _event_driven(scene: SceneData, dt: float) -> Integrator:
         flexible=scene.flexible,
         impact_law=_lzb_law(scene) if {"lzb", "energetic"} & set(laws) else None,
         restitution_law=["newton" if law == "lzb" else law for law in laws],
+        tangential_restitution=settings.tangential_restitution,
         joint_friction=scene.joint_friction,
         **settings.solver_options(),
     )
@@ -138,11 +140,14 @@ def _frictional_impacts(scene: SceneData) -> bool:
     """Whether event_driven may take the scene's frictional contacts (at impacts only)."""
     constraints = scene.constraints
     laws = np.array(_impact_laws(scene))
+    allowed = ["poisson", "energetic"]
+    if scene.integrator.tangential_restitution is not None:
+        allowed.append("newton")  # Brach's law
     return (
         scene.integrator.name == "event_driven"
         and constraints.bilateral is None
         and not constraints.time_dependent
-        and bool(np.all(np.isin(laws[constraints.friction > 0.0], ("poisson", "energetic"))))
+        and bool(np.all(np.isin(laws[constraints.friction > 0.0], allowed)))
     )
 
 

@@ -67,6 +67,9 @@ class IntegratorSettings:
             coefficients; simultaneous impacts by the LZB law), docs/impact_laws.md; or a
             list of ``"newton"``, ``"poisson"``, ``"energetic"``, one per constraint (the
             contacts, then the stops, in the order of the scene).
+        tangential_restitution: Brach's tangential coefficient e_t in [-1, 1] as an option of
+            Newton's law at event_driven's frictional impacts (docs/impact_laws.md); None:
+            none, and Newton's law is then refused with friction in event_driven.
         lzb_stiffness: Contact stiffness of the LZB law, one or one per constraint (only
             ratios matter with equal exponents).
         lzb_exponent: Elasticity exponent of the LZB law (1 linear, 1.5 Hertz), one or one per
@@ -104,6 +107,7 @@ class IntegratorSettings:
     penetration_tolerance: float = 0.01
     newton_law: str = "closing"
     impact_law: str | list[str] = "newton"
+    tangential_restitution: float | None = None
     lzb_stiffness: float | list[float] = 1.0
     lzb_exponent: float | list[float] = 1.5
     lzb_impulse_step: float | None = None
@@ -162,6 +166,12 @@ class IntegratorSettings:
                     )
         elif self.impact_law not in IMPACT_LAWS:
             raise InvalidParameterError("impact_law", self.impact_law, f"one of {IMPACT_LAWS}")
+        if self.tangential_restitution is not None:
+            object.__setattr__(
+                self,
+                "tangential_restitution",
+                as_in_interval("tangential_restitution", self.tangential_restitution, -1.0, 1.0),
+            )
         for key in ("lzb_stiffness", "lzb_exponent"):
             value = getattr(self, key)
             values = as_vector(key, value) if isinstance(value, list) else [as_float(key, value)]
