@@ -104,6 +104,7 @@ def _rough_rod(
     restitution: float = 0.6,
     g: float = 0.0,
     mu: float = 0.4,
+    planar: bool = True,
     **integrator: Any,
 ) -> Scene:
     """Painlevé's rod (1 m, 1 kg, x-z plane) striking a rough floor (friction ``mu``).
@@ -117,7 +118,7 @@ def _rough_rod(
             "q0": [0.0, 0.5 * math.sin(pitch) + 0.09, pitch],
             "v0": v0,
             "gravity": [0.0, 0.0, -g],
-            "planar_axis": [0.0, 1.0, 0.0],
+            **({"planar_axis": [0.0, 1.0, 0.0]} if planar else {}),
         },
         "surfaces": {"ground": {"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]}},
         "contacts": [
@@ -172,10 +173,31 @@ def test_rod_refusals_in_event_driven() -> None:
     with pytest.raises(SimulationError) as caught:
         simulate(plastic, duration=0.2)
     assert "stay at contact" in str(caught.value.__cause__)
-    flat = _rough_rod(0.0, [0.0, -1.0, 0.0], impact_law="energetic")
+    flat = _rough_rod(0.0, [0.0, -1.0, 0.0], impact_law="poisson")
     with pytest.raises(SimulationError) as caught:
         simulate(flat, duration=0.2)
-    assert "simultaneous impacts" in str(caught.value.__cause__)
+    assert "'energetic' at simultaneous impacts with friction" in str(caught.value.__cause__)
+    spatial = _rough_rod(0.0, [0.0, -1.0, 0.0], planar=False, impact_law="energetic")
+    with pytest.raises(SimulationError) as caught:
+        simulate(spatial, duration=0.2)
+    assert "3D friction (two tangents per contact)" in str(caught.value.__cause__)
+
+
+@pytest.mark.parametrize(("vx", "mu"), [(1.0, 0.3), (1.0, 1.0), (-0.5, 0.1)])
+@pytest.mark.parametrize("exponent", [1.0, 1.5])
+def test_flat_rod_lands_on_both_ends_by_lzb_with_friction(
+    vx: float, mu: float, exponent: float
+) -> None:
+    """Both ends strike together: the energetic law goes to LZB with (planar) friction.
+
+    By symmetry the impulses are equal and the rod does not turn: the centre rebounds at
+    e |v_z| and its sliding drops by μ (1 + e) |v_z| or stops (then it sticks).
+    """
+    scene = _rough_rod(0.0, [vx, -1.0, 0.0], mu=mu, impact_law="energetic", lzb_exponent=exponent)
+    log = simulate(scene, duration=0.2).log
+    slide = math.copysign(max(0.0, abs(vx) - mu * 1.6), vx)
+    np.testing.assert_allclose(log.v[-1], [slide, 0.6, 0.0], rtol=0.0, atol=1e-8)
+    assert log.impulse[:, 0].sum() == pytest.approx(0.8, rel=1e-8)  # half of (1 + e) m |v_z|
 
 
 @pytest.mark.parametrize("mu", [0.05, 0.2])

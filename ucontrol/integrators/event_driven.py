@@ -42,9 +42,11 @@ its :attr:`~ucontrol.plant.StepOutcome.impacts` are the located times of the ste
 ``"energetic"`` restitution law has its impacts integrated with Coulomb's law by
 :func:`~ucontrol.integrators.frictional_impact.frictional_impact` on its normal and tangent rows
 (the step's impulse logs the normal part). There are no sliding or sticking phases between
-impacts: a frictional constraint that stays closed raises :class:`IntegrationError`, and an
-impact at several constraints, one frictional, :class:`InvalidParameterError`; fixed surfaces
-and no bilateral constraints (the scene builder checks both).
+impacts: a frictional constraint that stays closed raises :class:`IntegrationError`. An
+impact at several constraints, one frictional, takes the LZB law with planar friction
+(:func:`~ucontrol.integrators.lzb_impact.lzb_impact_with_friction`) when all are energetic and
+the robot planar, and raises :class:`InvalidParameterError` otherwise. Fixed surfaces and no
+bilateral constraints (the scene builder checks both).
 
 **Bilateral constraints.** With :attr:`~ucontrol.contact.ConstraintSet.bilateral` (loop
 closures, joint couplings: rows :math:`J_b`, residual :math:`h(q)`) the bilateral rows are
@@ -97,7 +99,7 @@ from ucontrol.integrators.frictional_impact import (
     check_restitution,
     frictional_impact,
 )
-from ucontrol.integrators.lzb_impact import LZBImpactLaw
+from ucontrol.integrators.lzb_impact import LZBImpactLaw, lzb_impact_with_friction
 from ucontrol.integrators.methods import IVP_METHODS
 from ucontrol.integrators.smooth_dynamics import ConstraintTerms, SmoothDynamics
 from ucontrol.model.flexible_joints import FlexibleJoints
@@ -279,7 +281,7 @@ class EventDriven:
                 ``max_events`` events fell in the step, or a frictional constraint stays
                 closed (no sliding or sticking phases).
             InvalidParameterError: Simultaneous impacts the restitution laws do not cover
-                (Poisson's or mixed laws, or friction at one of the constraints).
+                (Poisson's or mixed laws; with friction, not all energetic or spatial).
             SolverError: An impact or acceleration LCP was not solved.
         """
         q, v, h = state.q, state.v, self.dt
@@ -457,18 +459,15 @@ class EventDriven:
         Darboux–Keller integration (:func:`frictional_impact`) with the constraint's law; the
         pinocchio data hold the configuration of ``terms``.
 
+        Several constraints at contact together take the LZB law with planar friction
+        (:func:`lzb_impact_with_friction`) when every law among them is the energetic one.
+
         Raises:
-            InvalidParameterError: Several constraints at contact together, one with friction
-                (the LZB law with friction is planar and not wired to event_driven).
+            InvalidParameterError: Several constraints at contact together, one with friction,
+                and not all energetic, or with two tangents (3D friction: not provided).
         """
         if indices.size > 1:
-            raise InvalidParameterError(
-                "[[contacts]] friction",
-                self.constraints.friction[indices].tolist(),
-                f"0 at simultaneous impacts (constraints "
-                f"{self._names(np.isin(np.arange(self._n), indices))} at contact together): "
-                "event_driven has no multiple-impact law with friction",
-            )
+            return self._lzb_frictional_impact(v, terms, u_minus, indices)
         index = int(indices[0])
         dynamics = self._dynamics
         rows, _ = self.constraints.tangent_rows(dynamics.data, indices)
@@ -498,6 +497,46 @@ class EventDriven:
         elapsed = time.perf_counter() - start
         solution = ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)
         return solution, Minv_Ht @ result.impulse[: H.shape[0]]
+
+    def _lzb_frictional_impact(
+        self, v: Vector, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
+    ) -> tuple[ContactSolution, Vector]:
+        """Simultaneous impacts with friction: the LZB law with one tangent per contact."""
+        names = self._names(np.isin(np.arange(self._n), indices))
+        if self.impact_law is None or not np.all(self.restitution_law[indices] == "energetic"):
+            raise InvalidParameterError(
+                "restitution_law",
+                sorted(set(self.restitution_law[indices].tolist())),
+                f"'energetic' at simultaneous impacts with friction (constraints {names} at "
+                "contact together): only the LZB law takes them",
+            )
+        if np.any(self.constraints.tangent_count[indices] > 1):
+            raise InvalidParameterError(
+                "[[contacts]] friction",
+                self.constraints.friction[indices].tolist(),
+                f"0 at simultaneous impacts of a spatial robot (constraints {names} at contact "
+                "together): the LZB law with 3D friction (two tangents per contact) is not "
+                "provided; a planar robot (planar_axis) has it",
+            )
+        dynamics = self._dynamics
+        nv = dynamics.model.nv
+        M = np.triu(dynamics.data.M) + np.triu(dynamics.data.M, 1).T
+        frictional = indices[self.constraints.tangent_count[indices] == 1]
+        rows, _ = self.constraints.tangent_rows(dynamics.data, frictional)
+        J_t = np.zeros((indices.size, nv))
+        J_t[np.isin(indices, frictional)] = rows
+        law = self.impact_law.select(indices)
+        if np.max(-self.constraints.restitution[indices] * u_minus) < self.zeno_velocity:
+            law = dataclasses.replace(law, restitution=np.zeros(indices.size))
+        start = time.perf_counter()
+        result = lzb_impact_with_friction(
+            law, M, terms.J[:, :nv], J_t, v[:nv], self.constraints.friction[indices]
+        )
+        elapsed = time.perf_counter() - start
+        solution = ContactSolution(result.impulse, result.u, "solved", result.steps, 0.0, elapsed)
+        jump = np.zeros(v.size)
+        jump[:nv] = result.v - v[:nv]  # motor coordinates: untouched
+        return solution, jump
 
     def _single_impact(
         self, terms: ConstraintTerms, u_minus: Vector, restitution: Vector, law: str
