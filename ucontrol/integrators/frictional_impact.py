@@ -250,7 +250,11 @@ def stick_force(W_tt: Vector, W_tn: Vector) -> Vector:
 def slip_direction(W: Vector, mu: float) -> Vector:
     r"""Direction of slip from rest: unit σ with :math:`W_{tn} - \mu W_{tt}\sigma = k\sigma`.
 
-    Among the directions with k > 0 (the slip grows along σ) the fastest-growing one is taken.
+    In polar form :math:`u_t = \rho(\cos\theta, \sin\theta)` the slip turns as
+    :math:`d\theta/dp = c(\theta)/\rho`, :math:`c = \sigma \times (W_{tn} - \mu W_{tt}\sigma)`:
+    leaving rest along a direction with :math:`c'(\theta) > 0` is unstable (any perturbation
+    turns the slip away as :math:`\rho` grows), so among the directions with k > 0 the stable
+    ones (:math:`c' < 0`) are preferred, and among those the fastest-growing one is taken.
 
     Args:
         W: Delassus block (scaled or not), shape (3, 3).
@@ -278,14 +282,16 @@ def slip_direction(W: Vector, mu: float) -> Vector:
     roots = list(grid[:-1][values[:-1] == 0.0])
     for k in np.flatnonzero(values[:-1] * values[1:] < 0.0):
         roots.append(brentq(cross, grid[k], grid[k + 1], xtol=1e-15))
-    best, growth = None, 0.0
+    step = 1e-7  # [rad], for the slope of the turning rate
+    candidates = []
     for theta in roots:
         sigma, w = terms(theta)
-        if float(sigma @ w) > growth:
-            best, growth = sigma, float(sigma @ w)
-    if best is None:
+        if float(sigma @ w) > 0.0:
+            stable = cross(theta + step) - cross(theta - step) < 0.0
+            candidates.append((stable, float(sigma @ w), sigma))
+    if not candidates:
         raise SolverError("frictional_impact", "no direction of slip from rest")
-    return best
+    return max(candidates, key=lambda candidate: candidate[:2])[2]
 
 
 def terminal_event(function: Any, direction: float) -> Any:
@@ -308,8 +314,10 @@ class _Shock:
         """d/dp of y = (u_n, u_t1, u_t2, normal work, P_n, P_t1, P_t2)."""
         if mode == "stick":
             phi = self.stick_rate
-        elif self.mu == 0.0:
+        elif mode == "free":
             phi = np.zeros(2)
+        elif mode == "ray":  # slip from rest along an invariant direction: exactly straight
+            phi = -self.mu * sigma
         else:
             slip = y[1:3]
             norm = math.hypot(slip[0], slip[1])
@@ -320,12 +328,18 @@ class _Shock:
         return np.concatenate((du, [y[0], 1.0], phi))
 
     def mode_at_rest(self) -> tuple[str, Vector]:
-        """Stick or the slip direction when the slip velocity is zero."""
+        """Stick, or slip along a ray from rest, when the slip velocity is zero.
+
+        Along an invariant direction σ the slip velocity grows as kσ per unit normal impulse
+        to the end of the impact (the rate depends on the direction only), so the phase is
+        integrated with σ fixed: near rest the turning rate of the slip, of order 1/|u_t|,
+        would make the integration of the free direction unstable.
+        """
         if self.mu == 0.0:
             return "free", np.zeros(2)
         if self.can_stick:
             return "stick", np.zeros(2)
-        return "slip", slip_direction(self.W, self.mu)
+        return "ray", slip_direction(self.W, self.mu)
 
     def run(
         self, u_minus: Vector, law: str, e: float, rtol: float, impulse_unit: float
@@ -340,7 +354,7 @@ class _Shock:
         elif math.hypot(u_minus[1], u_minus[2]) <= _SLIP_ZERO:
             y[1:3] = 0.0
             mode, sigma = self.mode_at_rest()
-            transitions.append((mode, 0.0))
+            transitions.append(("stick" if mode == "stick" else "slip", 0.0))
         else:
             mode, sigma = "slip", u_minus[1:] / math.hypot(u_minus[1], u_minus[2])
         compressing = True
