@@ -47,7 +47,7 @@ def test_one_contact_lzb_is_newtons_law() -> None:
     ("settings", "match"),
     [
         ({"impact_law": "lzb", "name": "moreau_jean"}, r"impact_law.*'lzb'"),
-        ({"impact_law": "poisson"}, r"'poisson'"),
+        ({"impact_law": "routh"}, r"'routh'"),
         ({"impact_law": "lzb", "lzb_exponent": -1.0}, r"lzb_exponent"),
         ({"impact_law": "lzb", "lzb_impulse_step": 0.0}, r"lzb_impulse_step"),
         ({"impact_law": "lzb", "lzb_max_steps": 0}, r"lzb_max_steps"),

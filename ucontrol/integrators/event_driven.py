@@ -1,4 +1,4 @@
-r"""Event-driven integration (the accuracy reference), frictionless.
+r"""Event-driven integration (the accuracy reference), frictionless between impacts.
 
 Between events the set :math:`I_2` of closed constraints (:math:`g_a = 0`, :math:`u_a = 0`) is
 fixed and the motion is smooth: :math:`M \dot v = \tau - h + J_{I_2}^T \lambda` with
@@ -9,7 +9,11 @@ the open constraints and :math:`\lambda_a = 0` (direction -1) for the closed one
 1. impact: the constraints at contact (:math:`g_a \le \varepsilon_g`) solve the velocity-level
    LCP of Moreau–Jean with :math:`v_\text{free} = v^-`,
    :math:`0 \le P \perp D P + (1 + e) \odot J v^- \ge 0`, Newton's restitution applying to
-   the closing constraints only;
+   the closing constraints only; or, with ``restitution_law`` ``"poisson"`` or
+   ``"energetic"``, a single constraint at contact follows that law
+   (:func:`~ucontrol.integrators.frictional_impact.frictional_impact`, frictionless here so
+   equal to Newton's impulse) and several simultaneous ones the LZB law (energetic) or a
+   refusal (Poisson: no multiple-impact Poisson law is provided);
 2. active set: the constraints left at contact with :math:`|u_a| \le \varepsilon_u` solve the
    acceleration-level LCP
    :math:`0 \le \lambda \perp D \lambda + (J a_\text{free} + \dot J v) \ge 0`,
@@ -33,6 +37,16 @@ held, so :func:`ucontrol.simulate` runs it like Moreau–Jean; the step ``h`` is
 and control period. Its impulse is that of the step: impacts plus :math:`\int \lambda\,dt`;
 its :attr:`~ucontrol.plant.StepOutcome.impacts` are the located times of the step's impacts
 (the events at which a closing constraint gets an impulse), to solve_ivp's event accuracy.
+
+**Frictional impacts.** A constraint with a friction coefficient and the ``"poisson"`` or
+``"energetic"`` restitution law has its impacts integrated with Coulomb's law by
+:func:`~ucontrol.integrators.frictional_impact.frictional_impact` on its normal and tangent rows
+(the step's impulse logs the normal part). There are no sliding or sticking phases between
+impacts: a frictional constraint that stays closed raises :class:`IntegrationError`. An
+impact at several constraints, one frictional, takes the LZB law with planar friction
+(:func:`~ucontrol.integrators.lzb_impact.lzb_impact_with_friction`) when all are energetic and
+the robot planar, and raises :class:`InvalidParameterError` otherwise. Fixed surfaces and no
+bilateral constraints (the scene builder checks both).
 
 **Bilateral constraints.** With :attr:`~ucontrol.contact.ConstraintSet.bilateral` (loop
 closures, joint couplings: rows :math:`J_b`, residual :math:`h(q)`) the bilateral rows are
@@ -68,17 +82,24 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from ucontrol._validation import as_positive
+from ucontrol._validation import as_in_interval, as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
-from ucontrol.exceptions import IntegrationError, InvalidParameterError, SolverError
-from ucontrol.integrators.lzb_impact import LZBImpactLaw
+from ucontrol.exceptions import IntegrationError, InvalidParameterError, ShapeError, SolverError
+from ucontrol.integrators.frictional_impact import (
+    FRICTIONAL_IMPACT_LAWS,
+    check_restitution,
+    frictional_impact,
+)
+from ucontrol.integrators.lzb_impact import LZBImpactLaw, lzb_impact_with_friction
 from ucontrol.integrators.methods import IVP_METHODS
 from ucontrol.integrators.smooth_dynamics import ConstraintTerms, SmoothDynamics
 from ucontrol.model.flexible_joints import FlexibleJoints
@@ -147,7 +168,16 @@ class EventDriven:
         acceleration_solver: Acceleration-level LCP solver; default a second one.
         max_events: Events allowed in one step before :class:`IntegrationError`.
         flexible: Flexible joints of the robot: the state then holds their motor coordinates.
-        impact_law: The LZB impact law in place of Newton's, or None.
+        impact_law: The LZB impact law in place of Newton's, or None; with
+            ``restitution_law = "energetic"`` the law of simultaneous impacts.
+        restitution_law: ``"newton"``, ``"poisson"`` or ``"energetic"``, one for every
+            constraint or one per constraint (shape (n,)): the law of an impact at a single
+            constraint, its restitution then Poisson's or Stronge's coefficient
+            (docs/impact_laws.md). Simultaneous impacts need one law among the constraints at
+            contact: Newton's (generalized, or LZB's with ``impact_law`` and every law
+            ``"newton"``) or the energetic one (LZB's ``impact_law``).
+        tangential_restitution: Brach's e_t in [-1, 1], the option of Newton's law at the
+            impacts of frictional constraints (:func:`frictional_impact`), or None.
         joint_friction: Viscous friction of the link coordinates, a smooth force
             (:mod:`~ucontrol.integrators.smooth_dynamics`); Coulomb friction is refused.
 
@@ -184,9 +214,30 @@ class EventDriven:
         flexible: FlexibleJoints | None = None,
         impact_law: LZBImpactLaw | None = None,
         joint_friction: JointFriction | None = None,
+        restitution_law: str | Sequence[str] = "newton",
+        tangential_restitution: float | None = None,
     ) -> None:
         if method not in METHODS:
             raise InvalidParameterError("method", method, f"one of {list(METHODS)}")
+        laws = (
+            [restitution_law] * constraints.size
+            if isinstance(restitution_law, str)
+            else list(restitution_law)
+        )
+        if len(laws) != constraints.size:
+            raise ShapeError("restitution_law", (constraints.size,), (len(laws),))
+        for law, e in zip(laws, constraints.restitution, strict=True):
+            if law not in FRICTIONAL_IMPACT_LAWS:
+                raise InvalidParameterError(
+                    "restitution_law", law, f"one of {FRICTIONAL_IMPACT_LAWS}"
+                )
+            check_restitution(law, e)
+        self.restitution_law = np.array(laws)
+        self.tangential_restitution = (
+            None
+            if tangential_restitution is None
+            else as_in_interval("tangential_restitution", tangential_restitution, -1.0, 1.0)
+        )
         self.robot = robot
         self.constraints = constraints
         self.flexible = flexible
@@ -201,6 +252,10 @@ class EventDriven:
             acceleration_solver if acceleration_solver is not None else ProxsuiteLCPSolver()
         )
         self.impact_law = impact_law
+        # ``impact_law`` alone (every restitution law Newton's): LZB for every impact
+        self._lzb_for_newton = impact_law is not None and bool(
+            np.all(self.restitution_law == "newton")
+        )
         self.joint_friction = joint_friction
         self._dynamics = SmoothDynamics(
             robot, constraints, flexible, joint_friction, integrator=self.name
@@ -222,8 +277,11 @@ class EventDriven:
                 (nv + nf with flexible joints: the motor torques last).
 
         Raises:
-            IntegrationError: solve_ivp failed, the events stalled, or more than
-                ``max_events`` events fell in the step.
+            IntegrationError: solve_ivp failed, the events stalled, more than
+                ``max_events`` events fell in the step, or a frictional constraint stays
+                closed (no sliding or sticking phases).
+            InvalidParameterError: Simultaneous impacts the restitution laws do not cover
+                (Poisson's or mixed laws; with friction, not all energetic or spatial).
             SolverError: An impact or acceleration LCP was not solved.
         """
         q, v, h = state.q, state.v, self.dt
@@ -315,12 +373,16 @@ class EventDriven:
         solutions = []
         impacts: tuple[int, ...] = ()
         if np.any(u_near < -self.closure_velocity):
-            solution = self._checked(self.impact_solver, self._impact(terms, u_near, indices))
+            if self.constraints.friction[indices].any():
+                solution, jump = self._frictional_impact(v, terms, u_near, indices)
+            else:
+                solution = self._checked(self.impact_solver, self._impact(terms, u_near, indices))
+                jump = terms.Minv_Jt @ solution.impulses
             solutions.append(solution)
             impulse[indices] = solution.impulses
             hit = (u_near < -self.closure_velocity) & (solution.impulses > 0.0)
             impacts = tuple(int(i) for i in indices[hit])
-            v = v + terms.Minv_Jt @ solution.impulses
+            v = v + jump
             v, capture = self._capture(terms, v)
             impulse[indices] += capture
             terms = dynamics.constraint_terms(q, v, tau, indices, t=time)
@@ -336,6 +398,14 @@ class EventDriven:
             )
             solutions.append(solution)
             closed[indices[rows[solution.velocity <= self.closure_acceleration]]] = True
+        if (closed & (self.constraints.friction > 0.0)).any():
+            raise IntegrationError(
+                self.name,
+                time,
+                f"constraints {self._names(closed & (self.constraints.friction > 0.0))} with "
+                "friction stay at contact: event_driven applies frictional impact laws but has "
+                "no sliding or sticking phases between impacts (use moreau_jean)",
+            )
         if closed.any() or self._bilateral:
             q, v = self._project(q, v, closed, time)
         return _Settled(
@@ -357,7 +427,19 @@ class EventDriven:
         rule of the module docstring).
         """
         restitution = self.constraints.restitution[indices]
-        if self.impact_law is not None:
+        laws = self.restitution_law[indices]
+        if indices.size == 1 and laws[0] != "newton":
+            return self._single_impact(terms, u_minus, restitution, str(laws[0]))
+        newton = bool(np.all(laws == "newton"))
+        if not (newton or (np.all(laws == "energetic") and self.impact_law is not None)):
+            raise InvalidParameterError(
+                "restitution_law",
+                sorted(set(laws.tolist())),
+                f"one law for simultaneous impacts, 'newton' or 'energetic' (constraints "
+                f"{self._names(np.isin(np.arange(self._n), indices))} at contact together): "
+                "Poisson's law and mixed laws are provided for a single contact only",
+            )
+        if self.impact_law is not None and (not newton or self._lzb_for_newton):
             law = self.impact_law.select(indices)
             if np.max(-restitution * u_minus) < self.zeno_velocity:  # an accumulation: plastic
                 law = dataclasses.replace(law, restitution=np.zeros(indices.size))
@@ -368,6 +450,105 @@ class EventDriven:
         bounces = (u_minus < 0.0) & (-restitution * u_minus >= self.zeno_velocity)
         e = np.where(bounces, restitution, 0.0)
         return self.impact_solver.solve(terms.delassus(), (1.0 + e) * u_minus)
+
+    def _frictional_impact(
+        self, v: Vector, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
+    ) -> tuple[ContactSolution, Vector]:
+        """Impulse and velocity jump of an impact at one constraint with Coulomb friction.
+
+        Darboux–Keller integration (:func:`frictional_impact`) with the constraint's law; the
+        pinocchio data hold the configuration of ``terms``.
+
+        Several constraints at contact together take the LZB law with planar friction
+        (:func:`lzb_impact_with_friction`) when every law among them is the energetic one.
+
+        Raises:
+            InvalidParameterError: Several constraints at contact together, one with friction,
+                and not all energetic, or with two tangents (3D friction: not provided).
+        """
+        if indices.size > 1:
+            return self._lzb_frictional_impact(v, terms, u_minus, indices)
+        index = int(indices[0])
+        dynamics = self._dynamics
+        rows, _ = self.constraints.tangent_rows(dynamics.data, indices)
+        Minv_rows = np.column_stack(
+            [pin.cholesky.solve(dynamics.model, dynamics.data, row) for row in rows]
+        )
+        pad = terms.Minv_Jt.shape[0] - Minv_rows.shape[0]  # motor coordinates: untouched
+        Minv_Ht = np.hstack((terms.Minv_Jt, np.vstack((Minv_rows, np.zeros((pad, rows.shape[0]))))))
+        H = np.vstack((terms.J[:, : rows.shape[1]], rows))
+        W = np.zeros((3, 3))
+        W[: H.shape[0], : H.shape[0]] = H @ Minv_Ht[: H.shape[1]]
+        u = np.zeros(3)
+        u[: H.shape[0]] = np.concatenate((u_minus, rows @ v[: rows.shape[1]]))
+        e = float(self.constraints.restitution[index])
+        law = str(self.restitution_law[index])
+        if -e * u_minus[0] < self.zeno_velocity:  # an accumulation: plastic
+            e = 0.0
+        start = time.perf_counter()
+        result = frictional_impact(
+            W,
+            u,
+            friction=float(self.constraints.friction[index]),
+            restitution=e,
+            law=law,
+            tangential_restitution=self.tangential_restitution if law == "newton" else None,
+        )
+        elapsed = time.perf_counter() - start
+        solution = ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)
+        return solution, Minv_Ht @ result.impulse[: H.shape[0]]
+
+    def _lzb_frictional_impact(
+        self, v: Vector, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
+    ) -> tuple[ContactSolution, Vector]:
+        """Simultaneous impacts with friction: the LZB law with one tangent per contact."""
+        names = self._names(np.isin(np.arange(self._n), indices))
+        if self.impact_law is None or not np.all(self.restitution_law[indices] == "energetic"):
+            raise InvalidParameterError(
+                "restitution_law",
+                sorted(set(self.restitution_law[indices].tolist())),
+                f"'energetic' at simultaneous impacts with friction (constraints {names} at "
+                "contact together): only the LZB law takes them",
+            )
+        if np.any(self.constraints.tangent_count[indices] > 1):
+            raise InvalidParameterError(
+                "[[contacts]] friction",
+                self.constraints.friction[indices].tolist(),
+                f"0 at simultaneous impacts of a spatial robot (constraints {names} at contact "
+                "together): the LZB law with 3D friction (two tangents per contact) is not "
+                "provided; a planar robot (planar_axis) has it",
+            )
+        dynamics = self._dynamics
+        nv = dynamics.model.nv
+        M = np.triu(dynamics.data.M) + np.triu(dynamics.data.M, 1).T
+        frictional = indices[self.constraints.tangent_count[indices] == 1]
+        rows, _ = self.constraints.tangent_rows(dynamics.data, frictional)
+        J_t = np.zeros((indices.size, nv))
+        J_t[np.isin(indices, frictional)] = rows
+        law = self.impact_law.select(indices)
+        if np.max(-self.constraints.restitution[indices] * u_minus) < self.zeno_velocity:
+            law = dataclasses.replace(law, restitution=np.zeros(indices.size))
+        start = time.perf_counter()
+        result = lzb_impact_with_friction(
+            law, M, terms.J[:, :nv], J_t, v[:nv], self.constraints.friction[indices]
+        )
+        elapsed = time.perf_counter() - start
+        solution = ContactSolution(result.impulse, result.u, "solved", result.steps, 0.0, elapsed)
+        jump = np.zeros(v.size)
+        jump[:nv] = result.v - v[:nv]  # motor coordinates: untouched
+        return solution, jump
+
+    def _single_impact(
+        self, terms: ConstraintTerms, u_minus: Vector, restitution: Vector, law: str
+    ) -> ContactSolution:
+        """The impulse of Poisson's or the energetic ``law`` at one frictionless constraint."""
+        e = float(restitution[0]) if -restitution[0] * u_minus[0] >= self.zeno_velocity else 0.0
+        W = np.zeros((3, 3))
+        W[0, 0] = terms.delassus()[0, 0]
+        start = time.perf_counter()
+        result = frictional_impact(W, [u_minus[0], 0.0, 0.0], friction=0.0, restitution=e, law=law)
+        elapsed = time.perf_counter() - start
+        return ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)
 
     def _capture(self, terms: ConstraintTerms, v: Vector) -> tuple[Vector, Vector]:
         """Stop the constraints at contact that leave an impact slower than ``zeno_velocity``.

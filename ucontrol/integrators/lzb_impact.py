@@ -59,6 +59,7 @@ from scipy.integrate import solve_ivp
 
 from ucontrol._validation import as_positive, as_vector
 from ucontrol.exceptions import InvalidParameterError, ShapeError, SolverError
+from ucontrol.integrators.frictional_impact import stick_force, terminal_event
 
 Vector = NDArray[np.float64]
 
@@ -522,7 +523,9 @@ def lzb_impact_with_friction(
     compliance force, :math:`f_t = -\mu f_n\,\mathrm{sign}(u_t)` while it slides, and while it
     sticks (:math:`u_t = 0`) the force that keeps :math:`\dot u_t = 0`, as long as
     :math:`|f_t| \le \mu f_n`. Velocities follow :math:`d(u_n, u_t)/d\tau = W (f_n, f_t)`,
-    :math:`W = H M^{-1} H^T`, :math:`H = (J; J_t)`. Adaptive integration only.
+    :math:`W = H M^{-1} H^T`, :math:`H = (J; J_t)`. Adaptive integration only. With one
+    contact this is Stronge's energetic law with friction
+    (:func:`~ucontrol.integrators.frictional_impact.frictional_impact`, tested equal).
 
     Args:
         law: Restitution, stiffness and exponent of the contacts (``gaps`` and ``rtol`` too).
@@ -533,7 +536,8 @@ def lzb_impact_with_friction(
         friction: Coulomb coefficients μ >= 0, scalar or shape (m,).
 
     Raises:
-        InvalidParameterError: A negative μ, or a fixed impulse step (not supported here).
+        InvalidParameterError: A negative μ, a fixed impulse step (not supported here), or
+            two tangent rows per contact at several contacts (3D friction, not provided).
         SolverError: The integration failed.
     """
     if law.impulse_step is not None:
@@ -544,6 +548,14 @@ def lzb_impact_with_friction(
     J = np.atleast_2d(np.asarray(J, dtype=float))
     J_t = np.atleast_2d(np.asarray(J_t, dtype=float))
     n, m = M.shape[0], J.shape[0]
+    if m > 1 and J_t.shape == (2 * m, n):
+        raise InvalidParameterError(
+            "J_t",
+            f"{2 * m} rows (two tangents per contact)",
+            f"{m} rows, one tangent per contact: the LZB law with 3D friction at several "
+            "contacts (the coupled directions in which stuck contacts start slipping) is not "
+            "provided; one contact in 3D is ucontrol.integrators.frictional_impact",
+        )
     if J.shape != (m, n) or J_t.shape != (m, n):
         raise ShapeError("J_t", (m, n), J_t.shape)
     v_minus = as_vector("v_minus", v_minus, n)
@@ -589,8 +601,8 @@ def _friction_forces(
     f_t[stick] = 0.0
     if stick.any():
         S = np.flatnonzero(stick)
-        rhs = -(Ws[m + S, :m] @ f_n + Ws[np.ix_(m + S, m + np.flatnonzero(~stick))] @ f_t[~stick])
-        f_t[S] = np.linalg.lstsq(Ws[np.ix_(m + S, m + S)], rhs, rcond=1e-12)[0]
+        load = Ws[m + S, :m] @ f_n + Ws[np.ix_(m + S, m + np.flatnonzero(~stick))] @ f_t[~stick]
+        f_t[S] = stick_force(Ws[np.ix_(m + S, m + S)], load)
     return f_t
 
 
@@ -670,12 +682,7 @@ def _adaptive_friction(
 
 
 def _crossing(k: int, direction: float) -> Any:
-    def event(t: float, y: Vector) -> float:
-        return float(y[k])
-
-    event.terminal = True  # type: ignore[attr-defined]
-    event.direction = direction  # type: ignore[attr-defined]
-    return event
+    return terminal_event(lambda t, y: float(y[k]), direction)
 
 
 def _cone_event(
@@ -688,6 +695,4 @@ def _cone_event(
         f_t = _friction_forces(Ws, mu, f_n, stick, sigma)
         return float(mu[j] * f_n[j] - abs(f_t[j]))
 
-    event.terminal = True  # type: ignore[attr-defined]
-    event.direction = -1.0  # type: ignore[attr-defined]
-    return event
+    return terminal_event(event, -1.0)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ucontrol.exceptions import InvalidParameterError
+from ucontrol.exceptions import InvalidParameterError, ShapeError
 from ucontrol.integrators.moreau_jean import MoreauJean
 from ucontrol.solvers.contact_solver_choice import build_contact_solvers
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
@@ -36,18 +36,22 @@ def build_integrator(
             clearance joints with an integrator other than ``moreau_jean``.
     """
     name = scene.integrator.name
-    if scene.integrator.impact_law != "newton" and name != "event_driven":
+    laws = _impact_laws(scene)
+    if any(law != "newton" for law in laws) and name != "event_driven":
         raise InvalidParameterError(
             "[integrator] impact_law",
             scene.integrator.impact_law,
-            f"'newton' with {name} (the LZB law is an impact law of event_driven)",
+            f"'newton' with {name} (the LZB, Poisson and energetic laws are impact laws of "
+            "event_driven; Moreau–Jean and compliant apply Newton's law)",
         )
-    if scene.constraints.has_friction and name != "moreau_jean":
+    if scene.constraints.has_friction and name != "moreau_jean" and not _frictional_impacts(scene):
         raise InvalidParameterError(
             "[integrator] name",
             name,
-            "'moreau_jean' for contacts with friction (event_driven and compliant are "
-            "frictionless)",
+            "'moreau_jean' for contacts with friction (compliant is frictionless; event_driven "
+            "takes frictional impacts only, with impact_law 'poisson' or 'energetic' at the "
+            "frictional contacts, or Newton's with a tangential_restitution, fixed surfaces "
+            "and no bilateral constraints)",
         )
     if scene.clearances and name != "moreau_jean":
         raise InvalidParameterError(
@@ -118,6 +122,7 @@ def _event_driven(scene: SceneData, dt: float) -> Integrator:
     from ucontrol.integrators.event_driven import EventDriven  # loads scipy.integrate
 
     settings = scene.integrator
+    laws = _impact_laws(scene)
     return EventDriven(
         scene.robot,
         scene.constraints,
@@ -130,10 +135,42 @@ def _event_driven(scene: SceneData, dt: float) -> Integrator:
             eps_abs=settings.contact_tolerance, max_iter=settings.max_iter
         ),
         flexible=scene.flexible,
-        impact_law=_lzb_law(scene) if settings.impact_law == "lzb" else None,
+        impact_law=_lzb_law(scene) if {"lzb", "energetic"} & set(laws) else None,
+        restitution_law=["newton" if law == "lzb" else law for law in laws],
+        tangential_restitution=settings.tangential_restitution,
         joint_friction=scene.joint_friction,
         **settings.solver_options(),
     )
+
+
+def _frictional_impacts(scene: SceneData) -> bool:
+    """Whether event_driven may take the scene's frictional contacts (at impacts only)."""
+    constraints = scene.constraints
+    laws = np.array(_impact_laws(scene))
+    allowed = ["poisson", "energetic"]
+    if scene.integrator.tangential_restitution is not None:
+        allowed.append("newton")  # Brach's law
+    return (
+        scene.integrator.name == "event_driven"
+        and constraints.bilateral is None
+        and not constraints.time_dependent
+        and bool(np.all(np.isin(laws[constraints.friction > 0.0], allowed)))
+    )
+
+
+def _impact_laws(scene: SceneData) -> list[str]:
+    """The impact law of every constraint of the scene, shape (n,).
+
+    Raises:
+        ShapeError: A per-constraint list of another length than the constraints'.
+    """
+    laws = scene.integrator.impact_law
+    n = scene.constraints.size
+    if isinstance(laws, str):
+        return [laws] * n
+    if len(laws) != n:
+        raise ShapeError("[integrator] impact_law", (n,), (len(laws),))
+    return list(laws)
 
 
 def _lzb_law(scene: SceneData) -> Any:

@@ -8,7 +8,13 @@ from typing import Any
 
 from ucontrol._validation import as_float, as_in_interval, as_int, as_positive, as_vector
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
-from ucontrol.integrators.methods import CONTACT_MODELS, IMPACT_LAWS, INTEGRATORS, IVP_METHODS
+from ucontrol.integrators.methods import (
+    CONTACT_MODELS,
+    IMPACT_LAWS,
+    INTEGRATORS,
+    IVP_METHODS,
+    RESTITUTION_LAWS,
+)
 from ucontrol.integrators.moreau_jean import NEWTON_LAWS, ON_UNSOLVED, PERSISTENCE_TOLERANCE
 from ucontrol.solvers.contact_solver_choice import check_contact_solver
 
@@ -54,9 +60,16 @@ class IntegratorSettings:
             that carried an impulse in the previous step active; 0 turns it off.
         newton_law: Whom Moreau–Jean's Newton law applies to: ``"closing"`` constraints (with
             the energy guard) or, ``"siconos"``, every active one (Siconos' convention).
-        impact_law: Impact law of event_driven, ``"newton"`` (generalized Newton law) or
+        impact_law: Impact law of event_driven, ``"newton"`` (generalized Newton law),
             ``"lzb"`` (Liu–Zhao–Brogliato's energetic law, docs/multiple_impacts.md; the
-            contacts' restitutions are then energetic coefficients).
+            contacts' restitutions are then energetic coefficients), ``"poisson"`` (Poisson's
+            kinetic coefficients, single impacts only) or ``"energetic"`` (Stronge's
+            coefficients; simultaneous impacts by the LZB law), docs/impact_laws.md; or a
+            list of ``"newton"``, ``"poisson"``, ``"energetic"``, one per constraint (the
+            contacts, then the stops, in the order of the scene).
+        tangential_restitution: Brach's tangential coefficient e_t in [-1, 1] as an option of
+            Newton's law at event_driven's frictional impacts (docs/impact_laws.md); None:
+            none, and Newton's law is then refused with friction in event_driven.
         lzb_stiffness: Contact stiffness of the LZB law, one or one per constraint (only
             ratios matter with equal exponents).
         lzb_exponent: Elasticity exponent of the LZB law (1 linear, 1.5 Hertz), one or one per
@@ -93,7 +106,8 @@ class IntegratorSettings:
     persistence_tolerance: float = PERSISTENCE_TOLERANCE
     penetration_tolerance: float = 0.01
     newton_law: str = "closing"
-    impact_law: str = "newton"
+    impact_law: str | list[str] = "newton"
+    tangential_restitution: float | None = None
     lzb_stiffness: float | list[float] = 1.0
     lzb_exponent: float | list[float] = 1.5
     lzb_impulse_step: float | None = None
@@ -144,8 +158,20 @@ class IntegratorSettings:
         object.__setattr__(self, "zeno_velocity", as_positive("zeno_velocity", self.zeno_velocity))
         if self.newton_law not in NEWTON_LAWS:
             raise InvalidParameterError("newton_law", self.newton_law, f"one of {NEWTON_LAWS}")
-        if self.impact_law not in IMPACT_LAWS:
+        if isinstance(self.impact_law, list):
+            for law in self.impact_law:
+                if law not in RESTITUTION_LAWS:
+                    raise InvalidParameterError(
+                        "impact_law", law, f"one of {RESTITUTION_LAWS} in a per-constraint list"
+                    )
+        elif self.impact_law not in IMPACT_LAWS:
             raise InvalidParameterError("impact_law", self.impact_law, f"one of {IMPACT_LAWS}")
+        if self.tangential_restitution is not None:
+            object.__setattr__(
+                self,
+                "tangential_restitution",
+                as_in_interval("tangential_restitution", self.tangential_restitution, -1.0, 1.0),
+            )
         for key in ("lzb_stiffness", "lzb_exponent"):
             value = getattr(self, key)
             values = as_vector(key, value) if isinstance(value, list) else [as_float(key, value)]

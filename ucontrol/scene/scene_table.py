@@ -136,6 +136,7 @@ _INTEGRATOR_KEYS = {
     "penetration_tolerance",
     "newton_law",
     "impact_law",
+    "tangential_restitution",
     "lzb_stiffness",
     "lzb_exponent",
     "lzb_impulse_step",
