@@ -37,6 +37,8 @@ _SCENES_WIDTH = 100
 _SCENE_HELP = "scene TOML file or built-in scene name (default: the built-in default scene)"
 
 if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
+    from ucontrol.analysis.stability_check import StabilityCheck
+    from ucontrol.log import Log
     from ucontrol.scene import Scene
     from ucontrol.viz.live_viewer import LiveViewer
     from ucontrol.viz.meshcat_server import MeshcatServer
@@ -309,6 +311,10 @@ def _run(args: argparse.Namespace) -> int:
         observer=live,
     )
     summary = result.summary
+    if dict(scene.controller).get("type") == "brogliato" and scene.flexible is None:
+        from ucontrol.analysis.stability_check import check_scene
+
+        _write_stability_check(check_scene(scene), result.log, out / "summary.json")
     print(
         f"{scene.name}: {summary['steps']} steps in {summary['wall_time_s']:.3g} s, "
         f"{summary['n_impacts']} impacts, max penetration {summary['max_penetration']:.3g}; "
@@ -322,15 +328,20 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check(args: argparse.Namespace) -> int:
-    """``ucontrol check``: the a-priori weak-stability check, optionally beside a run."""
+def _write_stability_check(check: StabilityCheck, log: Log, path: Path) -> None:
+    """Put ``check``'s bounds beside the run's measured cycles into ``path`` (summary.json)."""
     import json
 
-    from ucontrol.analysis.stability_check import (
-        EXIT_CONDITION_FAILS,
-        check_scene,
-        compare_with_run,
-    )
+    from ucontrol.analysis.stability_check import compare_with_run
+
+    summary = json.loads(path.read_text()) if path.is_file() else {}
+    summary["stability_check"] = compare_with_run(check, log)
+    path.write_text(json.dumps(summary, indent=2) + "\n")
+
+
+def _check(args: argparse.Namespace) -> int:
+    """``ucontrol check``: the a-priori weak-stability check, optionally beside a run."""
+    from ucontrol.analysis.stability_check import EXIT_CONDITION_FAILS, check_scene
     from ucontrol.campaign.overrides import scene_with_overrides
     from ucontrol.saved_run import SavedRun
     from ucontrol.scene import load_scene
@@ -341,9 +352,7 @@ def _check(args: argparse.Namespace) -> int:
     if args.run is not None:
         run = SavedRun.load(args.run, scene.source)
         path = args.run / "summary.json"
-        summary = json.loads(path.read_text()) if path.is_file() else {}
-        summary["stability_check"] = compare_with_run(result, run.log)
-        path.write_text(json.dumps(summary, indent=2) + "\n")
+        _write_stability_check(result, run.log, path)
         print(f"wrote the bounds beside the measured cycles into {path}")
     for failure in result.failures:
         print(

@@ -6,6 +6,7 @@ Uses matplotlib's object API with the Agg canvas (no pyplot state, no window).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -15,6 +16,9 @@ from ucontrol.control.brogliato_controller import BrogliatoController
 from ucontrol.log import Log
 from ucontrol.viz.figure_notes import annotate_clip, clip_note, legend_outside
 from ucontrol.viz.phase_bands import phase_bands, phase_legend
+
+if TYPE_CHECKING:
+    from ucontrol.analysis.stability_check import StabilityCheck
 
 #: Window of the moving mean of the measured contact force, in [s].
 FORCE_WINDOW = 0.02
@@ -28,8 +32,15 @@ def cycle_figures(
     name: str,
     *,
     plane: tuple[int, int] = (0, 1),
+    check: StabilityCheck | None = None,
 ) -> list[Path]:
-    """Write ``<name>_path.png`` and ``<name>_time.png`` into ``out_dir``.
+    r"""Write ``<name>_path.png`` and ``<name>_time.png`` into ``out_dir``.
+
+    With ``check`` (:func:`~ucontrol.analysis.stability_check.check_scene` of the scene that
+    ran), the time figure draws its bounds beside what the run measured: each contact's bound J
+    on the jump of V over an accumulation of impacts (dashed, on V's panel, above its value
+    before the first impact of each cycle) and the latest end of that accumulation,
+    :math:`t_0 + T_\text{acc}` of each cycle (dotted, on the gaps' panel).
 
     Args:
         log: A run of ``controller`` (its fields V, phase, task_position, ...).
@@ -37,6 +48,7 @@ def cycle_figures(
         out_dir: Output folder, created if needed.
         name: Prefix of the file names.
         plane: World axes (0 = x, 1 = y, 2 = z) of the plane of the path figure.
+        check: The a-priori stability check of the scene, or None (no bounds drawn).
 
     Returns:
         The paths of the two PNG files.
@@ -45,7 +57,7 @@ def cycle_figures(
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = [out_dir / f"{name}_path.png", out_dir / f"{name}_time.png"]
     _path_figure(log, controller, plane).savefig(paths[0], dpi=110)
-    _time_figure(log, controller).savefig(paths[1], dpi=110)
+    _time_figure(log, controller, check).savefig(paths[1], dpi=110)
     return paths
 
 
@@ -109,7 +121,9 @@ def _draw_plane(
     ax.set_ylim(y0, y1)
 
 
-def _time_figure(log: Log, controller: BrogliatoController) -> Figure:
+def _time_figure(
+    log: Log, controller: BrogliatoController, check: StabilityCheck | None = None
+) -> Figure:
     figure = Figure(figsize=(9.0, 10.0), layout="constrained")
     axes = figure.subplots(4, 1, sharex=True)
     t = log.t
@@ -120,11 +134,13 @@ def _time_figure(log: Log, controller: BrogliatoController) -> Figure:
         axes[0].plot(t, log.task_desired[:, j], "--", color=colour, lw=1, label="desired")
         axes[0].plot(t, log.task_target[:, j], ":", color=colour, lw=1, label="target (virtual)")
     axes[0].set_ylabel("gap [m]")
-    legend_outside(axes[0])
 
     axes[1].semilogy(t, np.maximum(log.V, 1e-16), lw=1, label="V")
     axes[1].semilogy(t, np.maximum(log.V1, 1e-16), lw=0.8, alpha=0.7, label="V1")
     axes[1].set_ylabel("Lyapunov [J]")
+    if check is not None:
+        _draw_bounds(axes[0], axes[1], log, controller, check)
+    legend_outside(axes[0])
     legend_outside(axes[1])
 
     window = max(1, round(FORCE_WINDOW / float(log.metadata["dt"])))
@@ -150,3 +166,27 @@ def _time_figure(log: Log, controller: BrogliatoController) -> Figure:
         phase_bands(ax, t, log.phase)
     phase_legend(figure)
     return figure
+
+
+def _draw_bounds(
+    gaps: Axes, lyapunov: Axes, log: Log, controller: BrogliatoController, check: StabilityCheck
+) -> None:
+    """The check's jump bound of V and accumulation-end bound, cycle by cycle (time figure)."""
+    period = controller.cycle.path.period  # [s]
+    t = log.t
+    for record in check.contacts:
+        if not np.isfinite(record.accumulation_time_bound):
+            continue  # no bound to draw (the check says the accumulation may not end)
+        starts = np.arange(record.first_impact, t[-1], period)  # [s] each cycle's t0
+        label = f"{record.contact}: bound J on the jump of V"
+        for k, start in enumerate(starts):
+            before = float(log.V[log.row_at(min(start, t[-1]))])  # V just before the impacts
+            end = min(start + record.accumulation_time_bound, t[-1])
+            lyapunov.hlines(
+                before + record.jump_bound, start, end, colors="tab:red", linestyles="--",
+                lw=1, label=label if k == 0 else "_",
+            )  # fmt: skip
+            gaps.axvline(
+                start + record.accumulation_time_bound, color="tab:red", ls=":", lw=1,
+                label="t0 + accumulation bound" if k == 0 else "_",
+            )  # fmt: skip

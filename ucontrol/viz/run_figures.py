@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 from ucontrol.analysis.coordinates import UNKNOWN_UNIT, coordinate_names, coordinate_units
 from ucontrol.analysis.energy_balance import actuator_work
 from ucontrol.analysis.impacts import impact_mask
+from ucontrol.analysis.stability_check import StabilityCheck
 from ucontrol.control.brogliato_controller import BrogliatoController
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.log import Log
@@ -67,8 +68,24 @@ def run_figures(log: Log, out_dir: str | Path, *, scene: Scene | None = None) ->
     if controller is not None:
         positions = frame_positions(log, controller)
         plane = tuple(int(axis) for axis in np.sort(np.argsort(positions.std(axis=0))[-2:]))
-        paths += cycle_figures(log, controller, out_dir, "cycle", plane=(plane[0], plane[1]))
+        paths += cycle_figures(
+            log,
+            controller,
+            out_dir,
+            "cycle",
+            plane=(plane[0], plane[1]),
+            check=_stability_check(scene),
+        )
     return paths
+
+
+def _stability_check(scene: Scene | None) -> StabilityCheck | None:
+    """The a-priori check of a rigid Brogliato scene (its bounds on the cycle figure), or None."""
+    if scene is None or scene.flexible is not None:
+        return None
+    from ucontrol.analysis.stability_check import check_scene
+
+    return check_scene(scene)
 
 
 def run_figure_set(
