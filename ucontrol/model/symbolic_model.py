@@ -39,6 +39,7 @@ RevoluteUnaligned, PX, PY, PZ and PrismaticUnaligned joints.
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -107,8 +108,8 @@ class SymbolicModel:
             rotation = rotations[parent] @ ca.DM(placement.rotation)
             position = positions[parent] + rotations[parent] @ ca.DM(placement.translation)
             angle_or_offset = q[model.joints[i].idx_q]
-            local_rotation: ca.SX = ca.DM(placement.rotation)
-            local_translation: ca.SX = ca.DM(placement.translation)
+            local_rotation: Any = ca.DM(placement.rotation)
+            local_translation: Any = ca.DM(placement.translation)
             if kind == "revolute":
                 rotation = rotation @ _rotation(axis, angle_or_offset)
                 local_rotation = local_rotation @ _rotation(axis, angle_or_offset)
@@ -187,7 +188,7 @@ class SymbolicModel:
         n = model.njoints
         gravity_linear = ca.DM(np.asarray(model.gravity.linear)) if gravity else ca.DM.zeros(3)
         velocity: list[tuple[ca.SX, ca.SX]] = [(ca.SX.zeros(3), ca.SX.zeros(3))]
-        acceleration: list[tuple[ca.SX, ca.SX]] = [(-gravity_linear, ca.SX.zeros(3))]
+        acceleration: list[tuple[Any, Any]] = [(-gravity_linear, ca.SX.zeros(3))]
         forces: list[list[ca.SX]] = [[ca.SX.zeros(3), ca.SX.zeros(3)] for _ in range(n)]
         for i in range(1, n):
             kind, axis, index, R, p = self._joints[i - 1]
