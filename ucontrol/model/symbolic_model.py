@@ -96,7 +96,7 @@ class SymbolicModel:
         self._robot = robot
         self.nv = model.nv
         q = ca.SX.sym("q", self.nv)
-        self._q = q
+        self._q, self._v = q, ca.SX.sym("v", self.nv)
         rotations: list[ca.SX] = [ca.SX.eye(3)]
         positions: list[ca.SX] = [ca.SX.zeros(3)]
         # Each joint's (kind, axis, index, rotation, translation) from its parent's frame.
@@ -134,10 +134,11 @@ class SymbolicModel:
         r"""``(q (nv,), v (nv,)) -> C (nv, nv)``, :math:`\dot M - 2C` skew, built on first use."""
         return self._dynamics[1]
 
-    @property
+    @functools.cached_property
     def nonlinear_effects(self) -> ca.Function:
         r"""``(q (nv,), v (nv,)) -> h (nv,)``, :math:`C(q, v) v + g(q)`, built on first use."""
-        return self._dynamics[4]
+        h = self._rnea(self._v, ca.SX.zeros(self.nv), gravity=True)
+        return ca.Function("h", [self._q, self._v], [h], ["q", "v"], ["h"])
 
     @property
     def gravity(self) -> ca.Function:
@@ -150,13 +151,11 @@ class SymbolicModel:
         return self._dynamics[3]
 
     @functools.cached_property
-    def _dynamics(
-        self,
-    ) -> tuple[ca.Function, ca.Function, ca.Function, ca.Function, ca.Function]:
-        """The Functions M(q), C(q, v), g(q), V(q) and h(q, v) (module docstring)."""
+    def _dynamics(self) -> tuple[ca.Function, ca.Function, ca.Function, ca.Function]:
+        """The Functions M(q), C(q, v), g(q) and V(q) (module docstring)."""
         model, q, nv = self._robot.model, self._q, self.nv
-        v, zero = ca.SX.sym("v", nv), ca.SX.zeros(nv)
-        columns = [self._rnea(zero, ca.SX(ca.DM.eye(nv)[:, j]), gravity=False) for j in range(nv)]
+        v, zero = self._v, ca.SX.zeros(nv)
+        columns = [self._rnea(None, ca.SX(ca.DM.eye(nv)[:, j]), gravity=False) for j in range(nv)]
         M = ca.horzcat(*columns)
         armature = np.asarray(model.armature, dtype=float)
         if armature.any():  # rotor inertias on the diagonal, as crba
@@ -174,15 +173,15 @@ class SymbolicModel:
         return (
             ca.Function("M", [q], [M], ["q"], ["M"]),
             ca.Function("C", [q, v], [C], ["q", "v"], ["C"]),
-            ca.Function("g", [q], [self._rnea(zero, zero, gravity=True)], ["q"], ["g"]),
+            ca.Function("g", [q], [self._rnea(None, zero, gravity=True)], ["q"], ["g"]),
             ca.Function("V", [q], [potential], ["q"], ["V"]),
-            ca.Function("h", [q, v], [self._rnea(v, zero, gravity=True)], ["q", "v"], ["h"]),
         )
 
-    def _rnea(self, v: ca.SX, a: ca.SX, *, gravity: bool) -> ca.SX:
+    def _rnea(self, v: ca.SX | None, a: ca.SX, *, gravity: bool) -> ca.SX:
         """Joint torques at velocities ``v`` and accelerations ``a`` (expressions, (nv,)).
 
         Without the armature's torques; with gravity's when ``gravity`` (module docstring).
+        ``v`` None: at rest (the velocity terms, zero, not built).
         """
         model = self._robot.model
         n = model.njoints
@@ -193,20 +192,23 @@ class SymbolicModel:
         for i in range(1, n):
             kind, axis, index, R, p = self._joints[i - 1]
             parent = model.parents[i]
-            lin_p, ang_p = velocity[parent]
             acc_lin_p, acc_ang_p = acceleration[parent]
-            # motion from the parent's frame into joint i's: R^T (v + ω × p), R^T ω
-            lin = R.T @ (lin_p + ca.cross(ang_p, p))
-            ang = R.T @ ang_p
             acc_lin = R.T @ (acc_lin_p + ca.cross(acc_ang_p, p))
             acc_ang = R.T @ acc_ang_p
             s_lin, s_ang = (ca.DM.zeros(3), axis) if kind == "revolute" else (axis, ca.DM.zeros(3))
-            qd, qdd = v[index], a[index]
-            lin, ang = lin + s_lin * qd, ang + s_ang * qd
-            # a += S q̈ + v × S q̇, (v, ω) × (m_v, m_ω) = (ω × m_v + v × m_ω, ω × m_ω)
-            acc_lin = acc_lin + s_lin * qdd + ca.cross(ang, s_lin * qd) + ca.cross(lin, s_ang * qd)
-            acc_ang = acc_ang + s_ang * qdd + ca.cross(ang, s_ang * qd)
-            velocity.append((lin, ang))
+            qdd = a[index]
+            acc_lin, acc_ang = acc_lin + s_lin * qdd, acc_ang + s_ang * qdd
+            if v is not None:
+                # motion from the parent's frame into joint i's: R^T (v + ω × p), R^T ω
+                lin_p, ang_p = velocity[parent]
+                lin = R.T @ (lin_p + ca.cross(ang_p, p))
+                ang = R.T @ ang_p
+                qd = v[index]
+                lin, ang = lin + s_lin * qd, ang + s_ang * qd
+                # a += v × S q̇, (v, ω) × (m_v, m_ω) = (ω × m_v + v × m_ω, ω × m_ω)
+                acc_lin = acc_lin + ca.cross(ang, s_lin * qd) + ca.cross(lin, s_ang * qd)
+                acc_ang = acc_ang + ca.cross(ang, s_ang * qd)
+                velocity.append((lin, ang))
             acceleration.append((acc_lin, acc_ang))
             inertia = model.inertias[i]
             mass, c = inertia.mass, ca.DM(inertia.lever)
@@ -214,11 +216,14 @@ class SymbolicModel:
             # I a and I v: linear m (a_v + a_ω × c), angular I_c a_ω + c × linear
             f_lin = mass * (acc_lin + ca.cross(acc_ang, c))
             f_ang = I_c @ acc_ang + ca.cross(c, f_lin)
-            h_lin = mass * (lin + ca.cross(ang, c))
-            h_ang = I_c @ ang + ca.cross(c, h_lin)
-            # v ×* (h_lin, h_ang) = (ω × h_lin, ω × h_ang + v × h_lin)
-            forces[i][0] = forces[i][0] + f_lin + ca.cross(ang, h_lin)
-            forces[i][1] = forces[i][1] + f_ang + ca.cross(ang, h_ang) + ca.cross(lin, h_lin)
+            forces[i][0] = forces[i][0] + f_lin
+            forces[i][1] = forces[i][1] + f_ang
+            if v is not None:
+                h_lin = mass * (lin + ca.cross(ang, c))
+                h_ang = I_c @ ang + ca.cross(c, h_lin)
+                # v ×* (h_lin, h_ang) = (ω × h_lin, ω × h_ang + v × h_lin)
+                forces[i][0] = forces[i][0] + ca.cross(ang, h_lin)
+                forces[i][1] = forces[i][1] + ca.cross(ang, h_ang) + ca.cross(lin, h_lin)
         tau = [ca.SX(0)] * self.nv
         for i in range(n - 1, 0, -1):
             kind, axis, index, R, p = self._joints[i - 1]
