@@ -264,6 +264,10 @@ class _ClosedLoop:
             k = push.sample(integrator.dt)
             self.pushes[k] = self.pushes.get(k, np.zeros(robot.nv)) + push.velocity
         self.shares_plant_data = False
+        self.names, self.dt = integrator.constraints.names, integrator.dt
+        # The controller sees the plant's own state and its output acts as it is: the rows
+        # need only its own fields.
+        self.direct = self.sensors is None and self.actuators is None
 
     def share_plant_data(self) -> None:
         """Let the controller read M and h from the plant's evaluation, where that is exact.
@@ -318,14 +322,11 @@ class _ClosedLoop:
         """The controller's input at t [s], held until the next control period."""
         if self.hold > 1:  # what happened over the control period that ends now
             impulse, active = self.period_impulse.copy(), self.period_active.copy()
-            span = max(self.period_steps, 1) * self.integrator.dt
+            span = max(self.period_steps, 1) * self.dt
             self.period_impulse[:], self.period_active[:], self.period_steps = 0.0, False, 0
         else:
-            impulse, active, span = self.impulse, self.active, self.integrator.dt
-        constraints = self.integrator.constraints
-        contacts = ContactState(
-            constraints.names, state.gap, state.normal_velocity, impulse, active, span
-        )
+            impulse, active, span = self.impulse, self.active, self.dt
+        contacts = ContactState(self.names, state.gap, state.normal_velocity, impulse, active, span)
         q, v = self.q, self.v
         if self.sensors is not None:
             q, v, contacts = self.sensors.measure(q, v, contacts, t, self.tau)
@@ -347,11 +348,10 @@ class _ClosedLoop:
     def advance(self, state: PlantEvaluation) -> None:
         """One plant step from ``state`` under the held input; closes the log row."""
         log = self.log
-        if self.sensors is None and self.actuators is None:
-            if self.recorder is not None:  # the controller's own fields
-                self.recorder.record(log)
-        else:
+        if not self.direct:
             self._record_controller_fields()
+        elif self.recorder is not None:  # the controller's own fields
+            self.recorder.record(log)
         outcome = self.integrator.step(state, self.tau)
         if outcome.solution is None and outcome.friction_impulse is None and not outcome.impacts:
             log.record_step_without_solve(self.u, outcome.impulse, outcome.active)
@@ -360,12 +360,7 @@ class _ClosedLoop:
         self.row_open = False
         if self.observer is not None:
             self.observer(log)
-        self.q, self.v, self.impulse, self.active = (
-            outcome.q,
-            outcome.v,
-            outcome.impulse,
-            outcome.active,
-        )
+        self.q, self.v, self.impulse, self.active = outcome[:4]  # (q, v, impulse, active)
         if self.hold > 1:
             self.period_impulse += outcome.impulse
             self.period_active |= outcome.active
@@ -375,7 +370,7 @@ class _ClosedLoop:
         # One finiteness check per step: a non-finite entry makes the sum non-finite.
         if not math.isfinite(sum(self.q.tolist()) + sum(self.v.tolist()) + self.u_sum):
             as_vector("controller output u", self.u)  # names the culprit if it is the controller
-            t = float(log.t[len(log) - 1]) + self.integrator.dt
+            t = float(log.t[len(log) - 1]) + self.dt
             raise _NonFiniteState(f"the state became non-finite at t = {t:.6g} s")
 
     def _record_controller_fields(self) -> None:

@@ -96,10 +96,10 @@ class ConstraintRows:
             rows.append(row)
         J = ca.vertcat(*rows)
         outputs = [ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J.T))]  # J row by row
-        if dynamics:  # M, h = C v + g, and the energies (T, V)
+        if dynamics:  # M, h, and the energies (T, V)
             M = model.mass_matrix(q)
-            h = model.coriolis_matrix(q, v) @ v + model.gravity(q)
-            outputs += [M, h, ca.vertcat(0.5 * ca.dot(v, M @ v), model.potential_energy(q))]
+            energies = ca.vertcat(0.5 * ca.dot(v, M @ v), model.potential_energy(q))
+            outputs += [M, model.nonlinear_effects(q, v), energies]
         name = "constraint_rows_dynamics" if dynamics else "constraint_rows"
         out_names = ["rows", "M", "h", "energies"][: len(outputs)]
         function = ca.Function(name, [q, v, planes, stops], outputs, _IN_NAMES, out_names)

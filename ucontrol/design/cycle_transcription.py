@@ -42,7 +42,6 @@ from ucontrol.design.design_report import DesignReport
 from ucontrol.design.design_task import DesignTask
 from ucontrol.design.designed_cycle import CyclePhase, DesignedCycle
 from ucontrol.design.dop853_tableau import dop853_tableau
-from ucontrol.design.recursive_dynamics import RecursiveDynamics
 from ucontrol.design.warm_start import WarmStart, hand_made_warm_start
 from ucontrol.exceptions import DesignError, InfeasibleDesignError
 from ucontrol.model.symbolic_model import SymbolicModel
@@ -127,20 +126,17 @@ class CycleTranscription:
         tau: Any
         # M and h by the recursive Newton–Euler algorithm (~1e3 nodes for the Panda, where
         # SymbolicModel's C v has ~1e5)
-        recursive = RecursiveDynamics(robot)
         if self.inline:
             q, v, tau = qs, vs, ca.SX.sym("tau", nv)
-            M, h = recursive.mass_matrix(qs), recursive.nonlinear_effects(qs, vs)
+            M, h = model.mass_matrix(qs), model.nonlinear_effects(qs, vs)
             gap, J_n, J_t, drift = gap_s, J_n_s, J_t_s, drift_s
         else:
             q, v, tau = ca.MX.sym("q", nv), ca.MX.sym("v", nv), ca.MX.sym("tau", nv)
             kinematics = ca.Function("kinematics", [qs], [gap_s, J_n_s, J_t_s])
-            dynamics = ca.Function(
-                "dynamics", [qs, vs], [drift_s, recursive.nonlinear_effects(qs, vs)]
-            )
+            dynamics = ca.Function("dynamics", [qs, vs], [drift_s, model.nonlinear_effects(qs, vs)])
             gap, J_n, J_t = kinematics(q)
             drift, h = dynamics(q, v)
-            M = recursive.mass_matrix(q)
+            M = model.mass_matrix(q)
         u_n = J_n @ v
         a_free = ca.solve(M, tau - h)
         W = J_n

@@ -23,7 +23,10 @@ springs' stiffness and damping matrices on the extended coordinates, B the motor
 the viscous friction on the links; all zero on a rigid robot without joint friction). J are the
 normal rows of every constraint (:class:`~ucontrol.contact.compiled_rows.ConstraintRows`), zero
 on the motors. W is factored by casadi's symbolic Cholesky decomposition (``casadi.chol``) and
-two triangular solves; the results equal the reference stages to round-off.
+two triangular solves; the results equal the reference stages to round-off. The same call
+applies the impact law (:func:`~ucontrol.integrators.step_stages.newton_offsets`, on casadi's
+symbols) to every row as if it were active, with the rows held by the step memory's
+activation: the contact problem of the step reads the active rows' terms (:meth:`offsets`).
 
 With ``single_rows``, the call also solves, for each constraint i in parallel, the step in
 which i alone is active, as the closed form of the one-row LCP
@@ -68,7 +71,7 @@ _STEP_INPUTS = ("q", "v", "tau", "J_t", "gap", "u")
 
 
 class CompiledFreeStep:
-    """The free velocity, free configuration, predicted gaps and Delassus terms of a step.
+    """The free velocity, free configuration, predicted gaps, impact law and Delassus terms.
 
     Args:
         data_M: The Pinocchio data's mass matrix buffer (upper triangle read), shape (nv, nv).
@@ -79,6 +82,9 @@ class CompiledFreeStep:
         horizon: γ h, the active-set prediction horizon in [s].
         flexible: The flexible joints, or None.
         viscous: Viscous joint friction D on the links, shape (nv,), or None.
+        rules: The impact law's parameters (:class:`ImpactRules`).
+        single_rows: Whether the call also solves the steps with one active row (the
+            solver's one-row solve is the closed form).
 
     Attributes:
         compiled: Whether calls run compiled C (else the caller should not use it).
@@ -95,7 +101,8 @@ class CompiledFreeStep:
         horizon: float,
         flexible: FlexibleJoints | None,
         viscous: Vector | None,
-        single_rows: SingleRowRules | None = None,
+        rules: ImpactRules,
+        single_rows: bool = False,
     ) -> None:
         import casadi as ca  # imported only for the steps that use it
 
@@ -120,24 +127,37 @@ class CompiledFreeStep:
         v_free = v + ca.solve(R, ca.solve(R.T, h * force))
         Winv_Jt = ca.solve(R, ca.solve(R.T, J.T))
         delassus = J @ Winv_Jt
+        activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
+        restitution = np.asarray(rules.restitution, dtype=float)
+        offsets = newton_offsets(
+            _casadi_ops(),
+            gap,
+            velocity,
+            ca.DM(restitution),
+            activation > 0.0,
+            h,
+            rules.threshold,
+            rules.newton_law == "siconos",
+            not restitution.any(),
+        )  # the impact law of every row, each as if active
         parts = [
             v_free,
             q + theta_displacement(v, v_free, h, th),
             predicted_gaps(gap, velocity, gh),
             ca.vec(Winv_Jt),
             ca.vec(delassus),
+            *offsets,
         ]
-        activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
         inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
+        inputs += [activation, kinetic]
         names = ["q", "v", "tau", "M", "nle", "J_t", "gap", "u", "W0", "Kq", "F", "scalars"]
-        if single_rows is not None:
-            inputs += [activation, kinetic]
-            names += ["activation", "kinetic"]
+        names += ["activation", "kinetic"]
+        if single_rows:
             for i in range(n):
                 parts.append(
                     _single_row_step(
-                        i, single_rows, q, v, J, v_free, Winv_Jt, delassus, gap, velocity,
-                        activation, kinetic, h, th,
+                        i, rules, q, v, J, v_free, Winv_Jt, delassus, offsets[0][i],
+                        offsets[1][i], kinetic, h, th,
                     )
                 )  # fmt: skip
         function = ca.Function("free_step", inputs, [ca.vertcat(*parts)], names, ["terms"])
@@ -150,18 +170,13 @@ class CompiledFreeStep:
         for name, value in (("W0", W0), ("Kq", Kq), ("F", F)):
             self.function.input_view(index(name))[...] = value
         self.function.input_buffer(index("scalars"))[:] = (dt, theta, horizon)
-        self.single_rows = single_rows is not None
+        self.single_rows = single_rows
         self._sizes = (size, n)
-        # Ends of the outputs v_free, q_free, predicted gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ (Python ints).
-        self._split = tuple(np.cumsum([size, size, n, size * n, n * n]).tolist())
+        # Ends of the outputs v_free, q_free, predicted gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ, rebound and
+        # closure terms (Python ints).
+        self._split = tuple(np.cumsum([size, size, n, size * n, n * n, n, n]).tolist())
         buffer = self.function.input_buffer
-        self._kinetic: Vector | None
-        self._activation: Vector | None
-        self._kinetic, self._activation = (
-            (buffer(index("kinetic")), buffer(index("activation")))
-            if self.single_rows
-            else (None, None)
-        )
+        self._kinetic, self._activation = buffer(index("kinetic")), buffer(index("activation"))
         # The per-step inputs, written in place: q, v, tau, J (row by row), gaps, normal
         # velocities.
         self._inputs = tuple(
@@ -178,13 +193,12 @@ class CompiledFreeStep:
         """:math:`v^{free}`, :math:`q^{free}` (each (N,)) and the predicted gaps (n,).
 
         ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`);
-        ``activation`` (n,) is the step memory's (the single-row steps read which constraints
-        are held). The returned arrays are fresh; :meth:`contact_terms` and
+        ``activation`` (n,) is the step memory's (the impact law reads which constraints are
+        held). The returned arrays are fresh; :meth:`contact_terms`, :meth:`offsets` and
         :meth:`single_row` read the same call's other outputs.
         """
-        if self._kinetic is not None and self._activation is not None:
-            self._kinetic[0] = state.kinetic_energy
-            self._activation[:] = activation
+        self._kinetic[0] = state.kinetic_energy
+        self._activation[:] = activation
         q, v, tau_in, J, gap, velocity = self._inputs
         source = self._source
         if source is not None and state.normal_rows is source.last_rows:
@@ -229,21 +243,35 @@ class CompiledFreeStep:
         """
         assert self._last is not None
         size, n = self._sizes
-        c, d, e = self._split[2:]
+        c, d, e = self._split[2:5]
         Winv_Jt = self._last[c:d].reshape((size, n), order="F")
         delassus = self._last[d:e].reshape((n, n), order="F")
         if indices.size == n:  # every row: the indexing's values in its memory orders
             return Winv_Jt, np.ascontiguousarray(delassus)
         return Winv_Jt[:, indices], delassus[indices[:, None], indices]
 
+    def offsets(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
+        r"""The impact law of rows ``indices``: rebound and closure terms (m,) each, in [m/s].
+
+        :func:`~ucontrol.integrators.step_stages.newton_offsets` of the last
+        :meth:`__call__`, with the rows held by its ``activation``.
+        """
+        assert self._last is not None
+        e, f, g = self._split[4:7]
+        return self._last[e:f][indices], self._last[f:g][indices]
+
     def single_row(self, i: int) -> SingleRowStep:
-        """The last call's step with constraint ``i`` alone active (views of its outputs)."""
+        """The last call's step with constraint ``i`` alone active (views of its outputs).
+
+        A plain tuple of :class:`SingleRowStep`'s fields, in its order (one step's NamedTuple
+        fewer).
+        """
         assert self._last is not None and self.single_rows
         size = self._sizes[0]
         start = self._split[-1] + i * (5 + 2 * size)
         block = self._last[start : start + 5 + 2 * size]
         _, _, residual, solved, plastic = block[:5].tolist()
-        return SingleRowStep(
+        return (
             block[0:1],
             block[1:2],
             residual,
@@ -254,30 +282,15 @@ class CompiledFreeStep:
         )
 
 
-class SingleRowStep(NamedTuple):
-    """The step with one constraint alone active, from :meth:`CompiledFreeStep.single_row`.
-
-    Attributes:
-        impulse: Its impulse P in [N s], shape (1,).
-        velocity: The LCP's velocity ``d P + β`` in [m/s], shape (1,).
-        residual: The natural-map residual in [m/s].
-        solved: Whether the closed form solves it (d > 0 or β >= 0).
-        plastic: Whether the energy guard made it plastic.
-        v: :math:`v_{k+1}`, shape (N,).
-        q: :math:`q_{k+1}`, shape (N,).
-    """
-
-    impulse: Vector
-    velocity: Vector
-    residual: float
-    solved: bool
-    plastic: bool
-    v: Vector
-    q: Vector
+#: The step with one constraint alone active, from :meth:`CompiledFreeStep.single_row`: its
+#: impulse P in [N s] (1,), the LCP's velocity d P + β in [m/s] (1,), the natural-map residual
+#: in [m/s], whether the closed form solves it (d > 0 or β >= 0), whether the energy guard made
+#: it plastic, :math:`v_{k+1}` (N,) and :math:`q_{k+1}` (N,).
+SingleRowStep = tuple[Vector, Vector, float, bool, bool, Vector, Vector]
 
 
-class SingleRowRules(NamedTuple):
-    """What :class:`~ucontrol.integrators.moreau_jean.MoreauJean` applies to one active row.
+class ImpactRules(NamedTuple):
+    """The impact law of :class:`~ucontrol.integrators.moreau_jean.MoreauJean`'s normal rows.
 
     Attributes:
         restitution: Newton's restitution of each constraint, shape (n,).
@@ -292,41 +305,28 @@ class SingleRowRules(NamedTuple):
 
 def _single_row_step(
     i: int,
-    rules: SingleRowRules,
+    rules: ImpactRules,
     q: Any,
     v: Any,
     J: Any,
     v_free: Any,
     Winv_Jt: Any,
     delassus: Any,
-    gap: Any,
-    velocity: Any,
-    activation: Any,
+    rebound: Any,
+    closure: Any,
     kinetic: Any,
     h: Any,
     theta: Any,
 ) -> Any:
     """(P, w, residual, solved, plastic, v_{k+1}, q_{k+1}) of row i alone active (5 + 2N,).
 
-    The impact law and the energy guard are :mod:`~ucontrol.integrators.step_stages`'s, on
-    casadi's symbols.
+    ``rebound`` and ``closure`` are row i's impact law; the energy guard is
+    :mod:`~ucontrol.integrators.step_stages`'s, on casadi's symbols.
     """
     import casadi as ca
 
     ops = _casadi_ops()
-    d, u_free, u_minus = delassus[i, i], J[i, :] @ v_free, velocity[i]
-    e = float(rules.restitution[i])
-    rebound, closure = newton_offsets(
-        ops,
-        gap[i],
-        u_minus,
-        e,
-        activation[i] > 0.0,
-        h,
-        rules.threshold,
-        rules.newton_law == "siconos",
-        e == 0.0,
-    )
+    d, u_free = delassus[i, i], J[i, :] @ v_free
     b = u_free + closure
 
     def closed_form(beta: Any) -> tuple[Any, Any, Any, Any]:

@@ -366,6 +366,8 @@ class MoreauJean:
                 )
         self._friction = constraints.has_friction
         self._plastic = not constraints.restitution.any()  # e = 0 everywhere: no rebound terms
+        # Whether steps may need the energy guard: Newton's law on closing rows, with rebounds.
+        self._guarded = newton_law == "closing" and not self._plastic
         self.persistence_tolerance = as_float("persistence_tolerance", persistence_tolerance)
         if self.persistence_tolerance < 0.0:
             raise InvalidParameterError("persistence_tolerance", persistence_tolerance, ">= 0")
@@ -373,6 +375,14 @@ class MoreauJean:
         self.memory = fresh_memory(constraints.size)
         # The memory after a step without impulses, and that step's outcome: shared, read-only.
         self._free_memory = StepMemory(_read_only(np.zeros(constraints.size)), False)
+        # The memory after a one-row step whose row i carried an impulse, for each i.
+        self._row_memories = tuple(
+            StepMemory(_read_only(memory.activation), False)
+            for memory in (
+                next_memory(row, (i,), self.persistence_tolerance)
+                for i, row in enumerate(np.eye(constraints.size))
+            )
+        )
         self._no_impulse = _read_only(np.zeros(constraints.size))
         self._no_friction_impulse = (
             _read_only(np.zeros((constraints.size, 3))) if constraints.has_friction else None
@@ -437,9 +447,8 @@ class MoreauJean:
             or self._bilateral is not None
         ):
             return None
-        from ucontrol.integrators.compiled_free_step import CompiledFreeStep, SingleRowRules
+        from ucontrol.integrators.compiled_free_step import CompiledFreeStep, ImpactRules
 
-        closed_form = getattr(self.solver, "exact_single", False) is True
         step = CompiledFreeStep(
             self._data.M,
             self._data.nle,
@@ -449,11 +458,10 @@ class MoreauJean:
             horizon=self.gamma * self.dt,
             flexible=self.flexible,
             viscous=self._viscous,
-            single_rows=SingleRowRules(
+            rules=ImpactRules(
                 self.constraints.restitution, self.restitution_threshold, self.newton_law
-            )
-            if closed_form
-            else None,
+            ),
+            single_rows=getattr(self.solver, "exact_single", False) is True,
         )
         return step if step.compiled else None
 
@@ -559,16 +567,17 @@ class MoreauJean:
         The one-row LCP's closed form is part of the compiled step: its solve time is not
         measured apart (0 s in the solution).
         """
-        row = free_step.single_row(i)
-        status = "solved" if row.solved else "infeasible"
-        solution = ContactSolution(row.impulse, row.velocity, status, 0, row.residual, 0.0, False)
-        if not row.solved:
+        P, velocity, residual, solved, plastic, v_next, q_next = free_step.single_row(i)
+        status = "solved" if solved else "infeasible"
+        solution = ContactSolution(P, velocity, status, 0, residual, 0.0, False)
+        if not solved:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
-        impulse[i] = row.impulse.item()
+        impulse[i] = P.item()
         impacts = _closing_impacts(impulse, self.memory.activation, (i,), t)
-        self.memory = next_memory(impulse, (i,), self.persistence_tolerance)
-        return StepOutcome(row.q, row.v, impulse, active, solution, 0, row.plastic, None, impacts)
+        # next_memory(impulse, (i,), ...), built once
+        self.memory = self._row_memories[i] if impulse[i] > 0.0 else self._free_memory
+        return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
 
     def _contact_outcome(
         self,
@@ -621,9 +630,11 @@ class MoreauJean:
             rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
             rate_now = _pad(rate_now, r)
             u_free[:r] += _pad(rate_next, r)
-        rebound, closure = np.zeros(u_free.size), np.zeros(u_free.size)
-        if m:  # the impact law on the normal rows
-            rebound[:m], closure[:m] = newton_offsets(
+        if inverse_inertia is None and activation is self.memory.activation:
+            assert self._free_step is not None  # computed by the free step, same activation
+            rebound, closure = self._free_step.offsets(indices)
+        else:  # the impact law on the normal rows
+            rebound, closure = newton_offsets(
                 NUMPY_OPS,
                 state.gap[indices],
                 state.normal_velocity[indices],
@@ -634,12 +645,14 @@ class MoreauJean:
                 self.newton_law == "siconos",
                 self._plastic,
             )
-        if m_b and bilateral_offset is not None:  # the midpoint's rows (module docstring)
-            closure[-m_b:] = bilateral_offset
+        if u_free.size > m:  # no offsets on the other rows but the midpoint's closures
+            rebound, closure = _pad(rebound, u_free.size), _pad(closure, u_free.size)
+            if m_b and bilateral_offset is not None:  # (module docstring)
+                closure[-m_b:] = bilateral_offset
         b = u_free + closure
         solution = self._solve(D, b + rebound, indices, tangents, m_b)
         plastic = False
-        if self.newton_law == "closing" and np.count_nonzero(rebound):  # the energy guard
+        if self._guarded and np.count_nonzero(rebound):  # the energy guard
             u_plus = solution.velocity[:r] - rebound[:r] - closure[:r]
             u_k = J[:r].dot(state.v) + rate_now
             gain = impulse_energy_gain(

@@ -1,17 +1,31 @@
 r"""Casadi expressions of a fixed-base robot's kinematics and dynamics, from its Pinocchio model.
 
-Laws that need exact time derivatives of model terms (the flexible-joint law needs the third
-derivative of the link configuration) differentiate these expressions with casadi's automatic
+The one symbolic source of the rigid dynamics, Pinocchio's the reference it is checked against
+(``tests/model/test_symbolic_model.py``): the compiled constraint rows of small robots, the
+Brogliato laws and the design of cycles (:mod:`ucontrol.design`) build on it. Laws that need
+exact time derivatives of model terms (the flexible-joint law needs the third derivative of
+the link configuration) differentiate these expressions with casadi's automatic
 differentiation. The model is rebuilt from ``model.parents``, ``model.jointPlacements``,
 ``model.inertias``, ``model.frames`` and ``model.gravity``:
 
 - joint i placed at :math:`{}^0M_i = {}^0M_{\lambda(i)}\, {}^{\lambda(i)}M_i\, M_J(q_i)`, with
   :math:`M_J` a rotation about (revolute) or a translation along (prismatic) the joint axis;
-- :math:`M(q) = \sum_i m_i J_{c,i}^T J_{c,i} + J_{\omega,i}^T R_i I_i R_i^T J_{\omega,i}
-  + \mathrm{diag}(a)` (linear Jacobian of the centre of mass, angular Jacobian from the world
-  axes of the revolute joints supporting body i, rotational inertia :math:`I_i` about the
-  centre of mass, the model's armature a);
-- :math:`g(q) = -\sum_i m_i J_{c,i}^T g_0` (:math:`g_0` the gravity acceleration);
+- the joint torques :math:`\tau(q, v, \dot v) = M(q)\dot v + h(q, v)` by the recursive
+  Newton–Euler algorithm (Featherstone, *Rigid Body Dynamics Algorithms*, Springer 2008, ch. 5;
+  Pinocchio's ``rnea``), :math:`O(n)` operations:
+
+  .. math::
+
+      v_i = {}^iX_{\lambda(i)} v_{\lambda(i)} + S_i \dot q_i, \quad
+      a_i = {}^iX_{\lambda(i)} a_{\lambda(i)} + S_i \ddot q_i + v_i \times S_i \dot q_i, \quad
+      f_i = I_i a_i + v_i \times^* I_i v_i,
+
+  with :math:`a_0 = -g_0` (gravity), then :math:`\tau_i = S_i^T f_i` and
+  :math:`f_{\lambda(i)} \mathrel{+}= {}^{\lambda(i)}X_i^* f_i` from the leaves to the root
+  (spatial vectors as (linear, angular) pairs of 3-vectors at each joint frame's origin, in
+  that frame); :math:`h(q, v) = \tau(q, v, 0)`, :math:`g(q) = \tau(q, 0, 0)`, and the columns
+  of :math:`M(q)` are :math:`\tau(q, 0, e_j)` without gravity, plus the model's armature a on
+  the diagonal (as ``crba``);
 - the Christoffel Coriolis matrix
   :math:`C(q, v) = \tfrac12\big(\dot M + \partial_q(M v) - \partial_q(M v)^T\big)`, i.e.
   :math:`C_{kj} = \sum_i \tfrac12 (\partial_i M_{kj} + \partial_j M_{ki} - \partial_k M_{ij})
@@ -25,6 +39,7 @@ RevoluteUnaligned, PX, PY, PZ and PrismaticUnaligned joints.
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -64,6 +79,8 @@ class SymbolicModel:
     Attributes:
         nv: Number of joint coordinates (nq = nv).
         mass_matrix: ``(q (nv,)) -> M (nv, nv)`` in [kg m²] (mixed units).
+        nonlinear_effects: ``(q (nv,), v (nv,)) -> h (nv,)``, :math:`C(q, v) v + g(q)` in
+            [N m] (or [N]).
         coriolis_matrix: ``(q (nv,), v (nv,)) -> C (nv, nv)`` with :math:`\dot M - 2C`
             skew-symmetric, in [kg m²/s].
         gravity: ``(q (nv,)) -> g (nv,)``, the generalized gravity forces in [N m] (or [N]).
@@ -79,10 +96,11 @@ class SymbolicModel:
         self._robot = robot
         self.nv = model.nv
         q = ca.SX.sym("q", self.nv)
-        self._q = q
+        self._q, self._v = q, ca.SX.sym("v", self.nv)
         rotations: list[ca.SX] = [ca.SX.eye(3)]
         positions: list[ca.SX] = [ca.SX.zeros(3)]
-        world_axes: list[ca.SX | None] = [None]  # world axis of each revolute joint
+        # Each joint's (kind, axis, index, rotation, translation) from its parent's frame.
+        self._joints: list[tuple[str, ca.DM, int, ca.SX, ca.SX]] = []
         for i in range(1, model.njoints):
             kind, axis = _joint_axis(model, i)
             placement = model.jointPlacements[i]
@@ -90,16 +108,21 @@ class SymbolicModel:
             rotation = rotations[parent] @ ca.DM(placement.rotation)
             position = positions[parent] + rotations[parent] @ ca.DM(placement.translation)
             angle_or_offset = q[model.joints[i].idx_q]
+            local_rotation: Any = ca.DM(placement.rotation)
+            local_translation: Any = ca.DM(placement.translation)
             if kind == "revolute":
-                world_axes.append(rotation @ ca.DM(axis))
                 rotation = rotation @ _rotation(axis, angle_or_offset)
+                local_rotation = local_rotation @ _rotation(axis, angle_or_offset)
             else:
-                world_axes.append(None)
                 position = position + rotation @ (ca.DM(axis) * angle_or_offset)
+                local_translation = local_translation + local_rotation @ (
+                    ca.DM(axis) * angle_or_offset
+                )
             rotations.append(rotation)
             positions.append(position)
+            index = model.joints[i].idx_v
+            self._joints.append((kind, ca.DM(axis), index, local_rotation, local_translation))
         self._rotations, self._positions = rotations, positions
-        self._world_axes = world_axes
 
     @property
     def mass_matrix(self) -> ca.Function:
@@ -110,6 +133,12 @@ class SymbolicModel:
     def coriolis_matrix(self) -> ca.Function:
         r"""``(q (nv,), v (nv,)) -> C (nv, nv)``, :math:`\dot M - 2C` skew, built on first use."""
         return self._dynamics[1]
+
+    @functools.cached_property
+    def nonlinear_effects(self) -> ca.Function:
+        r"""``(q (nv,), v (nv,)) -> h (nv,)``, :math:`C(q, v) v + g(q)`, built on first use."""
+        h = self._rnea(self._v, ca.SX.zeros(self.nv), gravity=True)
+        return ca.Function("h", [self._q, self._v], [h], ["q", "v"], ["h"])
 
     @property
     def gravity(self) -> ca.Function:
@@ -124,36 +153,88 @@ class SymbolicModel:
     @functools.cached_property
     def _dynamics(self) -> tuple[ca.Function, ca.Function, ca.Function, ca.Function]:
         """The Functions M(q), C(q, v), g(q) and V(q) (module docstring)."""
-        model, q = self._robot.model, self._q
-        v = ca.SX.sym("v", self.nv)
-        rotations, positions, world_axes = self._rotations, self._positions, self._world_axes
-        M = ca.SX.zeros(self.nv, self.nv)
-        g = ca.SX.zeros(self.nv)
-        potential = ca.SX.zeros(1)
+        model, q, nv = self._robot.model, self._q, self.nv
+        v, zero = self._v, ca.SX.zeros(nv)
+        columns = [self._rnea(None, ca.SX(ca.DM.eye(nv)[:, j]), gravity=False) for j in range(nv)]
+        M = ca.horzcat(*columns)
+        armature = np.asarray(model.armature, dtype=float)
+        if armature.any():  # rotor inertias on the diagonal, as crba
+            M += ca.diag(ca.DM(armature))
         gravity = ca.DM(np.asarray(model.gravity.linear))
+        potential = ca.SX.zeros(1)
         for i in range(1, model.njoints):
             inertia = model.inertias[i]
-            centre = positions[i] + rotations[i] @ ca.DM(inertia.lever)  # [m]
-            J_centre = ca.jacobian(centre, q)
-            J_angular = ca.SX.zeros(3, self.nv)
-            for j in model.supports[i][1:]:
-                if world_axes[j] is not None:
-                    J_angular[:, model.joints[j].idx_v] = world_axes[j]
-            I_world = rotations[i] @ ca.DM(inertia.inertia) @ rotations[i].T  # [kg m²]
-            M += inertia.mass * (J_centre.T @ J_centre) + J_angular.T @ I_world @ J_angular
-            g -= inertia.mass * (J_centre.T @ gravity)
+            centre = self._positions[i] + self._rotations[i] @ ca.DM(inertia.lever)  # [m]
             potential -= inertia.mass * ca.dot(gravity, centre)
-        M += ca.diag(ca.DM(np.asarray(model.armature, dtype=float)))  # rotor inertias, as crba
         M_v = M @ v
         dM_v = ca.jacobian(M_v, q)
-        M_dot = ca.reshape(ca.jacobian(ca.vec(M), q) @ v, self.nv, self.nv)
+        M_dot = ca.reshape(ca.jacobian(ca.vec(M), q) @ v, nv, nv)
         C = 0.5 * (M_dot + dM_v - dM_v.T)
         return (
             ca.Function("M", [q], [M], ["q"], ["M"]),
             ca.Function("C", [q, v], [C], ["q", "v"], ["C"]),
-            ca.Function("g", [q], [g], ["q"], ["g"]),
+            ca.Function("g", [q], [self._rnea(None, zero, gravity=True)], ["q"], ["g"]),
             ca.Function("V", [q], [potential], ["q"], ["V"]),
         )
+
+    def _rnea(self, v: ca.SX | None, a: ca.SX, *, gravity: bool) -> ca.SX:
+        """Joint torques at velocities ``v`` and accelerations ``a`` (expressions, (nv,)).
+
+        Without the armature's torques; with gravity's when ``gravity`` (module docstring).
+        ``v`` None: at rest (the velocity terms, zero, not built).
+        """
+        model = self._robot.model
+        n = model.njoints
+        gravity_linear = ca.DM(np.asarray(model.gravity.linear)) if gravity else ca.DM.zeros(3)
+        velocity: list[tuple[ca.SX, ca.SX]] = [(ca.SX.zeros(3), ca.SX.zeros(3))]
+        acceleration: list[tuple[Any, Any]] = [(-gravity_linear, ca.SX.zeros(3))]
+        forces: list[list[ca.SX]] = [[ca.SX.zeros(3), ca.SX.zeros(3)] for _ in range(n)]
+        for i in range(1, n):
+            kind, axis, index, R, p = self._joints[i - 1]
+            parent = model.parents[i]
+            acc_lin_p, acc_ang_p = acceleration[parent]
+            acc_lin = R.T @ (acc_lin_p + ca.cross(acc_ang_p, p))
+            acc_ang = R.T @ acc_ang_p
+            s_lin, s_ang = (ca.DM.zeros(3), axis) if kind == "revolute" else (axis, ca.DM.zeros(3))
+            qdd = a[index]
+            acc_lin, acc_ang = acc_lin + s_lin * qdd, acc_ang + s_ang * qdd
+            if v is not None:
+                # motion from the parent's frame into joint i's: R^T (v + ω × p), R^T ω
+                lin_p, ang_p = velocity[parent]
+                lin = R.T @ (lin_p + ca.cross(ang_p, p))
+                ang = R.T @ ang_p
+                qd = v[index]
+                lin, ang = lin + s_lin * qd, ang + s_ang * qd
+                # a += v × S q̇, (v, ω) × (m_v, m_ω) = (ω × m_v + v × m_ω, ω × m_ω)
+                acc_lin = acc_lin + ca.cross(ang, s_lin * qd) + ca.cross(lin, s_ang * qd)
+                acc_ang = acc_ang + ca.cross(ang, s_ang * qd)
+                velocity.append((lin, ang))
+            acceleration.append((acc_lin, acc_ang))
+            inertia = model.inertias[i]
+            mass, c = inertia.mass, ca.DM(inertia.lever)
+            I_c = ca.DM(inertia.inertia)  # [kg m²] about the centre of mass
+            # I a and I v: linear m (a_v + a_ω × c), angular I_c a_ω + c × linear
+            f_lin = mass * (acc_lin + ca.cross(acc_ang, c))
+            f_ang = I_c @ acc_ang + ca.cross(c, f_lin)
+            forces[i][0] = forces[i][0] + f_lin
+            forces[i][1] = forces[i][1] + f_ang
+            if v is not None:
+                h_lin = mass * (lin + ca.cross(ang, c))
+                h_ang = I_c @ ang + ca.cross(c, h_lin)
+                # v ×* (h_lin, h_ang) = (ω × h_lin, ω × h_ang + v × h_lin)
+                forces[i][0] = forces[i][0] + ca.cross(ang, h_lin)
+                forces[i][1] = forces[i][1] + ca.cross(ang, h_ang) + ca.cross(lin, h_lin)
+        tau = [ca.SX(0)] * self.nv
+        for i in range(n - 1, 0, -1):
+            kind, axis, index, R, p = self._joints[i - 1]
+            f_lin, f_ang = forces[i]
+            tau[index] = ca.dot(axis, f_ang if kind == "revolute" else f_lin)
+            parent = model.parents[i]
+            # force into the parent's frame: R f, R n + p × R f
+            parent_lin = R @ f_lin
+            forces[parent][0] = forces[parent][0] + parent_lin
+            forces[parent][1] = forces[parent][1] + R @ f_ang + ca.cross(p, parent_lin)
+        return ca.vertcat(*tau)
 
     def frame_position(self, frame: str) -> ca.Function:
         """``(q (nv,)) -> p (3,)``: position of the origin of ``frame`` in the world in [m].

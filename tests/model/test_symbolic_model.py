@@ -1,4 +1,4 @@
-"""The casadi model of a robot against Pinocchio: M, C, g, frame positions and Jacobians."""
+"""The casadi model of a robot against Pinocchio: M, h, C, g, V, frame positions and Jacobians."""
 
 from __future__ import annotations
 
@@ -65,6 +65,7 @@ def _every_joint_type(rng: np.random.Generator) -> RobotModel:
         model.appendBodyToJoint(joint_id, _inertia(rng), pin.SE3.Identity())
         model.addFrame(pin.Frame(f"tip{k}", joint_id, 0, _placement(rng), pin.FrameType.OP_FRAME))
     model.gravity.linear = rng.standard_normal(3)
+    model.armature = rng.uniform(0.0, 0.5, model.nv)  # rotor inertias [kg m²] or [kg]
     return RobotModel(model)
 
 
@@ -92,6 +93,8 @@ def test_dynamics_match_pinocchio(name: str, rng: np.random.Generator) -> None:
         q, v = _state(robot, rng)
         _close(symbolic.mass_matrix(q), robot.mass_matrix(q))
         _close(symbolic.gravity(q), pin.computeGeneralizedGravity(model, data, q))
+        _close(symbolic.nonlinear_effects(q, v), robot.nonlinear_effects(q, v))
+        _close(symbolic.potential_energy(q), np.array(pin.computePotentialEnergy(model, data, q)))
         C = np.asarray(symbolic.coriolis_matrix(q, v))
         _close(C @ v + np.asarray(symbolic.gravity(q)).ravel(), robot.nonlinear_effects(q, v))
         # Both are the Christoffel matrix C_kj = Σ_i Γ_ijk v_i.
