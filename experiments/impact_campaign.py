@@ -303,15 +303,18 @@ def main(argv: Sequence[str] | None = None) -> str:
     parser.add_argument("--out", type=Path, default=Path("runs/impact_campaign"))
     args = parser.parse_args(argv)
     from ucontrol.campaign import load, run_campaign
+    from ucontrol.exceptions import UControlError
 
     rows = []
     load_before = os.getloadavg()
     for task in args.tasks:
         for law in args.laws:
             directory = args.out / f"{task}_{_slug(law)}"
-            outcome = run_campaign(
-                campaign(task, law, args.runs, args.seed), directory, workers=args.workers
-            )
+            try:
+                checked = campaign(task, law, args.runs, args.seed)
+                outcome = run_campaign(checked, directory, workers=args.workers)
+            except UControlError as error:  # bad flags or output directory: one line, exit 2
+                parser.error(str(error))
             if outcome.interrupted:  # Ctrl-C or SIGTERM: the same command resumes
                 raise SystemExit(130 if outcome.signum is None else 128 + outcome.signum)
             rows.append(row(task, law, load(directory)))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -134,3 +135,18 @@ def test_brogliato_reference_by_differences_is_the_targets_velocity() -> None:
     error = np.linalg.norm(differences - log.task_velocity_desired, axis=1)[rows]
     speed = np.linalg.norm(log.task_velocity_desired[rows], axis=1).max()
     assert error.max() < 1e-2 * speed  # measured 6.5e-4 m/s against 0.50 m/s
+
+
+@pytest.mark.parametrize(
+    ("flags", "match"),
+    [(["--runs", "0"], r"`runs` must be an integer >= 1, got 0"), (["--seed", "-1"], r"`seed`")],
+)
+def test_bad_flags_are_one_line_errors(
+    flags: list[str], match: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    campaign = load_experiment("impact_campaign")
+    with pytest.raises(SystemExit) as exit_info:
+        campaign.main([*flags, "--tasks", "panda", "--laws", "impedance", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err
+    assert re.search(match, error) and "Traceback" not in error
