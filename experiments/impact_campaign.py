@@ -39,7 +39,7 @@ import argparse
 import dataclasses
 import os
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -217,34 +217,23 @@ def figures(result: Any) -> dict[str, Any]:
     return out
 
 
-def velocity_error_peak(result: Any) -> float:
-    """Velocity-error peak of the first landing in [m/s]."""
-    return float(figures(result)["velocity_error_peak"])
+def _metric(name: str, kind: type) -> Callable[[Any], Any]:
+    """The campaign metric ``name``: that figure of :func:`figures`, as a ``kind``."""
+
+    def metric(result: Any) -> Any:
+        return kind(figures(result)[name])
+
+    metric.__name__ = metric.__qualname__ = name
+    metric.__doc__ = f"The run's ``{name}`` (:func:`figures`)."
+    return metric
 
 
-def torque_jump(result: Any) -> float:
-    """Largest torque jump after the first impact in [N m]."""
-    return float(figures(result)["torque_jump"])
-
-
-def force_overshoot(result: Any) -> float:
-    """Largest contact force above the desired one after the first impact in [N]."""
-    return float(figures(result)["force_overshoot"])
-
-
-def impacts(result: Any) -> int:
-    """The plant's impacts of the contact in the first landing's window."""
-    return int(figures(result)["impacts"])
-
-
-def contact_held(result: Any) -> bool:
-    """The contact closed on every step of [t_1 + SETTLE, t_1 + SETTLE + HOLD]."""
-    return bool(figures(result)["contact_held"])
-
-
-def settled_error(result: Any) -> float:
-    """Largest velocity error over [t_1 + SETTLE, t_1 + SETTLE + HOLD] in [m/s]."""
-    return float(figures(result)["settled_error"])
+velocity_error_peak = _metric("velocity_error_peak", float)  # [m/s]
+torque_jump = _metric("torque_jump", float)  # [N m]
+force_overshoot = _metric("force_overshoot", float)  # [N]
+impacts = _metric("impacts", int)
+contact_held = _metric("contact_held", bool)
+settled_error = _metric("settled_error", float)  # [m/s]
 
 
 # --- the table ---
