@@ -18,8 +18,9 @@ Figures per landing k (nominal impact :math:`t_i = s + kP`; first plant impact :
 the contact in the cycle), from the log, every law measured alike:
 
 - *velocity-error peak*: :math:`\max \|J\dot q - \dot x_r\|` over the rows of
-  :math:`[t_1, t_1 + T_w]` (:data:`WINDOW`), :math:`\dot x_r` the reference velocity the law
-  feeds back at that row (Brogliato: its target's, mapped to the world);
+  :math:`[t_1, t_1 + T_w]` (``ucontrol.analysis.impact_metrics.WINDOW``), :math:`\dot x_r`
+  the reference velocity the law feeds back at that row (Brogliato: its target's, mapped to
+  the world);
 - *torque jump*: the largest :math:`\|u_{k} - u_{k-1}\|` over the same rows, in [N m];
 - *force overshoot*: the largest :math:`\lambda - \lambda_d` over the rows of
   :math:`[t_1, t_1 + 0.5]` s without impact (λ = impulse / dt), in [N];
@@ -34,16 +35,19 @@ Run: ``python experiments/impact_control_compare.py --landings 2``.
 from __future__ import annotations
 
 import argparse
-import math
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
-from ucontrol.analysis.impacts import impact_mask
+from ucontrol.analysis.impact_metrics import (
+    FORCE_WINDOW,
+    Landing,
+    frame_velocities,
+    landing,
+    landing_window,
+)
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.log import Log
 from ucontrol.scene import Scene
@@ -77,20 +81,6 @@ BROGLIATO: dict[str, dict[str, Any]] = {
 }
 #: Laws compared, in table order.
 LAWS = ("Brogliato", "impedance", "impact-invariant", "reference spreading", "RS + invariant")
-#: Length in [s] of the post-impact window of the velocity-error and torque-jump peaks.
-WINDOW = 0.1
-#: Length in [s] of the window of the force overshoot.
-FORCE_WINDOW = 0.5
-
-
-@dataclass(frozen=True)
-class Landing:
-    """Figures of one landing (module docstring)."""
-
-    velocity_error: float  # [m/s]
-    torque_jump: float  # [N m]
-    force_overshoot: float  # [N]
-    impacts: int
 
 
 class _TargetVelocity:
@@ -146,54 +136,10 @@ def run(task: str, law: str, landings: int, dt: float | None = None) -> list[Lan
     period = float(spec["controller"]["path"]["period"])
     duration = phase["start"] + (landings - 1) * period + FORCE_WINDOW + 0.05  # [s]
     log = simulate(scene, controller, duration=duration, dt=dt, progress=False).log
-    velocities = _frame_velocities(log, scene, str(spec["controller"]["frame"]))
-    return [
-        _landing(log, velocities, phase, period, k, float(phase["force"])) for k in range(landings)
-    ]
-
-
-def _frame_velocities(log: Log, scene: Scene, frame: str) -> np.ndarray:
-    """World velocity of ``frame``'s origin at every row, (N, 3) in [m/s]."""
-    model = scene.robot.model
-    data = pin.Data(model)
-    frame_id = model.getFrameId(frame)
-    out = np.empty((len(log), 3))
-    for row, (q, v) in enumerate(zip(log.q, log.v, strict=True)):
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacement(model, data, frame_id)
-        out[row] = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:3] @ v
-    return out
-
-
-def _landing(
-    log: Log, velocities: np.ndarray, phase: dict[str, Any], P: float, k: int, force: float
-) -> Landing:
-    """Figures of landing ``k`` (frame velocities per row, (N, 3))."""
-    name = str(phase["contact"])
-    start = k * P + float(phase["start"]) - 0.5 * (P - (phase["end"] - phase["start"]))
-    end = k * P + float(phase["end"])
-    times = log.impact_times_of(name)
-    times = times[(times > start) & (times <= end)]
-    if times.size == 0:
-        return Landing(math.nan, math.nan, math.nan, 0)
-    t_1 = float(times[0])
-    t = log.t
-    rows = np.flatnonzero((t >= t_1) & (t <= t_1 + WINDOW))
-    error = np.linalg.norm(velocities[rows] - log.task_velocity_desired[rows], axis=1)
-    jumps = np.linalg.norm(log.u[rows] - log.u[rows - 1], axis=1)
-    i = log.constraint_index(name)
-    steady = ~impact_mask(log)[:, i]
-    force_rows = np.flatnonzero((t >= t_1) & (t <= t_1 + FORCE_WINDOW) & steady)
-    force_rows = force_rows[force_rows + 1 < len(log)]  # the last row has no step
-    # Row r's impulse is that of the step [t_r, t_r+1], under row r's torque and lambda_d.
-    force = log.impulse[force_rows, i] / (t[force_rows + 1] - t[force_rows])  # [N]
-    overshoot = force - log.lambda_d[force_rows, 0]
-    return Landing(
-        velocity_error=float(error.max()),
-        torque_jump=float(jumps.max()),
-        force_overshoot=float(max(overshoot.max(initial=0.0), 0.0)),
-        impacts=int(times.size),
-    )
+    velocities = frame_velocities(log, scene.robot.model, str(spec["controller"]["frame"]))
+    window = [landing_window(phase["start"], phase["end"], period, k) for k in range(landings)]
+    references = log.task_velocity_desired
+    return [landing(log, velocities, references, str(phase["contact"]), w) for w in window]
 
 
 def table(results: dict[tuple[str, str], list[Landing]]) -> str:
