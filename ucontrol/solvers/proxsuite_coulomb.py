@@ -71,6 +71,7 @@ from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.coulomb_problem import CoulombProblem
 from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD
 from ucontrol.solvers.proxsuite_qp import INFINITY, QP_SOLVED, WarmStartedQP
+from ucontrol.solvers.single_contact_coulomb import solve_single_contact
 
 Vector = NDArray[np.float64]
 
@@ -135,6 +136,15 @@ class ProxsuiteCoulombSolver:
         start = time.perf_counter()
         m = problem.m
         key = problem.tangents.tobytes() + problem.equalities.to_bytes(4, "little")
+        if m == 1 and problem.equalities == 0:  # one contact: its statuses enumerated
+            single = solve_single_contact(problem)
+            if single is not None:
+                single_u = problem.velocity(single)
+                residual = problem.residual(single, single_u)
+                if residual <= self.residual_tolerance:
+                    self._guesses[key] = single
+                    elapsed = time.perf_counter() - start
+                    return ContactSolution(single, single_u, "solved", 0, residual, elapsed)
         guess = self._guesses.get(key)
         free = -problem.tangential(problem.b)
         thresholds, directions = _unbounded(problem, free)
