@@ -7,7 +7,13 @@ import pytest
 from conftest import load_experiment
 
 from ucontrol.solvers import CoulombProblem, ProxsuiteCoulombSolver
-from ucontrol.solvers.alart_curnier import AlartCurnier, least_squares, newton_step
+from ucontrol.solvers.alart_curnier import (
+    SPARSE_SIZE,
+    AlartCurnier,
+    least_squares,
+    solve_square,
+    sparsity,
+)
 
 _FD_STEP = 1e-7  # [N s], central differences
 _FD_TOLERANCE = 1e-6  # relative to max |J|
@@ -51,15 +57,15 @@ def test_function_vanishes_at_the_analytic_sliding_solution() -> None:
     assert np.abs(F).max() <= 1e-15
 
 
-def test_newton_step_is_least_squares_where_the_jacobian_is_singular() -> None:
+def test_solve_is_least_squares_where_the_matrix_is_singular() -> None:
     rng = np.random.default_rng(0)
     J = rng.normal(size=(4, 4))
     J[3] = J[2]  # two redundant rows
     F = rng.normal(size=4)
     expected = np.linalg.lstsq(J, -F, rcond=1e-10)[0]  # minimum norm, by SVD
-    assert np.allclose(newton_step(J, F), expected, atol=1e-12)
+    assert np.allclose(solve_square(J, -F), expected, atol=1e-12)
     regular = rng.normal(size=(4, 4))
-    assert np.allclose(newton_step(regular, F), np.linalg.solve(regular, -F), atol=1e-12)
+    assert np.allclose(solve_square(regular, -F), np.linalg.solve(regular, -F), atol=1e-12)
     wide = rng.normal(size=(2, 5))
     assert np.allclose(least_squares(wide, F[:2]), np.linalg.pinv(wide) @ F[:2], atol=1e-12)
 
@@ -83,3 +89,17 @@ def test_warm_start_from_a_nearby_problem_solves_without_a_qp(seed: int) -> None
     assert warm.residual <= 1e-12
     scale = np.abs(nearby.b).max()
     assert np.abs(warm.velocity - cold.velocity).max() <= 1e-8 * scale
+
+
+@pytest.mark.parametrize("singular", [False, True])
+def test_sparse_lu_agrees_with_dense_least_squares(singular: bool) -> None:
+    rng = np.random.default_rng(5)
+    n = 2 * SPARSE_SIZE
+    A = np.diag(rng.uniform(1.0, 2.0, n)) + np.diag(rng.normal(size=n - 1), 1)
+    A += np.diag(rng.normal(size=n - 1), -1)  # tridiagonal: sparse
+    if singular:
+        A[n // 2] = A[n // 2 - 1]
+    y = rng.normal(size=n)
+    assert sparsity(A != 0.0) is not None
+    expected = np.linalg.lstsq(A, y, rcond=1e-10)[0]
+    assert np.allclose(solve_square(A, y), expected, atol=1e-10)

@@ -66,7 +66,7 @@ from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
 from ucontrol.exceptions import InvalidParameterError
-from ucontrol.solvers.alart_curnier import AlartCurnier, least_squares
+from ucontrol.solvers.alart_curnier import AlartCurnier, solve_square
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.coulomb_problem import CoulombProblem
 from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD
@@ -359,7 +359,7 @@ def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector 
     D_rows = problem.D[equations]
     A = np.hstack((D_rows[:, stick_rows], D_rows @ E_slide))
     rhs = -problem.b[equations]
-    y = least_squares(A, rhs)
+    y = solve_square(A, rhs)
     candidate = _impulses(y, stick_rows, E_slide, size)
     if np.any(candidate[:m] < 0.0):
         # The minimum-norm solution of singular equations may have negative normal impulses
