@@ -68,7 +68,7 @@ from ucontrol._validation import as_positive
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.solvers.alart_curnier import AlartCurnier, solve_square
 from ucontrol.solvers.contact_solution import ContactSolution
-from ucontrol.solvers.coulomb_problem import CoulombProblem
+from ucontrol.solvers.coulomb_problem import CoulombProblem, tangential_norms
 from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD
 from ucontrol.solvers.proxsuite_qp import INFINITY, QP_SOLVED, WarmStartedQP
 from ucontrol.solvers.single_contact_coulomb import solve_single_contact
@@ -146,11 +146,6 @@ class ProxsuiteCoulombSolver:
                     elapsed = time.perf_counter() - start
                     return ContactSolution(single, single_u, "solved", 0, residual, elapsed)
         guess = self._guesses.get(key)
-        free = -problem.tangential(problem.b)
-        thresholds, directions = _unbounded(problem, free)
-        if guess is not None:
-            thresholds = problem.mu * np.maximum(guess[:m], 0.0)
-            directions = _directions(problem.tangential(guess), free)
         best_P, best_u, best = np.zeros(problem.size), problem.b, np.inf
         qp_iterations, polished, status, outer = 0, False, "", 0
         if guess is not None and self.polish:  # step 0: polish the last solution, no QP
@@ -159,6 +154,12 @@ class ProxsuiteCoulombSolver:
             best_P, best_u, best, polished = _polish(problem, best_P, best_u, best)
             if _marginal(problem, best_P, best_u, self.residual_tolerance):
                 best = np.inf  # solved again by the fixed point, which prefers sticking
+        if best > self.residual_tolerance:
+            free = -problem.tangential(problem.b)
+            thresholds, directions = _unbounded(problem, free)
+            if guess is not None:
+                thresholds = problem.mu * np.maximum(guess[:m], 0.0)
+                directions = _directions(problem.tangential(guess), free)
         relaxation, previous_step = 1.0, np.zeros(m)
         while best > self.residual_tolerance and outer < self.max_iter:
             outer += 1
@@ -253,9 +254,9 @@ def _marginal(problem: CoulombProblem, P: Vector, u: Vector, tolerance: float) -
     """Whether a contact slides slower than ``tolerance`` [m/s] with friction at its bound."""
     if problem.m == 0:
         return False
-    speed = np.linalg.norm(problem.tangential(u), axis=1)
+    speed = tangential_norms(problem.tangential(u))
     bound = problem.mu * P[: problem.m]
-    at_bound = np.linalg.norm(problem.tangential(P), axis=1) >= (1.0 - MARGIN) * bound
+    at_bound = tangential_norms(problem.tangential(P)) >= (1.0 - MARGIN) * bound
     return bool(np.any((speed > 0.0) & (speed <= tolerance) & (bound > 0.0) & at_bound))
 
 
@@ -276,7 +277,7 @@ def _directions(
     if previous is not None:
         directions[:] = previous
     for vectors in (fallback, P_t):  # P_t last: it wins where both are defined
-        norms = np.linalg.norm(vectors, axis=1)
+        norms = tangential_norms(vectors)
         defined = norms > floor
         directions[defined] = vectors[defined] / norms[defined, None]
     return directions
@@ -330,10 +331,10 @@ def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector 
     m, size, mu = problem.m, problem.size, problem.mu
     sigma = problem.normal_scale
     u_t = problem.tangential(u)
-    norm_u_t = np.linalg.norm(u_t, axis=1)
+    norm_u_t = tangential_norms(u_t)
     z_n = sigma * P[:m] - (u[:m] + mu * norm_u_t)
     z_t = sigma[:, None] * problem.tangential(P) - u_t
-    t = np.linalg.norm(z_t, axis=1)
+    t = tangential_norms(z_t)
     separated = mu * t <= -z_n
     stick = ~separated & ((problem.tangents == 0) | (t < mu * z_n))
     slide = np.flatnonzero(~separated & ~stick)
