@@ -81,7 +81,8 @@ MIN_RELAXATION = 1.0 / 16.0
 STATUS_PASSES = 1
 #: Newton iterations of the polish per fixed-point iteration.
 NEWTON_ITERATIONS = 20
-#: The polish stops at a natural-map residual of this times max |b| (or POLISH_THRESHOLD).
+#: The polish stops at a natural-map residual of this times the largest entry of b in
+#: absolute value (or at POLISH_THRESHOLD, the smaller).
 ROUND_OFF = 1e-14
 #: Relative distance to the cone's boundary within which a contact that slides slower than
 #: the residual tolerance is marginal (module docstring, step 0).

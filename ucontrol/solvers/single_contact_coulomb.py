@@ -34,7 +34,7 @@ Vector = NDArray[np.float64]
 
 #: Secant iterations of the sliding direction of a spatial contact.
 SECANT_ITERATIONS = 40
-#: Relative size of |u_t × d| at which the secant stops.
+#: Size of the cross product u_t × d, relative to the slip, at which the secant stops.
 SECANT_TOLERANCE = 1e-15
 #: Arcs of the scan for the sliding direction where the secant fails.
 SCAN_POINTS = 16
