@@ -106,6 +106,21 @@ def test_bench_contacts_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert "| contacts |" in capsys.readouterr().out
 
 
+def test_bench_friction_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    bench = _load("bench_friction")
+    flags = "--scenes block_incline_spatial painleve_rod --duration 0.02 --rounds 1"
+    results = bench.main(flags.split())
+    assert [result["scene"] for result in results] == ["block_incline_spatial", "painleve_rod"]
+    for result in results:
+        assert result["solves"] > 0
+        assert result["ucontrol"]["residual"] <= bench.TOLERANCE
+        assert result["ucontrol"]["unsolved"] == 0
+        assert result["pin ADMM"]["residual"] >= 0.0  # ran (PGS may stall on the rod)
+    spatial = results[0]
+    assert spatial["ucontrol"]["qp_free"] == spatial["solves"] - 1  # warm starts after the first
+    assert "| scene |" in capsys.readouterr().out
+
+
 def test_beads_urdf_is_generated(robots_dir: Path) -> None:
     bench = _load("bench_contacts")
     assert (robots_dir / "beads.urdf").read_text() == bench.beads_urdf(10)

@@ -130,13 +130,14 @@ def test_tangential_impact_after_sliding() -> None:
     assert abs(solution.velocity[1]) <= 1e-12  # the end sticks
 
 
-def test_warm_start_takes_one_iteration() -> None:
+def test_warm_start_that_solves_takes_no_qp() -> None:
     cases = load_experiment("friction_cases")
     problem = cases.random_problem(np.random.default_rng(3), 8, spatial=True, redundant=True)
     solver = ProxsuiteCoulombSolver()
     first = solver.solve_coulomb(problem)
     second = solver.solve_coulomb(problem)
-    assert second.outer_iterations == 1
+    assert first.outer_iterations >= 1
+    assert (second.outer_iterations, second.iterations) == (0, 0)
     assert np.allclose(second.velocity, first.velocity, atol=1e-10)
     assert second.residual <= 4e-14  # measured 3.6e-15 m/s: the warm start is the solution
 

@@ -107,6 +107,7 @@ class CoulombProblem:
         scale[scale <= 0.0] = 1.0
         self.normal_scale = scale
         self.equality_rows = np.arange(size - equalities, size)
+        self._padded = np.zeros(size + 1)
 
     def velocity(self, P: Vector) -> Vector:
         """Constraint velocities with restitution ``D P + b`` in [m/s], shape (r,)."""
@@ -117,7 +118,9 @@ class CoulombProblem:
 
         Missing components (frictionless or planar contacts) are 0.
         """
-        return np.append(x, 0.0)[self.tangent_rows]
+        padded = self._padded  # its last entry stays 0
+        padded[: self.size] = x
+        return padded[self.tangent_rows]
 
     def residual(self, P: Vector, velocity: Vector | None = None) -> float:
         """Natural-map residual of the Coulomb problem at impulses ``P`` (r,), in [m/s].
@@ -134,12 +137,17 @@ class CoulombProblem:
             return bilateral
         sigma = self.normal_scale
         u_t = self.tangential(u)
-        z_n = sigma * P[: self.m] - (u[: self.m] + self.mu * np.linalg.norm(u_t, axis=1))
+        z_n = sigma * P[: self.m] - (u[: self.m] + self.mu * tangential_norms(u_t))
         sigma_P_t = sigma[:, None] * self.tangential(P)
         pi_n, pi_t = project_on_cones(z_n, sigma_P_t - u_t, self.mu)
         r_n = np.abs(sigma * P[: self.m] - pi_n)
         r_t = np.abs(sigma_P_t - pi_t)
         return float(max(r_n.max(), r_t.max(), bilateral))
+
+
+def tangential_norms(x_t: Vector) -> Vector:
+    """Euclidean norm of each row of ``x_t`` (m, 2), shape (m,): one ufunc call (``hypot``)."""
+    return np.hypot(x_t[:, 0], x_t[:, 1])
 
 
 def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vector]:
@@ -153,7 +161,7 @@ def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vect
     Returns:
         The projected normal (m,) and tangential (m, 2) components.
     """
-    t = np.linalg.norm(z_t, axis=1)
+    t = tangential_norms(z_t)
     inside = (t <= mu * z_n) & (z_n >= 0.0)  # z_n >= 0 matters for mu = 0
     polar = mu * t <= -z_n  # the polar cone projects on the apex
     boundary_n = (z_n + mu * t) / (1.0 + mu * mu)

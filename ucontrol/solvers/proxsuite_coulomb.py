@@ -13,7 +13,16 @@ and, for a spatial one, a polygon of ``facets`` facets tangent to the unit disk 
 inequalities :math:`c_k \cdot P_t \le s_a`; a square by default). One facet is turned at every
 iteration to face the current tangential impulse, so that where a contact slides its impulse
 ends on the disk itself, not on the polygon; the polish (below) then makes it exact.
-:class:`ProxsuiteCoulombSolver` iterates
+
+0. **Warm start, no QP.** From the second solve of a contact layout on, the last solution is
+   polished first (step 3) on the new problem: successive steps of a time-stepping run change
+   the problem little, and the polish reaches the residual tolerance from there in one or two
+   exact solves or Newton iterations, without a QP. The solve ends there unless it left a
+   contact at its friction bound sliding slower than the tolerance (a block at the friction
+   angle: sliding at that speed also satisfies Coulomb's law, and a warm start would keep the
+   creep of round-off going step after step), which the fixed point below solves again.
+
+:class:`ProxsuiteCoulombSolver` then iterates
 
 1. solve Tresca's QP for the thresholds :math:`s` (proxsuite, warm-started);
 2. measure the natural-map residual of the *true* Coulomb problem; stop when it is at most
@@ -53,15 +62,16 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
 from ucontrol.exceptions import InvalidParameterError
-from ucontrol.solvers.contact_solution import ContactSolution, velocity_scale
-from ucontrol.solvers.coulomb_problem import CoulombProblem
+from ucontrol.solvers.alart_curnier import AlartCurnier, solve_square
+from ucontrol.solvers.contact_solution import ContactSolution
+from ucontrol.solvers.coulomb_problem import CoulombProblem, tangential_norms
 from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD
 from ucontrol.solvers.proxsuite_qp import INFINITY, QP_SOLVED, WarmStartedQP
+from ucontrol.solvers.single_contact_coulomb import solve_single_contact
 
 Vector = NDArray[np.float64]
 
@@ -71,10 +81,12 @@ MIN_RELAXATION = 1.0 / 16.0
 STATUS_PASSES = 1
 #: Newton iterations of the polish per fixed-point iteration.
 NEWTON_ITERATIONS = 20
-#: Relative singular value below which least squares drops a direction (redundant contacts).
-LSTSQ_CONDITION = 1e-10
-#: Smallest step length of the polish's backtracking line search.
-MIN_STEP = 1.0 / 64.0
+#: The polish stops at a natural-map residual of this times the largest entry of b in
+#: absolute value (or at POLISH_THRESHOLD, the smaller).
+ROUND_OFF = 1e-14
+#: Relative distance to the cone's boundary within which a contact that slides slower than
+#: the residual tolerance is marginal (module docstring, step 0).
+MARGIN = 1e-9
 
 
 class ProxsuiteCoulombSolver:
@@ -125,16 +137,32 @@ class ProxsuiteCoulombSolver:
         start = time.perf_counter()
         m = problem.m
         key = problem.tangents.tobytes() + problem.equalities.to_bytes(4, "little")
+        if m == 1 and problem.equalities == 0:  # one contact: its statuses enumerated
+            single = solve_single_contact(problem)
+            if single is not None:
+                single_u = problem.velocity(single)
+                residual = problem.residual(single, single_u)
+                if residual <= self.residual_tolerance:
+                    self._guesses[key] = single
+                    elapsed = time.perf_counter() - start
+                    return ContactSolution(single, single_u, "solved", 0, residual, elapsed)
         guess = self._guesses.get(key)
-        free = -problem.tangential(problem.b)
-        thresholds, directions = _unbounded(problem, free)
-        if guess is not None:
-            thresholds = problem.mu * np.maximum(guess[:m], 0.0)
-            directions = _directions(problem.tangential(guess), free)
         best_P, best_u, best = np.zeros(problem.size), problem.b, np.inf
         qp_iterations, polished, status, outer = 0, False, "", 0
+        if guess is not None and self.polish:  # step 0: polish the last solution, no QP
+            best_u = problem.velocity(guess)
+            best_P, best = guess, problem.residual(guess, best_u)
+            best_P, best_u, best, polished = _polish(problem, best_P, best_u, best)
+            if _marginal(problem, best_P, best_u, self.residual_tolerance):
+                best = np.inf  # solved again by the fixed point, which prefers sticking
+        if best > self.residual_tolerance:
+            free = -problem.tangential(problem.b)
+            thresholds, directions = _unbounded(problem, free)
+            if guess is not None:
+                thresholds = problem.mu * np.maximum(guess[:m], 0.0)
+                directions = _directions(problem.tangential(guess), free)
         relaxation, previous_step = 1.0, np.zeros(m)
-        while outer < self.max_iter:
+        while best > self.residual_tolerance and outer < self.max_iter:
             outer += 1
             P, iterations, qp_solved = self._tresca(problem, thresholds, directions)
             qp_iterations += iterations
@@ -223,6 +251,16 @@ class ProxsuiteCoulombSolver:
         return P, int(results.info.iter), results.info.status == QP_SOLVED
 
 
+def _marginal(problem: CoulombProblem, P: Vector, u: Vector, tolerance: float) -> bool:
+    """Whether a contact slides slower than ``tolerance`` [m/s] with friction at its bound."""
+    if problem.m == 0:
+        return False
+    speed = tangential_norms(problem.tangential(u))
+    bound = problem.mu * P[: problem.m]
+    at_bound = tangential_norms(problem.tangential(P)) >= (1.0 - MARGIN) * bound
+    return bool(np.any((speed > 0.0) & (speed <= tolerance) & (bound > 0.0) & at_bound))
+
+
 def _unbounded(problem: CoulombProblem, free: Vector) -> tuple[Vector, Vector]:
     """Thresholds (m,) of unbounded friction (the sticking problem), facets facing ``free``."""
     return np.full(problem.m, INFINITY), _directions(np.zeros((problem.m, 2)), free)
@@ -240,7 +278,7 @@ def _directions(
     if previous is not None:
         directions[:] = previous
     for vectors in (fallback, P_t):  # P_t last: it wins where both are defined
-        norms = np.linalg.norm(vectors, axis=1)
+        norms = tangential_norms(vectors)
         defined = norms > floor
         directions[defined] = vectors[defined] / norms[defined, None]
     return directions
@@ -255,14 +293,15 @@ def _polish(
     stick, slide in the direction of :math:`-u_t`) are imposed and their linear equations
     solved directly (:func:`_solve_on_statuses`): exact in one pass where the statuses and
     directions are right, also with redundant contacts. Then semismooth Newton iterations on
-    the Alart–Curnier function (:func:`_newton`) turn the sliding directions. Each candidate
-    is kept only if its natural-map residual is lower.
+    the Alart–Curnier function (:meth:`AlartCurnier.newton`) turn the sliding directions. Each
+    candidate is kept only if its natural-map residual is lower.
 
     Returns:
         The best impulses (r,), their velocities (r,), natural-map residual in [m/s], and
         whether the polish improved on ``P``.
     """
     improved = False
+    target = min(POLISH_THRESHOLD, ROUND_OFF * float(np.abs(problem.b).max(initial=0.0)))
     for _ in range(STATUS_PASSES):
         candidate = _solve_on_statuses(problem, P, u)
         if candidate is None:
@@ -272,111 +311,12 @@ def _polish(
         if not candidate_residual < residual:
             break
         P, u, residual, improved = candidate, candidate_u, candidate_residual, True
-        if residual <= POLISH_THRESHOLD:
+        if residual <= target:
             return P, u, residual, improved
-    P, u, residual, newton_improved = _newton(problem, P, u, residual)
+    P, u, residual, newton_improved = AlartCurnier(problem).newton(
+        P, u, residual, NEWTON_ITERATIONS, target
+    )
     return P, u, residual, improved or newton_improved
-
-
-def _newton(
-    problem: CoulombProblem, P: Vector, u: Vector, residual: float
-) -> tuple[Vector, Vector, float, bool]:
-    r"""Semismooth Newton iterations on the Alart–Curnier function from (P, u).
-
-    With :math:`\rho_a = 1 / \sigma_a` the function (in [N s])
-
-    .. math:: F_n = P_n - \max(0, P_n - \rho u_n), \qquad
-              F_t = P_t - \Pi_{B(\mu \max(P_n, 0))}(P_t - \rho u_t)
-
-    vanishes exactly at Coulomb solutions (Alart & Curnier 1991). Each iteration solves
-    :math:`J \Delta = -F` with J an element of its generalized Jacobian (least squares when
-    redundant contacts make J singular) and backtracks on :math:`\|F\|^2`; the best iterate
-    by natural-map residual is returned. Where the contact statuses are right it converges
-    quadratically.
-
-    Returns:
-        The best impulses (r,), their velocities (r,), natural-map residual in [m/s], and
-        whether Newton improved on ``P``.
-    """
-    rho = 1.0 / problem.normal_scale
-    best = (P, u, residual, False)
-    F, J = _alart_curnier(problem, P, u, rho)
-    merit = F @ F
-    for _ in range(NEWTON_ITERATIONS):
-        step = _least_squares(J, -F)
-        alpha = 1.0
-        while alpha >= MIN_STEP:
-            candidate = P + alpha * step
-            candidate_u = problem.velocity(candidate)
-            candidate_F, candidate_J = _alart_curnier(problem, candidate, candidate_u, rho)
-            candidate_merit = candidate_F @ candidate_F
-            if candidate_merit < (1.0 - 1e-4 * alpha) * merit:
-                break
-            alpha *= 0.5
-        else:
-            break
-        P, u, F, J, merit = candidate, candidate_u, candidate_F, candidate_J, candidate_merit
-        clipped = P.copy()
-        clipped[: problem.m] = np.maximum(P[: problem.m], 0.0)
-        clipped_u = problem.velocity(clipped)
-        value = problem.residual(clipped, clipped_u)
-        if value < best[2]:
-            best = (clipped, clipped_u, value, True)
-        if best[2] <= POLISH_THRESHOLD or merit == 0.0:
-            break
-    return best
-
-
-def _alart_curnier(
-    problem: CoulombProblem, P: Vector, u: Vector, rho: Vector
-) -> tuple[Vector, Vector]:
-    """The Alart–Curnier function F (r,) at P and an element J (r, r) of its Jacobian."""
-    m, size, D, mu = problem.m, problem.size, problem.D, problem.mu
-    F = np.empty(size)
-    J = np.zeros((size, size))
-    x_n = P[:m] - rho * u[:m]
-    F[:m] = P[:m] - np.maximum(x_n, 0.0)
-    closed = x_n > 0.0
-    J[:m][closed] = rho[closed, None] * D[:m][closed]
-    open_ = np.flatnonzero(~closed)
-    J[open_, open_] = 1.0
-    equal = problem.equality_rows  # bilateral rows: P free, F = rho u
-    if equal.size:
-        rho_b = 1.0 / velocity_scale(D[np.ix_(equal, equal)])
-        F[equal] = rho_b * u[equal]
-        J[equal] = rho_b[:, None] * D[equal]
-    if size == m + equal.size:
-        return F, J
-    y = problem.tangential(P) - rho[:, None] * problem.tangential(u)
-    radius = mu * np.maximum(P[:m], 0.0)
-    norm_y = np.linalg.norm(y, axis=1)
-    frictional = problem.tangents > 0
-    slide = frictional & (norm_y > radius)
-    ratio = np.divide(radius, norm_y, out=np.zeros(m), where=slide)
-    projection = np.where(slide[:, None], ratio[:, None] * y, y)
-    F_t = problem.tangential(P) - projection
-    rows = problem.tangent_rows
-    for j in (0, 1):  # scatter; missing rows land in the sink and are dropped
-        present = rows[:, j] < size
-        F[rows[present, j]] = F_t[present, j]
-    stick_rows = rows[frictional & ~slide].ravel()
-    stick_rows = stick_rows[stick_rows < size]
-    J[stick_rows] = rho[_owner(problem)[stick_rows - m], None] * D[stick_rows]
-    for a in np.flatnonzero(slide):
-        t = rows[a, : problem.tangents[a]]
-        direction = y[a, : t.size] / norm_y[a]
-        Q = ratio[a] * (np.eye(t.size) - np.outer(direction, direction))
-        block = Q @ (rho[a] * D[t])  # -Q (E_t - rho D_t), E_t part below
-        block[:, t] += np.eye(t.size) - Q
-        if P[a] > 0.0:
-            block[:, a] -= mu[a] * direction
-        J[t] = block
-    return F, J
-
-
-def _owner(problem: CoulombProblem) -> NDArray[np.intp]:
-    """Contact of each tangential row (r - m,)."""
-    return np.repeat(np.arange(problem.m), problem.tangents)
 
 
 def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector | None:
@@ -392,10 +332,10 @@ def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector 
     m, size, mu = problem.m, problem.size, problem.mu
     sigma = problem.normal_scale
     u_t = problem.tangential(u)
-    norm_u_t = np.linalg.norm(u_t, axis=1)
+    norm_u_t = tangential_norms(u_t)
     z_n = sigma * P[:m] - (u[:m] + mu * norm_u_t)
     z_t = sigma[:, None] * problem.tangential(P) - u_t
-    t = np.linalg.norm(z_t, axis=1)
+    t = tangential_norms(z_t)
     separated = mu * t <= -z_n
     stick = ~separated & ((problem.tangents == 0) | (t < mu * z_n))
     slide = np.flatnonzero(~separated & ~stick)
@@ -421,7 +361,7 @@ def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector 
     D_rows = problem.D[equations]
     A = np.hstack((D_rows[:, stick_rows], D_rows @ E_slide))
     rhs = -problem.b[equations]
-    y = _least_squares(A, rhs)
+    y = solve_square(A, rhs)
     candidate = _impulses(y, stick_rows, E_slide, size)
     if np.any(candidate[:m] < 0.0):
         # The minimum-norm solution of singular equations may have negative normal impulses
@@ -436,16 +376,6 @@ def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector 
         return None
     candidate[:m] = np.maximum(candidate[:m], 0.0)
     return candidate
-
-
-def _least_squares(A: Vector, y: Vector) -> Vector:
-    """The minimum-norm least-squares solution x of ``A x = y`` (QR with column pivoting).
-
-    Redundant contacts make A singular; a plain solve then returns a huge step along its
-    null space (measured: |step| 10 times the impulses, for cond(A) ~ 1e16), which
-    redistributes the impulses between the redundant contacts and changes their statuses.
-    """
-    return scipy.linalg.lstsq(A, y, cond=LSTSQ_CONDITION, lapack_driver="gelsy")[0]
 
 
 def _impulses(y: Vector, stick_rows: NDArray[np.intp], E_slide: Vector, size: int) -> Vector:
