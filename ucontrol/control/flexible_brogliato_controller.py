@@ -100,7 +100,11 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+from ucontrol.control.brogliato_controller import (
+    BrogliatoController,
+    BrogliatoGains,
+    _reference_terms,
+)
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.phase_machine import DesiredState
@@ -282,7 +286,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         # The measured state: the same input for every evaluation, (q1, q2) and (dq1, dq2) as
         # the plant orders them.
         self._q_input[...], self._v_input[...] = q, v
-        machine = self.machine  # _advance with the law's evaluation, inlined
+        machine = self.machine
         desired = machine.desired(t)
         V1 = self._evaluate(t, q1, desired)
         if machine.update(t, closed, V1, desired):
@@ -347,13 +351,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             # row (λ - λ_d is λ_d' - λ_d' and λ_d'' - λ_d'' on the derivative rows), then λ:
             # on Python scalars (n is a handful).
             force_gain = self.gains.force_gain
-            lambda_d = desired.force.tolist()
-            lambda_m = lambda_d.copy()
-            measured, persistent = self.contact_force.tolist(), self._persistent.tolist()
-            for i, _ in held:
-                if persistent[i]:
-                    lambda_m[i] = measured[i]  # [N]
-            values = [-d + force_gain * (m - d) for d, m in zip(lambda_d, lambda_m, strict=True)]
+            lambda_m, values = self._force_terms(desired, held)
             rates = desired.force_derivatives
             cached = self._force_rates
             if cached is None or cached[0] is not rates:  # else read-only values seen last call
@@ -484,10 +482,8 @@ def _law_function(
     link_X = ca.substitute(X, q, q1)
     J_c = ca.jacobian(link_X, q1)[[int(c) for c in coordinates], :]
     M, C, g = model.mass_matrix(q1), model.coriolis_matrix(q1, dq1), model.gravity(q1)
-    q1_error, dq1_error = q1 - r[0], dq1 - r[1]
+    q1_error, dq1_error, dq1_r, ddq1_r = _reference_terms(q1, dq1, (r[0], r[1], r[2]), gamma2)
     s1 = dq1_error + gamma2 * q1_error
-    dq1_r = r[1] - gamma2 * q1_error
-    ddq1_r = r[2] - gamma2 * dq1_error
     U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ f[0]  # [N m]
     link_input = ca.SX.zeros(nv)
     link_input[motors] = K * (q2 - q1[motors])  # spring torque on the links
