@@ -91,14 +91,14 @@ def test_flexible_force_input_matches_array_reference(rng: np.random.Generator) 
         law._persistent[...] = rng.random(n) < 0.5
         law._evaluate(0.0, q, desired)
         if not constrained.any():
-            assert np.array_equal(law._force_input, np.zeros(5 * n))
+            assert np.array_equal(law._model_force_input, np.zeros(5 * n))
             continue
         lambda_m = lambda_d.copy()
         measured = constrained & law._persistent
         lambda_m[0, measured] = law.contact_force[measured]
         term = -lambda_d + law.gains.force_gain * (lambda_m - lambda_d)
         expected = np.concatenate([term.ravel(), lambda_m[:2].ravel()])
-        assert np.array_equal(law._force_input, expected)
+        assert np.array_equal(law._model_force_input, expected)
 
 
 @pytest.mark.parametrize(
@@ -312,7 +312,7 @@ def test_flexible_force_rates_reused_only_for_the_shared_plateau(
             controller.contact_force[...], controller._persistent[...] = force, persistent
             controller._state_input[0][...] = q
             controller._evaluate(0.0, q, desired)
-        return law._force_input.copy(), anew._force_input.copy()
+        return law._model_force_input.copy(), anew._model_force_input.copy()
 
     for _ in range(60):
         writable = tuple(rng.uniform(-5.0, 5.0, n) for _ in range(2))

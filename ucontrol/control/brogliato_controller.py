@@ -177,6 +177,9 @@ class BrogliatoController:
         # The rigid law (subclasses bring their own): one casadi Function, compiled or run by
         # casadi's virtual machine (UCONTROL_NO_COMPILE=1, no C compiler).
         self._rigid_law: CompiledFunction | None = None
+        # λ_d applied on the task rows (the state profile's output), or None: the time
+        # profile's, ``desired.force``.
+        self._lambda_d_output: Vector | None = None
         if type(self)._order == 2:
             self._build_rigid_law()
         self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
@@ -192,7 +195,10 @@ class BrogliatoController:
             for i in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
         ]
         kinematics = _symbolic_kinematics(robot, task.frame)
-        function = _rigid_law_function(robot.nv, task.m, self._redundant, support, kinematics)
+        state_force = self.cycle.force_profile == "state"
+        function = _rigid_law_function(
+            robot.nv, task.m, self._redundant, support, kinematics, state_force=state_force
+        )
         law = self._rigid_law = CompiledFunction(function)
         inputs = {name: law.input_view(function.index_in(name)) for name in function.name_in()}
         # The configuration input of a law with its own kinematics, or None.
@@ -205,7 +211,11 @@ class BrogliatoController:
         # the columns of the target (X_d, dX_d, ddX_d) and of the reference (X_d, dX_d),
         # each (m,).
         self._velocity_input, self._posture_input = inputs["v"], inputs["posture_error"]
-        self._force_input = inputs["force"]
+        # The force term (time profile), or what the law designs λ_d from (state profile).
+        self._force_input = inputs.get("force")
+        self._state_force_inputs = (
+            tuple(inputs[name] for name in _STATE_FORCE_INPUTS) if state_force else None
+        )
         target, reference = inputs["target"], inputs["reference"]
         self._law_columns = (*target.T, *reference.T)
         # The target at once from the machine's stacked samples, and the reference from the
@@ -216,8 +226,9 @@ class BrogliatoController:
         outputs = {name: law.output_buffer(function.index_out(name)) for name in LAW_OUTPUTS}
         self._V1_output, self._V_output = outputs["V1"], outputs["V"]
         self._X_output = outputs["X"]
-        tau = outputs["tau"]
-        self._tau_output = tau
+        self._tau_output = outputs["tau"]
+        if state_force:
+            self._lambda_d_output = law.output_buffer(function.index_out("lambda_d"))
 
     def use_plant_data(self, data: pin.Data | None) -> bool:
         """Read M(q) and h(q, v) from the plant's evaluation instead of computing them.
@@ -363,7 +374,8 @@ class BrogliatoController:
         task_position[k] = self.X
         task_desired[k] = desired.reference[0]
         task_target[k] = desired.target[0]
-        lambda_d[k] = desired.force
+        applied = self._lambda_d_output
+        lambda_d[k] = desired.force if applied is None else applied[machine.coordinates]
         contact_force[k] = self.contact_force
 
     def _measure(self, t: float, contacts: ContactState) -> NDArray[np.bool_]:
@@ -418,7 +430,9 @@ class BrogliatoController:
         """
         rows = self._held_contacts(desired.constrained)
         force = self._force_input
-        if rows:
+        if force is None:  # λ_d designed in the law (state profile)
+            self._write_state_force_inputs(desired, rows)
+        elif rows:
             force.fill(0.0)
             self._force_written = True
             terms = self._force_terms(desired, rows)[1]
@@ -439,6 +453,21 @@ class BrogliatoController:
             X_ref, dX_ref = self._law_columns[3:]
             X_ref[...], dX_ref[...] = reference
         self._run_law()
+
+    def _write_state_force_inputs(self, desired: DesiredState, rows: list[tuple[int, int]]) -> None:
+        """The inputs of the state-based λ_d: held and active rows, time profile, force."""
+        assert self._state_force_inputs is not None
+        held, active, lambda_time, measured, lambda_measured = self._state_force_inputs
+        for values in self._state_force_inputs:
+            values.fill(0.0)
+        active[self.machine.coordinates[self._closed]] = 1.0
+        force, contact_force = desired.force, self.contact_force
+        held_before = self.desired.constrained  # at the last call
+        for i, j in rows:
+            held[j] = active[j] = 1.0
+            lambda_time[j] = force[i]  # [N]
+            if self._persistent[i] and held_before[i]:  # a force of this law
+                measured[j], lambda_measured[j] = 1.0, contact_force[i]
 
     def _force_terms(
         self, desired: DesiredState, rows: list[tuple[int, int]]
@@ -477,12 +506,13 @@ class BrogliatoController:
 
 
 def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
-    """The parameter input of :func:`_rigid_law_function`: A, b, the gains."""
+    """The parameter input of :func:`_rigid_law_function`: A, b, γ1, γ2, γp, γN, K_f."""
     return np.concatenate(
         [
             task.A.ravel(order="F"),
             task.b,
             [gains.gamma1, gains.gamma2, gains.posture_gain, gains.null_space_gain],
+            [gains.force_gain],
         ]
     )
 
@@ -517,7 +547,13 @@ def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
 
 
 def _rigid_law_function(
-    nv: int, m: int, redundant: bool, support: list[int], kinematics: ca.Function | None = None
+    nv: int,
+    m: int,
+    redundant: bool,
+    support: list[int],
+    kinematics: ca.Function | None = None,
+    *,
+    state_force: bool = False,
 ) -> ca.Function:
     r"""The rigid law of :class:`BrogliatoController`: its one definition, a casadi Function.
 
@@ -528,7 +564,7 @@ def _rigid_law_function(
     acceleration as columns), ``reference`` (m, 2), ``force`` the force term
     :math:`-\lambda_d + K_f(\lambda - \lambda_d)` on the task rows (m,) (0 off the held
     contacts), ``parameters`` (:func:`_law_parameters`: the task map A (m, 3) column-major,
-    b (m,), γ1, γ2, γp, γN), so that one compiled library serves every task geometry and
+    b (m,), γ1, γ2, γp, γN, K_f), so that one compiled library serves every task geometry and
     every gain of a given robot (sweeps do not recompile). The kinematics come in one of two
     ways. Without ``kinematics``, from Pinocchio's pass: ``C`` C(q, v) (nv, nv), ``J`` and
     ``dJ`` the joint Jacobians and their time variation in the WORLD convention (6, nv)
@@ -539,6 +575,13 @@ def _rigid_law_function(
     ``pin.getFrameJacobianTimeVariation``, in their operations. With ``kinematics``
     (:func:`_symbolic_kinematics`), from ``q`` (nv,) inside the call. Outputs, by name
     (:data:`LAW_OUTPUTS`): ``tau`` (nv,), ``V1`` and ``V`` on the reference, ``X`` (m,).
+
+    With ``state_force`` (``force_profile = "state"``, :func:`_state_force`) the law designs
+    :math:`\lambda_d` from the state itself: the input ``force`` is replaced by ``held``
+    (1 on the task rows of the held contacts, else 0), ``active`` (1 on the rows of the held
+    contacts and of those closed over the last step), ``lambda_time`` (the time profile on
+    the held rows), ``measured`` (1 where the measured force is valid) and ``lambda_measured``
+    (each (m,)), and a last output ``lambda_d`` (m,) gives the :math:`\lambda_d` applied.
     """
     M_upper, C = ca.SX.sym("M", nv, nv), ca.SX.sym("C", nv, nv)
     nle, v = ca.SX.sym("nle", nv), ca.SX.sym("v", nv)
@@ -547,10 +590,10 @@ def _rigid_law_function(
     joint_velocity = ca.SX.sym("joint_velocity", 6)
     target, reference = ca.SX.sym("target", m, 3), ca.SX.sym("reference", m, 2)
     force = ca.SX.sym("force", m)
-    parameters = ca.SX.sym("parameters", 3 * m + m + 4)
+    parameters = ca.SX.sym("parameters", 3 * m + m + 5)
     A = ca.reshape(parameters[: 3 * m], m, 3)
     b = parameters[3 * m : 4 * m]
-    gamma1, gamma2, posture_gain, null_space_gain = ca.vertsplit(parameters[4 * m :], 1)
+    gamma1, gamma2, posture_gain, null_space_gain, force_gain = ca.vertsplit(parameters[4 * m :], 1)
     M = ca.triu(M_upper) + ca.triu(M_upper, False).T
     # Frame Jacobian: v_p = v_O + ω × p; its time variation adds -(v_j + ω_j × p) × ω_col.
     J_lin, dJ_lin = ca.SX.zeros(3, nv), ca.SX.zeros(3, nv)
@@ -559,7 +602,12 @@ def _rigid_law_function(
         J_lin[:, j] = J_world[:3, j] - _cross(p, J_world[3:, j])
         dJ_lin[:, j] = dJ_world[:3, j] - _cross(p, dJ_world[3:, j]) - _cross(shift, J_world[3:, j])
     inputs = {"M": M_upper, "nle": nle, "v": v, "posture_error": posture_error}
-    inputs |= {"target": target, "reference": reference, "force": force}
+    inputs |= {"target": target, "reference": reference}
+    if state_force:
+        force_inputs = {name: ca.SX.sym(name, m) for name in _STATE_FORCE_INPUTS}
+        inputs |= force_inputs
+    else:
+        inputs["force"] = force
     inputs["parameters"] = parameters
     if kinematics is None:  # C and the frame's kinematics from Pinocchio's pass
         inputs |= {"C": C, "J": J_world, "dJ": dJ_world, "p": p}
@@ -597,13 +645,75 @@ def _rigid_law_function(
     ddq_r = dJ_pinv @ dX_r + J_pinv @ ddX_r
     s = J @ s_q
     tau = M @ ddq_r + nle - C @ s_q - gamma1 * (J.T @ s)
+    dissipation = C @ s_q + gamma1 * (J.T @ s)  # [N m], of the closed loop (_state_force)
     if redundant:
         tau += M @ null_acceleration - null_space_gain * (N.T @ (M @ (N @ s_q)))
-    tau += J.T @ force
+        dissipation += null_space_gain * (N.T @ (M @ (N @ s_q)))
+        ddq_r += null_acceleration
     outputs = dict(zip(LAW_OUTPUTS, (tau, V1, V, X), strict=True))
+    if state_force:
+        closed_loop = (M, J, dJ @ v, ddq_r, dissipation)
+        force, outputs["lambda_d"] = _state_force(closed_loop, force_inputs, force_gain)
+    tau += J.T @ force
+    outputs["tau"] = tau
     return ca.Function(
-        "brogliato_law", list(inputs.values()), list(outputs.values()), list(inputs), LAW_OUTPUTS
+        "brogliato_state_force_law" if state_force else "brogliato_law",
+        list(inputs.values()),
+        list(outputs.values()),
+        list(inputs),
+        list(outputs),
     )
+
+
+#: Inputs of the law with the state-based desired force (:func:`_state_force`), each (m,).
+_STATE_FORCE_INPUTS = ("held", "active", "lambda_time", "measured", "lambda_measured")
+
+
+def _state_force(
+    closed_loop: tuple[ca.SX, ...], inputs: dict[str, ca.SX], force_gain: ca.SX
+) -> tuple[ca.SX, ca.SX]:
+    r"""The force term and :math:`\lambda_d` designed from the state (book §8.1.4).
+
+    In the constrained phase the closed loop of the law is
+    :math:`M \dot s_q + D = (1 + K_f) J_c^T (\lambda - \lambda_d)`, D the law's
+    dissipation :math:`C s_q + \gamma_1 J^T s (+ \gamma_N N^T M N s_q)`, and the held
+    contacts keep :math:`J_c \dot v + \dot J_c v = 0`. Eliminating :math:`\dot v` gives the
+    contact force the law produces,
+
+    .. math::
+
+        \lambda = \lambda_d + \frac{\Lambda_c \big(J_c M^{-1} D - J_c \ddot q_r
+        - \dot J_c v\big)}{1 + K_f}, \qquad \Lambda_c = (J_c M^{-1} J_c^T)^{-1},
+
+    and :math:`\lambda_d` is chosen so that it is the time profile :math:`\lambda_t > 0`:
+    :math:`\lambda_d = \lambda_t - \Lambda_c(\cdots)/(1 + K_f)`; where the measured force
+    is not valid (the law then uses :math:`\lambda_d` for it, without feedback) the factor
+    is 1 instead of :math:`1 + K_f`. The rows c are those of
+    the *active* contacts: the held ones and the others closed over the last step (a
+    contact in its transition, whose force the law does not command but which holds its
+    gap as well); inactive rows are decoupled (identity) and masked out, and
+    :math:`\lambda_d` is 0 off the held rows.
+
+    Args:
+        closed_loop: M (nv, nv), the task Jacobian J (m, nv), :math:`\dot J v` (m,),
+            :math:`\ddot q_r` (nv,) and D (nv,).
+        inputs: The symbols of :data:`_STATE_FORCE_INPUTS`.
+        force_gain: :math:`K_f`.
+
+    Returns:
+        The force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and
+        :math:`\lambda_d`, on the task rows (m,), in [N].
+    """
+    M, J, dJ_v, ddq_r, dissipation = closed_loop
+    held, active = inputs["held"], inputs["active"]
+    J_active = ca.diag(active) @ J
+    contact_inertia = J_active @ ca.solve(M, J_active.T) + ca.diag(1.0 - active)  # [1/kg]
+    residual = active * (J_active @ ca.solve(M, dissipation) - J @ ddq_r - dJ_v)  # [m/s²]
+    total = ca.solve(contact_inertia, residual)  # force on the active rows [N]
+    measured = inputs["measured"]
+    lambda_d = held * (inputs["lambda_time"] - total / (1.0 + force_gain * measured))
+    used = lambda_d + measured * (inputs["lambda_measured"] - lambda_d)  # λ where valid [N]
+    return -lambda_d + force_gain * (used - lambda_d), lambda_d
 
 
 def _reference_terms(

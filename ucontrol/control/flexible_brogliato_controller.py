@@ -158,8 +158,8 @@ class FlexibleBrogliatoController(BrogliatoController):
 
     Raises:
         InvalidParameterError: The task is redundant, ``flexible`` belongs to another robot
-            or has dampers, a joint is not revolute or prismatic, or the robot is not fully
-            actuated.
+            or has dampers, a joint is not revolute or prismatic, the robot is not fully
+            actuated, or the cycle's ``force_profile`` is not ``"time"``.
         FrameNotFoundError: The task frame is not in the robot.
     """
 
@@ -188,6 +188,12 @@ class FlexibleBrogliatoController(BrogliatoController):
                 task.names,
                 f"a square task of m = nv = {robot.nv} coordinates (the flexible law inverts "
                 "the task map; redundant tasks are not supported)",
+            )
+        if cycle.force_profile != "time":
+            raise InvalidParameterError(
+                "force_profile",
+                cycle.force_profile,
+                '"time" for the flexible-joint law (the state-based λ_d is the rigid law\'s)',
             )
         if np.any(flexible.damping != 0.0):
             raise InvalidParameterError(
@@ -225,7 +231,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._state_input = (x[:nv], x[nv + nf : 2 * nv + nf], x[nv : nv + nf], x[size - nf : size])
         self._reference_input = x[size : size + 5 * nv]  # then q1d and its 4 derivatives
         self._target_input = tuple(x[size + k * nv : size + (k + 1) * nv] for k in range(1, 5))
-        self._force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
+        self._model_force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
         self._reference_derivatives.bind_input(0, self._reference_input)
         # Views of the reference input: q1d, the targets' derivatives 1 to 4 (those of q1d
         # once solved), all 5 as rows; of Newton's input and output.
@@ -361,10 +367,10 @@ class FlexibleBrogliatoController(BrogliatoController):
                 # Kept only for read-only values (the machine's plateau, shared between calls).
                 frozen = not any(d.flags.writeable for d in rates)
                 self._force_rates = cached if frozen else None
-            self._force_input[...] = values + cached[1] + lambda_m + cached[2]
+            self._model_force_input[...] = values + cached[1] + lambda_m + cached[2]
             self._force_written = True
         elif self._force_written:  # no contact held: no force in the model
-            self._force_input.fill(0.0)
+            self._model_force_input.fill(0.0)
             self._force_written = False
         self._run_flexible_law()
         self._law_output = self._flexible_law_output
