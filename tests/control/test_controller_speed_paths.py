@@ -165,11 +165,13 @@ def _law_outputs(law) -> np.ndarray:  # type: ignore[no-untyped-def]
     return np.concatenate([law._tau_output, law._V1_output, law._V_output, law._X_output])
 
 
+@pytest.mark.parametrize("no_compile", ["0", "1"])  # compiled, and casadi's VM
 @pytest.mark.parametrize("scene", ["two_link_two_constraints", "panda_table"])
 def test_rigid_law_inputs_by_shortcut_match_the_plain_copies(
-    rng: np.random.Generator, scene: str
+    rng: np.random.Generator, scene: str, no_compile: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Stacked target, reference from the target, skipped force reset: same law outputs."""
+    monkeypatch.setenv("UCONTROL_NO_COMPILE", no_compile)
     law = _controller(scene)
     names = list(law.machine.contacts)
     n, nq = len(names), law.robot.nq
