@@ -15,11 +15,15 @@ the target clipped at the surface (0, at rest) and :math:`\bar s` on :math:`X_d^
 with :math:`\Delta\dot X_r = \Delta\dot X_d + \gamma_2 \Delta X_d`,
 :math:`\Delta\ddot X_r = \Delta\ddot X_d + \gamma_2 \Delta\dot X_d` (Δ: clipped minus
 virtual; square task). This script evaluates Δτ along the closed loop of the shipped two-link
-tracking scenes, at every step of the transition phases, beside the torque applied there.
+tracking scenes, at every step of the transition phases, beside the torque applied there, and
+then runs both laws (``reference_after_impact = "virtual" | "clipped"``) in closed loop and
+compares their transitions: the rise of V over :math:`I_k` and its jumps at the impact steps
+(summed over the cycles, :func:`ucontrol.analysis.weak_stability.weak_stability`), the impact
+steps, :math:`t_f - t_0` and V at the last :math:`\tau_0`.
 
 Usage::
 
-    python experiments/transition_reference.py --duration 11
+    python experiments/transition_reference.py --duration 31
 """
 
 from __future__ import annotations
@@ -31,8 +35,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from ucontrol.analysis.cycles import cycle_events
+from ucontrol.analysis.weak_stability import weak_stability
 from ucontrol.control.phase import Phase
-from ucontrol.scene import load_scene
+from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import simulate
 
 #: The shipped rigid tracking scenes with a square task.
@@ -105,6 +111,47 @@ def measure(name: str, duration: float) -> tuple[float, float, float, float, int
     )
 
 
+def _variant(name: str, reference: str) -> Scene:
+    """Scene ``name`` with ``reference_after_impact = reference``."""
+    import tomllib
+
+    source = load_scene(name).source
+    assert source is not None
+    table = tomllib.loads(source.read_text())
+    table.pop("reference", None)
+    table["controller"]["reference_after_impact"] = reference
+    return Scene.from_dict(table, base_dir=source.parent)
+
+
+def closed_loop(name: str, reference: str, duration: float) -> dict[str, float]:
+    """The transitions of ``name`` run with ``reference_after_impact = reference``.
+
+    Returns:
+        ``transition_rise`` and ``impact_jumps`` [J] summed over the cycles, the number of
+        ``impact_steps`` (a declared contact's positive impulse in a transition), the mean
+        ``t_f - t_0`` [s] over the contacts' cycles and ``V_last_tau0`` [J].
+    """
+    log = simulate(_variant(name, reference), duration=duration, progress=False).log
+    report = weak_stability(log)
+    phase = np.asarray(log.contact_phase)
+    declared = [log.constraint_names.index(c) for c in log.metadata["controller_contacts"]]
+    impulse = np.asarray(log.impulse)[:, declared]
+    transiting = phase == int(Phase.TRANSITION)
+    settle = [
+        t_f - t_0
+        for cycle in cycle_events(log)
+        for t_0, t_f in zip(cycle.first_impact, cycle.accumulation_end, strict=True)
+        if np.isfinite(t_f - t_0)
+    ]
+    return {
+        "transition_rise": sum(c.transition_rise for c in report.cycles),
+        "impact_jumps": sum(c.impact_jumps for c in report.cycles),
+        "impact_steps": float(np.count_nonzero(transiting & (impulse > 0.0))),
+        "settle": float(np.mean(settle)) if settle else float("nan"),
+        "V_last_tau0": report.cycles[-1].V_tau0 if report.cycles else float("nan"),
+    }
+
+
 def main(argv: Sequence[str] | None = None) -> list[tuple[str, float, float, float, float, int]]:
     """Print the table of Δτ beside τ over the transitions of each scene."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
@@ -116,6 +163,19 @@ def main(argv: Sequence[str] | None = None) -> list[tuple[str, float, float, flo
     for name, delta, torque, median_delta, median_torque, steps in rows:
         cells = f"{delta:.3g} | {torque:.3g} | {median_delta:.3g} | {median_torque:.3g}"
         print(f"| {name} | {steps} | {cells} |")
+    print()
+    print(
+        "| scene | q̇_r on | V rise over I_k | V jumps at impacts | impact steps | t_f - t_0 |",
+        end="",
+    )
+    print(" V(last τ0) |")
+    print("|:---|:---|---:|---:|---:|---:|---:|")
+    for name in SCENES:
+        for reference in ("virtual", "clipped"):
+            m = closed_loop(name, reference, args.duration)
+            cells = f"{m['transition_rise']:.4g} | {m['impact_jumps']:.4g} | "
+            cells += f"{m['impact_steps']:.0f} | {m['settle']:.4g} | {m['V_last_tau0']:.4g}"
+            print(f"| {name} | {reference} | {cells} |")
     return rows
 
 

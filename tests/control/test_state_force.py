@@ -23,7 +23,7 @@ from ucontrol.scene import Scene, load_scene
 from ucontrol.simulate import simulate
 
 #: Largest error of the law's contact force against the constrained dynamics, in [N].
-#: Measured: 4.3e-13 (two-link), 2.1e-11 (Panda).
+#: Measured: 7.1e-15 (two-link), 3.9e-13 (Panda).
 FORCE_TOLERANCE = 1e-9
 
 
@@ -141,3 +141,52 @@ def test_transition_reference_experiment_runs(capsys: pytest.CaptureFixture[str]
     for _, largest_delta, largest_torque, _, _, steps in rows:
         assert steps > 10 and 0.0 < largest_delta < np.inf and largest_torque > 0.0
     assert "| scene | transition steps |" in capsys.readouterr().out
+
+
+def test_the_books_reference_changes_the_torque_by_its_known_term(
+    rng: np.random.Generator,
+) -> None:
+    """``reference_after_impact = "clipped"``: τ changes by M Δq̈_r + C Δq̇_r (Pinocchio)."""
+    from conftest import load_experiment
+
+    delta_torque = load_experiment("transition_reference")._delta_torque
+    virtual = _scene("two_link_one_constraint").build_controller()
+    clipped = _scene("two_link_one_constraint", reference_after_impact="clipped")
+    clipped = clipped.build_controller()
+    n = len(virtual.machine.contacts)
+    contacts = ContactState(
+        list(virtual.machine.contacts),
+        np.ones(n),
+        np.zeros(n),
+        np.zeros(n),
+        np.zeros(n, bool),
+        1e-3,
+    )
+    q0, largest = load_scene("two_link_one_constraint").q0, 0.0
+    for k in range(20):
+        q, v = q0 + 0.05 * rng.standard_normal(2), 0.3 * rng.standard_normal(2)
+        torques = []
+        for law in (virtual, clipped):
+            law(1e-3 * k, q, v, contacts)  # writes the state's inputs
+            base = law.machine.desired(1e-3 * k)
+            target = (base.target[0] - [0.02, 0.0], base.target[1] + [0.1, 0.0], base.target[2])
+            reference = (target[0].copy(), target[1].copy())
+            reference[0][0] = reference[1][0] = 0.0  # the gap clipped at the surface, at rest
+            law.desired = base._replace(target=target, reference=reference, stacked=None)
+            law._evaluate_law(law.desired)
+            torques.append(law._tau_output.copy())
+        expected = delta_torque(clipped, q, v)
+        assert np.max(np.abs(expected)) > 1e-3  # not a comparison of zeros
+        largest = max(largest, float(np.max(np.abs(torques[1] - torques[0] - expected))))
+    assert largest <= 1e-10  # measured: 3.1e-15 N m
+
+
+def test_reference_after_impact_is_checked() -> None:
+    cycle = load_scene("two_link_one_constraint").build_controller().cycle
+    with pytest.raises(InvalidParameterError, match="reference_after_impact"):
+        DesiredCycle(
+            path=cycle.path, contact_phases=cycle.contact_phases, reference_after_impact="x"
+        )
+    with pytest.raises(InvalidParameterError, match="reference_after_impact"):
+        scene = _scene("two_link_flexible_one_constraint", reference_after_impact="clipped")
+        scene.build_controller()

@@ -196,8 +196,11 @@ class BrogliatoController:
         ]
         kinematics = _symbolic_kinematics(robot, task.frame)
         state_force = self.cycle.force_profile == "state"
+        self._clipped_reference = self.cycle.reference_after_impact == "clipped"
         function = _rigid_law_function(
-            robot.nv, task.m, self._redundant, support, kinematics, state_force=state_force
+            *(robot.nv, task.m, self._redundant, support, kinematics),
+            state_force=state_force,
+            clipped_reference=self._clipped_reference,
         )
         law = self._rigid_law = CompiledFunction(function)
         inputs = {name: law.input_view(function.index_in(name)) for name in function.name_in()}
@@ -222,7 +225,7 @@ class BrogliatoController:
         # target's first two columns where nothing is clipped.
         self._target_buffer = law.input_buffer(function.index_in("target"))
         self._reference_buffer = law.input_buffer(function.index_in("reference"))
-        self._target_head = self._target_buffer[: 2 * task.m]
+        self._target_head = self._target_buffer[: self._reference_buffer.size]
         outputs = {name: law.output_buffer(function.index_out(name)) for name in LAW_OUTPUTS}
         self._V1_output, self._V_output = outputs["V1"], outputs["V"]
         self._X_output = outputs["X"]
@@ -450,8 +453,12 @@ class BrogliatoController:
         if reference[0] is target[0] and reference[1] is target[1]:  # nothing clipped
             self._reference_buffer[...] = self._target_head
         else:
-            X_ref, dX_ref = self._law_columns[3:]
+            X_ref, dX_ref = self._law_columns[3:5]
             X_ref[...], dX_ref[...] = reference
+            if self._clipped_reference:  # the clipped rows at rest, the others the target's
+                ddX_ref = self._law_columns[5]
+                ddX_ref[...] = target[2]
+                ddX_ref[(reference[0] != target[0]) | (reference[1] != target[1])] = 0.0
         self._run_law()
 
     def _write_state_force_inputs(self, desired: DesiredState, rows: list[tuple[int, int]]) -> None:
@@ -554,6 +561,7 @@ def _rigid_law_function(
     kinematics: ca.Function | None = None,
     *,
     state_force: bool = False,
+    clipped_reference: bool = False,
 ) -> ca.Function:
     r"""The rigid law of :class:`BrogliatoController`: its one definition, a casadi Function.
 
@@ -576,6 +584,11 @@ def _rigid_law_function(
     (:func:`_symbolic_kinematics`), from ``q`` (nv,) inside the call. Outputs, by name
     (:data:`LAW_OUTPUTS`): ``tau`` (nv,), ``V1`` and ``V`` on the reference, ``X`` (m,).
 
+    With ``clipped_reference`` (``reference_after_impact = "clipped"``, the book's law) the
+    ``reference`` is (m, 3), with the clipped target's acceleration (0 on the clipped rows),
+    and :math:`\dot q_r`, :math:`\ddot q_r` are built on it, :math:`\bar s` on ``target``;
+    without it :math:`\dot q_r` is built on ``target`` too.
+
     With ``state_force`` (``force_profile = "state"``, :func:`_state_force`) the law designs
     :math:`\lambda_d` from the state itself: the input ``force`` is replaced by ``held``
     (1 on the task rows of the held contacts, else 0), ``active`` (1 on the rows of the held
@@ -588,7 +601,8 @@ def _rigid_law_function(
     J_world, dJ_world = ca.SX.sym("J", 6, nv), ca.SX.sym("dJ", 6, nv)
     p, posture_error = ca.SX.sym("p", 3), ca.SX.sym("posture_error", nv)
     joint_velocity = ca.SX.sym("joint_velocity", 6)
-    target, reference = ca.SX.sym("target", m, 3), ca.SX.sym("reference", m, 2)
+    target = ca.SX.sym("target", m, 3)
+    reference = ca.SX.sym("reference", m, 3 if clipped_reference else 2)
     force = ca.SX.sym("force", m)
     parameters = ca.SX.sym("parameters", 3 * m + m + 5)
     A = ca.reshape(parameters[: 3 * m], m, 3)
@@ -637,14 +651,20 @@ def _rigid_law_function(
         X_error, _, dX_r, ddX_r = _reference_terms(X, dX, desired, gamma2)
         return v - (J_pinv @ dX_r + N_xi), X_error, dX_r, ddX_r
 
-    # V on the reference (its acceleration unused).
-    s_reference, X_error, _, _ = sliding((reference[:, 0], reference[:, 1], ca.SX.zeros(m)))
+    # V on the reference (its acceleration used by the book's q̇_r only).
+    reference_acceleration = reference[:, 2] if clipped_reference else ca.SX.zeros(m)
+    s_reference, X_error, dX_r_reference, ddX_r_reference = sliding(
+        (reference[:, 0], reference[:, 1], reference_acceleration)
+    )
     V1 = 0.5 * ca.dot(s_reference, M @ s_reference)  # [J]
     V = V1 + gamma1 * gamma2 * ca.dot(X_error, X_error)
     s_q, _, dX_r, ddX_r = sliding((target[:, 0], target[:, 1], target[:, 2]))
+    s_coriolis = s_q  # C q̇_r = C v - C s_q: q̇_r on the target
+    if clipped_reference:  # the book: q̇_r on the clipped target, s̄ on the virtual one
+        dX_r, ddX_r, s_coriolis = dX_r_reference, ddX_r_reference, s_reference
     ddq_r = dJ_pinv @ dX_r + J_pinv @ ddX_r
     s = J @ s_q
-    tau = M @ ddq_r + nle - C @ s_q - gamma1 * (J.T @ s)
+    tau = M @ ddq_r + nle - C @ s_coriolis - gamma1 * (J.T @ s)
     dissipation = C @ s_q + gamma1 * (J.T @ s)  # [N m], of the closed loop (_state_force)
     if redundant:
         tau += M @ null_acceleration - null_space_gain * (N.T @ (M @ (N @ s_q)))

@@ -42,6 +42,8 @@ PATH_TOLERANCE = 1e-6
 PATH_SAMPLES = 4000
 #: The values of ``DesiredCycle.force_profile``.
 FORCE_PROFILES = ("state", "time")
+#: The values of ``DesiredCycle.reference_after_impact``.
+REFERENCES_AFTER_IMPACT = ("clipped", "virtual")
 
 
 class NominalPath(Protocol):
@@ -126,6 +128,10 @@ class DesiredCycle:
             smooth fall to 0 at :math:`t_d`); ``"state"``, designed from the state at each
             call so that the contact force the law produces is that profile (book §8.1.4,
             the rigid law; docs/controller.md, "The desired contact force").
+        reference_after_impact: What the rigid law builds :math:`\dot q_r` on from the first
+            impact to :math:`t_f`: ``"virtual"`` (default), the virtual target, as
+            :math:`\bar s`; ``"clipped"``, the target clipped at the surface, as the book does
+            (docs/controller.md, "After the first impact").
     """
 
     path: NominalPath
@@ -142,6 +148,7 @@ class DesiredCycle:
     takeoff_ramp_time: float = 0.1
     blend_time: float = 0.8
     force_profile: str = "time"
+    reference_after_impact: str = "virtual"
 
     def __post_init__(self) -> None:
         for name in (
@@ -157,6 +164,12 @@ class DesiredCycle:
         ):
             object.__setattr__(self, name, as_positive(name, getattr(self, name)))
         object.__setattr__(self, "depth_min", as_non_negative("depth_min", self.depth_min))
+        if self.reference_after_impact not in REFERENCES_AFTER_IMPACT:
+            raise InvalidParameterError(
+                "reference_after_impact",
+                self.reference_after_impact,
+                f"one of {list(REFERENCES_AFTER_IMPACT)}",
+            )
         if self.force_profile not in FORCE_PROFILES:
             raise InvalidParameterError(
                 "force_profile", self.force_profile, f"one of {list(FORCE_PROFILES)}"

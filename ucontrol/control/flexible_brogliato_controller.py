@@ -159,7 +159,8 @@ class FlexibleBrogliatoController(BrogliatoController):
     Raises:
         InvalidParameterError: The task is redundant, ``flexible`` belongs to another robot
             or has dampers, a joint is not revolute or prismatic, the robot is not fully
-            actuated, or the cycle's ``force_profile`` is not ``"time"``.
+            actuated, or the cycle's ``force_profile`` is not ``"time"`` or its
+            ``reference_after_impact`` not ``"virtual"``.
         FrameNotFoundError: The task frame is not in the robot.
     """
 
@@ -194,6 +195,13 @@ class FlexibleBrogliatoController(BrogliatoController):
                 "force_profile",
                 cycle.force_profile,
                 '"time" for the flexible-joint law (the state-based λ_d is the rigid law\'s)',
+            )
+        if cycle.reference_after_impact != "virtual":
+            raise InvalidParameterError(
+                "reference_after_impact",
+                cycle.reference_after_impact,
+                '"virtual" for the flexible-joint law (its motor reference needs the '
+                "derivatives of one target)",
             )
         if np.any(flexible.damping != 0.0):
             raise InvalidParameterError(
