@@ -173,7 +173,6 @@ class BrogliatoController:
         )
         self._pass_data = self._data  # the data the law reads (use_plant_data)
         self._plant_terms = False  # whether M and h come from the plant's evaluation
-        self._all_actuated = bool(np.array_equal(robot.actuated, np.arange(robot.nv)))
         # The rigid law (subclasses bring their own): one casadi Function, compiled or run by
         # casadi's virtual machine (UCONTROL_NO_COMPILE=1, no C compiler).
         self._rigid_law: CompiledFunction | None = None
@@ -327,9 +326,7 @@ class BrogliatoController:
         self.desired = desired
         self.V1, self.V = self._V1_output.item(), self._V_output.item()
         self.X[...] = self._X_output
-        if self._all_actuated:
-            return self._tau_output.copy()
-        return self._tau_output[self.robot.actuated]
+        return self._tau_output.copy()  # fully actuated: u = tau
 
     def prepare_log(self, log: Log) -> None:
         """Declare the fields of :data:`LOG_FIELDS` and the contact names (metadata)."""
