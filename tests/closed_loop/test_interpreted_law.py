@@ -1,9 +1,9 @@
-"""The rigid phase-machine law without its compiled form: the interpreted twin it falls back on.
+"""The rigid phase-machine law in casadi's virtual machine: the reference it falls back on.
 
-:class:`~ucontrol.control.BrogliatoController` evaluates its law through a compiled casadi
-function when it can, and through the same terms written with numpy (``_torque``) when the
-compilation is unavailable. The closed-loop tests run the compiled form; this one runs the
-interpreted twin through a constrained phase with a 20 % lighter model, where the force loop
+:class:`~ucontrol.control.BrogliatoController` runs its one casadi Function compiled when it
+can, and in casadi's virtual machine when compilation is unavailable or disabled
+(``UCONTROL_NO_COMPILE=1``). The closed-loop tests run the compiled form; this one runs the
+reference through a constrained phase with a 20 % lighter model, where the force loop
 closed on the measured contact force divides the open-loop force error r by 1 + K_f.
 """
 

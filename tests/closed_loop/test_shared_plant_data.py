@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import needs_compiled_code
 
 from ucontrol.control.brogliato_controller import BrogliatoController
 from ucontrol.control.controller import ContactState
@@ -38,7 +37,6 @@ def _scene(name: str, **tables: Any) -> Scene:
     return Scene.from_dict(table, base_dir=ROBOTS)
 
 
-@needs_compiled_code  # the plant's terms are an input of the compiled law only
 @pytest.mark.parametrize("name", ["two_link_one_constraint", "panda_table"])
 def test_law_on_the_plants_terms_equals_its_own_pass(name: str, rng: np.random.Generator) -> None:
     scene = load_scene(name)
@@ -62,7 +60,6 @@ def test_law_on_the_plants_terms_equals_its_own_pass(name: str, rng: np.random.G
     assert largest <= 1e-14  # measured: 8.5e-16 (two-link), 9.9e-16 (Panda), relative to |τ|
 
 
-@needs_compiled_code
 def test_loop_shares_with_the_plants_model_only() -> None:
     def shares(scene: Scene) -> bool:
         integrator, controller = scene.build_integrator(), scene.build_controller()

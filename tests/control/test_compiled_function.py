@@ -225,27 +225,28 @@ def test_flexible_law_compiled_equals_fallback(name, tmp_path, monkeypatch):
         assert compiled.phase == fallback.phase
 
 
+@needs_compiled_code
 @pytest.mark.parametrize(
     "name", ["two_link_one_constraint", "two_link_two_constraints", "panda_table"]
 )
-def test_rigid_law_compiled_equals_numpy_law(name, tmp_path, monkeypatch):
-    """The compiled rigid law against the numpy law (an independent writing of the terms)."""
+def test_rigid_law_compiled_equals_its_reference(name, tmp_path, monkeypatch):
+    """The compiled rigid law against its reference: the same Function in casadi's VM."""
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
     scene = Scene.from_toml(ROBOTS / f"{name}.toml")
     compiled = scene.build_controller()
     monkeypatch.setenv(NO_COMPILE_ENV, "1")
-    numpy_law = scene.build_controller()
-    assert compiled._compiled_law is not None and numpy_law._compiled_law is None
+    reference = scene.build_controller()
+    assert compiled._rigid_law.compiled and not reference._rigid_law.compiled
     rng = np.random.default_rng(2)
     for t, q, v, contacts in _inputs(scene, rng, 40):
-        u_compiled, u_numpy = compiled(t, q, v, contacts), numpy_law(t, q, v, contacts)
-        scale = max(1.0, float(np.max(np.abs(u_numpy))))
-        np.testing.assert_allclose(u_compiled, u_numpy, rtol=0.0, atol=_TOLERANCE * scale)
-        assert compiled.V1 == pytest.approx(numpy_law.V1, rel=1e-12, abs=1e-12)
-        assert compiled.V == pytest.approx(numpy_law.V, rel=1e-12, abs=1e-12)
-        np.testing.assert_allclose(compiled.X, numpy_law.X, rtol=0.0, atol=1e-14)
-        assert compiled.phase == numpy_law.phase
+        u_compiled, u_reference = compiled(t, q, v, contacts), reference(t, q, v, contacts)
+        scale = max(1.0, float(np.max(np.abs(u_reference))))
+        np.testing.assert_allclose(u_compiled, u_reference, rtol=0.0, atol=_TOLERANCE * scale)
+        assert compiled.V1 == pytest.approx(reference.V1, rel=1e-12, abs=1e-12)
+        assert compiled.V == pytest.approx(reference.V, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(compiled.X, reference.X, rtol=0.0, atol=1e-14)
+        assert compiled.phase == reference.phase
 
 
 def test_symbolic_kinematics_of_the_law_equal_pinocchios():
@@ -276,11 +277,15 @@ def test_symbolic_kinematics_of_the_law_equal_pinocchios():
     assert _symbolic_kinematics(panda.robot, panda.task.frame) is None  # nv = 7: Pinocchio's
 
 
-@needs_compiled_code
-def test_only_a_small_robots_compiled_law_takes_the_symbolic_kinematics():
+@pytest.mark.parametrize("no_compile", ["0", "1"])
+def test_only_a_small_robots_law_takes_the_symbolic_kinematics(no_compile, monkeypatch):
+    """On both paths: the law's inputs are the symbolic kinematics' q, or Pinocchio's terms."""
+    monkeypatch.setenv(NO_COMPILE_ENV, no_compile)
     two_link = Scene.from_toml(ROBOTS / "two_link_one_constraint.toml").build_controller()
     panda = Scene.from_toml(ROBOTS / "panda_table.toml").build_controller()
     assert two_link._configuration_input is not None and panda._configuration_input is None
+    assert "q" in two_link._law_index and "C" not in two_link._law_index
+    assert "C" in panda._law_index and "q" not in panda._law_index
 
 
 def test_gains_and_stiffness_are_parameters_of_one_library(tmp_path, monkeypatch):
@@ -294,13 +299,13 @@ def test_gains_and_stiffness_are_parameters_of_one_library(tmp_path, monkeypatch
     rigid = Scene.from_toml(ROBOTS / "two_link_one_constraint.toml").build_controller()
     gains = replace(rigid.gains, gamma1=3.0 * rigid.gains.gamma1, gamma2=0.5)
     swept = BrogliatoController(rigid.robot, rigid.task, rigid.cycle, gains)
-    assert swept._compiled_law.library_path == rigid._compiled_law.library_path
+    assert swept._rigid_law.library_path == rigid._rigid_law.library_path
     monkeypatch.setenv(NO_COMPILE_ENV, "1")
-    numpy_law = BrogliatoController(rigid.robot, rigid.task, rigid.cycle, gains)
+    reference = BrogliatoController(rigid.robot, rigid.task, rigid.cycle, gains)
     scene = Scene.from_toml(ROBOTS / "two_link_one_constraint.toml")
     for t, q, v, contacts in _inputs(scene, np.random.default_rng(4), 10):
         np.testing.assert_allclose(
-            swept(t, q, v, contacts), numpy_law(t, q, v, contacts), rtol=0.0, atol=1e-11
+            swept(t, q, v, contacts), reference(t, q, v, contacts), rtol=0.0, atol=1e-11
         )
     monkeypatch.delenv(NO_COMPILE_ENV)
     flexible = Scene.from_toml(ROBOTS / "two_link_flexible_one_constraint.toml").build_controller()

@@ -91,14 +91,14 @@ def test_flexible_force_input_matches_array_reference(rng: np.random.Generator) 
         law._persistent[...] = rng.random(n) < 0.5
         law._evaluate(0.0, q, desired)
         if not constrained.any():
-            assert np.array_equal(law._force_input, np.zeros(5 * n))
+            assert np.array_equal(law._model_force_input, np.zeros(5 * n))
             continue
         lambda_m = lambda_d.copy()
         measured = constrained & law._persistent
         lambda_m[0, measured] = law.contact_force[measured]
         term = -lambda_d + law.gains.force_gain * (lambda_m - lambda_d)
         expected = np.concatenate([term.ravel(), lambda_m[:2].ravel()])
-        assert np.array_equal(law._force_input, expected)
+        assert np.array_equal(law._model_force_input, expected)
 
 
 @pytest.mark.parametrize(
@@ -160,14 +160,19 @@ def _desired_variants(  # type: ignore[no-untyped-def]
     return fast, plain
 
 
+def _law_outputs(law) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The rigid law's outputs (tau, V1, V, X) of its last run, copied."""
+    return np.concatenate([law._tau_output, law._V1_output, law._V_output, law._X_output])
+
+
+@pytest.mark.parametrize("no_compile", ["0", "1"])  # compiled, and casadi's VM
 @pytest.mark.parametrize("scene", ["two_link_two_constraints", "panda_table"])
 def test_rigid_law_inputs_by_shortcut_match_the_plain_copies(
-    rng: np.random.Generator, scene: str
+    rng: np.random.Generator, scene: str, no_compile: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Stacked target, reference from the target, skipped force reset: same law outputs."""
+    monkeypatch.setenv("UCONTROL_NO_COMPILE", no_compile)
     law = _controller(scene)
-    if law._compiled_law is None:
-        pytest.skip("no C compiler: the compiled law's inputs are not used")
     names = list(law.machine.contacts)
     n, nq = len(names), law.robot.nq
     contacts = ContactState(names, np.ones(n), np.zeros(n), np.zeros(n), np.zeros(n, bool), 1e-3)
@@ -178,15 +183,19 @@ def test_rigid_law_inputs_by_shortcut_match_the_plain_copies(
         law.contact_force[...] = rng.uniform(0.0, 5.0, n)
         law._persistent[...] = rng.random(n) < 0.5
         fast, plain = _desired_variants(rng, law, float(t), shared)
-        expected = law._compiled_values(plain).copy()
-        for i in (8, 9):  # the target and reference inputs: nothing left from the plain call
-            law._compiled_law.input_buffer(i).fill(np.nan)
-        assert np.array_equal(law._compiled_values(fast), expected)
+        law._evaluate_law(plain)
+        expected = _law_outputs(law)
+        law._target_buffer.fill(np.nan)  # nothing left from the plain call
+        law._reference_buffer.fill(np.nan)
+        law._evaluate_law(fast)
+        assert np.array_equal(_law_outputs(law), expected)
         # After a held contact, a free state resets the force term: as the plain path does.
         free = fast._replace(constrained=law.machine.none_constrained)
-        expected = law._compiled_values(free._replace(constrained=np.zeros(n, bool))).copy()
-        law._compiled_values(fast)
-        assert np.array_equal(law._compiled_values(free), expected)
+        law._evaluate_law(free._replace(constrained=np.zeros(n, bool)))
+        expected = _law_outputs(law)
+        law._evaluate_law(fast)
+        law._evaluate_law(free)
+        assert np.array_equal(_law_outputs(law), expected)
 
 
 def test_flexible_law_inputs_by_shortcut_match_the_plain_copies(rng: np.random.Generator) -> None:
@@ -195,14 +204,12 @@ def test_flexible_law_inputs_by_shortcut_match_the_plain_copies(rng: np.random.G
     q = np.array([1.5, -0.9])
     law._state_input[0][...] = q
     shared: dict[tuple[bool, ...], np.ndarray] = {}
-    for t in rng.uniform(0.0, 0.5, 60):  # targets Newton reaches from q
+    for t in rng.uniform(0.0, 0.5, 60):  # targets Newton reaches from q (no call made)
         law.contact_force[...] = rng.uniform(0.0, 5.0, n)
         law._persistent[...] = rng.random(n) < 0.5
         fast, plain = _desired_variants(rng, law, float(t), shared)
-        law._reference_time = None  # Newton from q for both
         V1 = law._evaluate(float(t), q, plain)
         expected = (law._law_output.copy(), law._law.input_buffer(0).copy())
-        law._reference_time = None
         law._reference_input.fill(np.nan)  # nothing left from the plain call
         assert law._evaluate(float(t), q, fast) == V1
         assert np.array_equal(law._law_output, expected[0])
@@ -290,12 +297,25 @@ def test_posture_error_by_subtraction_is_pinocchios_difference(
 def test_flexible_force_rates_reused_only_for_the_shared_plateau(
     rng: np.random.Generator,
 ) -> None:
-    """The cached force-term rows of λ_d's derivatives: same input as computing them anew."""
+    """The cached force-term rows of λ_d's derivatives: same input as computing them anew.
+
+    ``law`` keeps its cache from call to call; ``anew`` is reset (its cache emptied) before
+    each evaluation. No call is made, so Newton starts from q in both.
+    """
     law = _controller("two_link_flexible_two_constraints")
+    anew = _controller("two_link_flexible_two_constraints")
     n, q = len(law.machine.contacts), np.array([1.5, -0.9])
-    law._state_input[0][...] = q
     base = law.machine.desired(0.0)
     plateau = tuple(_read_only(rng.uniform(-5.0, 5.0, n)) for _ in range(2))
+
+    def both_inputs(desired, force, persistent):  # type: ignore[no-untyped-def]
+        anew.reset()
+        for controller in (law, anew):
+            controller.contact_force[...], controller._persistent[...] = force, persistent
+            controller._state_input[0][...] = q
+            controller._evaluate(0.0, q, desired)
+        return law._model_force_input.copy(), anew._model_force_input.copy()
+
     for _ in range(60):
         writable = tuple(rng.uniform(-5.0, 5.0, n) for _ in range(2))
         rates = plateau if rng.random() < 0.6 else writable
@@ -304,22 +324,13 @@ def test_flexible_force_rates_reused_only_for_the_shared_plateau(
             constrained=np.ones(n, bool),
             force_derivatives=rates,
         )
-        law.contact_force[...] = rng.uniform(0.0, 5.0, n)
-        law._persistent[...] = rng.random(n) < 0.5
-        law._reference_time = None
-        law._evaluate(0.0, q, desired)
-        fast = law._force_input.copy()
-        law._force_rates = None  # computed anew
-        law._reference_time = None
-        law._evaluate(0.0, q, desired)
-        assert np.array_equal(fast, law._force_input)
+        force, persistent = rng.uniform(0.0, 5.0, n), rng.random(n) < 0.5
+        cached, computed = both_inputs(desired, force, persistent)
+        assert np.array_equal(cached, computed)
         if rates is writable:  # never kept: its values may change
             writable[0][...] = rng.uniform(-5.0, 5.0, n)
-            law._evaluate(0.0, q, desired)
-            fast = law._force_input.copy()
-            law._force_rates = None
-            law._evaluate(0.0, q, desired)
-            assert np.array_equal(fast, law._force_input)
+            cached, computed = both_inputs(desired, force, persistent)
+            assert np.array_equal(cached, computed)
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

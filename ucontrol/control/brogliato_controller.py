@@ -23,11 +23,15 @@ Lyapunov function is :math:`V = V_1 + \gamma_1 \gamma_2 \tilde X^T \tilde X`,
 \|N s_q\|_M^2` in free motion. The last term acts in the constrained phase only, on the
 contacts :math:`c` held there; λ is the measured contact *force*, the impulse of the last step
 divided by its length.
+
+The law is written once, as a casadi Function with named inputs and outputs
+(:func:`_rigid_law_function`): compiled to C where a compiler is found, run by casadi's
+virtual machine otherwise or with ``UCONTROL_NO_COMPILE=1`` (the reference the compiled path
+is checked against, tests/test_paths_agree.py).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -41,16 +45,13 @@ from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.phase import Phase
 from ucontrol.control.phase_machine import DesiredState, PhaseMachine
-from ucontrol.control.task_coordinates import TaskCoordinates, TaskState
+from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
 from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.model.robot_model import RobotModel
 
 if TYPE_CHECKING:
     from ucontrol.log import Log
-
-Matrix = NDArray[np.float64]
-_LWA = pin.LOCAL_WORLD_ALIGNED
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -96,6 +97,10 @@ _VECTOR_SPACE_JOINTS = frozenset(
 #: A contact closing faster than this at the start of a step is impacting, in [m/s]: the
 #: impulse of that step is not used as a force measurement.
 IMPACT_SPEED = 1e-6
+
+#: Outputs of the law's casadi Function, by name (:func:`_rigid_law_function`): the torque
+#: (nv,), V1 and V on the reference [J], the task coordinates X (m,).
+LAW_OUTPUTS = ("tau", "V1", "V", "X")
 
 #: Per-sample fields written to the log (name: shape, with m task coordinates and n contacts).
 LOG_FIELDS = {
@@ -166,50 +171,66 @@ class BrogliatoController:
         self._posture_by_subtraction = self._redundant and all(
             joint.shortname() in _VECTOR_SPACE_JOINTS for joint in robot.model.joints[1:]
         )
-        self._pass_data = self._data  # the data the compiled law reads (use_plant_data)
+        self._pass_data = self._data  # the data the law reads (use_plant_data)
         self._plant_terms = False  # whether M and h come from the plant's evaluation
-        self._lower = np.tril_indices(robot.nv, -1)
-        self._M = np.zeros((robot.nv, robot.nv))
-        self._all_actuated = bool(np.array_equal(robot.actuated, np.arange(robot.nv)))
-        self._compiled_law: CompiledFunction | None = None
-        self._configuration_input: NDArray[np.float64] | None = None
-        if type(self)._order == 2:  # the rigid law (subclasses bring their own)
-            model, joint = robot.model, robot.model.frames[task.frame_id].parentJoint
-            support = [  # the velocity coordinates that move the task frame
-                int(i)
-                for j in model.supports[joint][1:]
-                for i in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
-            ]
-            kinematics = _symbolic_kinematics(robot, task.frame)
-            law = CompiledFunction(
-                _rigid_law_function(robot.nv, task.m, self._redundant, support, kinematics)
-            )
-            if law.compiled:  # the kinematics and dynamics read in place from the data
-                self._compiled_law = law
-                # The configuration input of a law with its own kinematics, or None.
-                self._configuration_input = None if kinematics is None else law.input_view(13)
-                self._run_law, self._rigid_law_output = law.runner(), law.output_buffer(0)
-                self._bind_data(self._data)
-                law.input_buffer(11)[:] = _law_parameters(task, gains)  # constant per controller
-                # The other inputs are written in place at each call (see _rigid_law_function):
-                # v, q ⊖ q_p, the force term, and the columns of the target (X_d, dX_d,
-                # ddX_d) and of the reference (X_d, dX_d), each (m,).
-                self._law_inputs = [law.input_view(i) for i in range(11)]
-                target, reference = law.input_view(8), law.input_view(9)
-                self._law_columns = (*target.T, *reference.T)
-                # The target at once from the machine's stacked samples, and the reference
-                # from the target's first two columns where nothing is clipped.
-                self._target_buffer = law.input_buffer(8)
-                self._reference_buffer = law.input_buffer(9)
-                self._target_head = self._target_buffer[: 2 * task.m]
-        nv, m = robot.nv, task.m
-        # Outputs of the compiled law: tau (nv,), V1, V, X (m,).
-        self._V1_index, self._X_outputs = nv, slice(nv + 2, nv + 2 + m)
-        self._tau_outputs = slice(0, nv) if self._all_actuated else robot.actuated
-        # Views of the compiled law's output buffer, taken at its first call.
-        self._out_views: tuple[Vector, Vector, Vector] | None = None
+        # The rigid law (subclasses bring their own): one casadi Function, compiled or run by
+        # casadi's virtual machine (UCONTROL_NO_COMPILE=1, no C compiler).
+        self._rigid_law: CompiledFunction | None = None
+        # λ_d applied on the task rows (the state profile's output), or None: the time
+        # profile's, ``desired.force``.
+        self._lambda_d_output: Vector | None = None
+        if type(self)._order == 2:
+            self._build_rigid_law()
         self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
         self.reset()
+
+    def _build_rigid_law(self) -> None:
+        """Build the law of :func:`_rigid_law_function` and bind its inputs by name."""
+        robot, task, gains = self.robot, self.task, self.gains
+        model, joint = robot.model, robot.model.frames[task.frame_id].parentJoint
+        support = [  # the velocity coordinates that move the task frame
+            int(i)
+            for j in model.supports[joint][1:]
+            for i in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
+        ]
+        kinematics = _symbolic_kinematics(robot, task.frame)
+        state_force = self.cycle.force_profile == "state"
+        self._clipped_reference = self.cycle.reference_after_impact == "clipped"
+        function = _rigid_law_function(
+            *(robot.nv, task.m, self._redundant, support, kinematics),
+            state_force=state_force,
+            clipped_reference=self._clipped_reference,
+        )
+        law = self._rigid_law = CompiledFunction(function)
+        inputs = {name: law.input_view(function.index_in(name)) for name in function.name_in()}
+        # The configuration input of a law with its own kinematics, or None.
+        self._configuration_input = inputs.get("q")
+        self._law_index = {name: function.index_in(name) for name in function.name_in()}
+        self._run_law = law.runner()
+        self._bind_data(self._data)
+        inputs["parameters"][:] = _law_parameters(task, gains)  # constant per controller
+        # The other inputs are written in place at each call: v, q ⊖ q_p, the force term, and
+        # the columns of the target (X_d, dX_d, ddX_d) and of the reference (X_d, dX_d),
+        # each (m,).
+        self._velocity_input, self._posture_input = inputs["v"], inputs["posture_error"]
+        # The force term (time profile), or what the law designs λ_d from (state profile).
+        self._force_input = inputs.get("force")
+        self._state_force_inputs = (
+            tuple(inputs[name] for name in _STATE_FORCE_INPUTS) if state_force else None
+        )
+        target, reference = inputs["target"], inputs["reference"]
+        self._law_columns = (*target.T, *reference.T)
+        # The target at once from the machine's stacked samples, and the reference from the
+        # target's first two columns where nothing is clipped.
+        self._target_buffer = law.input_buffer(function.index_in("target"))
+        self._reference_buffer = law.input_buffer(function.index_in("reference"))
+        self._target_head = self._target_buffer[: self._reference_buffer.size]
+        outputs = {name: law.output_buffer(function.index_out(name)) for name in LAW_OUTPUTS}
+        self._V1_output, self._V_output = outputs["V1"], outputs["V"]
+        self._X_output = outputs["X"]
+        self._tau_output = outputs["tau"]
+        if state_force:
+            self._lambda_d_output = law.output_buffer(function.index_out("lambda_d"))
 
     def use_plant_data(self, data: pin.Data | None) -> bool:
         """Read M(q) and h(q, v) from the plant's evaluation instead of computing them.
@@ -225,23 +246,32 @@ class BrogliatoController:
         ``nonLinearEffects``). None goes back to the controller's own data.
 
         Returns:
-            Whether the plant's data is used (only by the compiled law).
+            Whether the plant's data is used (by the rigid law; a subclass with a law of its
+            own does not).
         """
-        if self._compiled_law is None:
+        if self._rigid_law is None:
             return False
         self._bind_data(self._data if data is None else data)
         self._plant_terms = data is not None
         return self._plant_terms
 
     def _bind_data(self, data: pin.Data) -> None:
-        """Bind the compiled law's kinematic and dynamic inputs to ``data``'s buffers."""
-        law, task = self._compiled_law, self.task
+        """Bind the law's kinematic and dynamic inputs, by name, to ``data``'s buffers."""
+        law, index, task = self._rigid_law, self._law_index, self.task
         assert law is not None
         joint = self._model.frames[task.frame_id].parentJoint
-        for i, name in enumerate(("M", "C", "nle", "J", "dJ")):
-            law.bind_input(i, getattr(data, name))
-        law.bind_input(5, data.oMf[task.frame_id].translation)  # views
-        law.bind_input(12, data.ov[joint].vector)
+        buffers = {
+            "M": data.M,
+            "C": data.C,
+            "nle": data.nle,
+            "J": data.J,
+            "dJ": data.dJ,
+            "p": data.oMf[task.frame_id].translation,  # views
+            "joint_velocity": data.ov[joint].vector,
+        }
+        for name, buffer in buffers.items():
+            if name in index:  # the symbolic kinematics need M and h only
+                law.bind_input(index[name], buffer)
         self._pass_data = data
 
     def reset(self) -> None:
@@ -255,7 +285,7 @@ class BrogliatoController:
         self.desired = DesiredState.zeros(m, n, self._order)
         # Measurements of the last call, written in place by _measure.
         self.contact_force = np.zeros(n)
-        self._force_written = True  # the compiled law's force input may be non-zero
+        self._force_written = True  # the law's force input may be non-zero
         # A read-only ``constrained`` of the machine (kept alive, so that the same object is
         # the same flags) and the (contact, task row) of its held contacts.
         self._held_rows: tuple[NDArray[np.bool_], list[tuple[int, int]]] | None = None
@@ -271,20 +301,32 @@ class BrogliatoController:
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Torques, shape (nu,), in [N m] (or [N] for prismatic joints)."""
         closed = self._measure(t, contacts)
-        if self._compiled_law is not None:
-            return self._compiled_call(t, q, v, closed)
-        state, M, dyn = self._kinematics(q, v)
-
-        def lyapunov(desired: DesiredState) -> float:
-            s_q = self._sliding(state, desired.reference[0], desired.reference[1], dyn)
-            return float(0.5 * s_q @ M @ s_q)  # V1 [J]
-
-        desired, V1 = self._advance(t, closed, lyapunov)
-        X_error = state.X - desired.reference[0]
-        self.V1 = V1
-        self.V = float(V1 + self.gains.gamma1 * self.gains.gamma2 * X_error @ X_error)
-        self.X = state.X
-        return self._torque(state, M, dyn, desired)
+        model, data = self._model, self._pass_data
+        configuration = self._configuration_input
+        if configuration is not None:  # C and the frame's kinematics inside the law
+            configuration[...] = q
+        else:
+            pin.computeCoriolisMatrix(model, data, q, v)  # C, the joint Jacobians, ...
+        if not self._plant_terms:  # bound inputs (M and h: the plant's evaluation's)
+            pin.crba(model, data, q)  # M, upper triangle (the law reads it)
+            pin.nonLinearEffects(model, data, q, v)
+        if configuration is None:
+            pin.updateFramePlacement(model, data, self.task.frame_id)
+        self._velocity_input[...] = v
+        if self._posture_by_subtraction:  # pin.difference on vector-space joints
+            np.subtract(q, self.posture, out=self._posture_input)
+        elif self._redundant:
+            self._posture_input[...] = pin.difference(model, self.posture, q)
+        machine = self.machine
+        desired = machine.desired(t)
+        self._evaluate_law(desired)
+        if machine.update(t, closed, self._V1_output.item(), desired):
+            desired = machine.desired(t)
+            self._evaluate_law(desired)
+        self.desired = desired
+        self.V1, self.V = self._V1_output.item(), self._V_output.item()
+        self.X[...] = self._X_output
+        return self._tau_output.copy()  # fully actuated: u = tau
 
     def prepare_log(self, log: Log) -> None:
         """Declare the fields of :data:`LOG_FIELDS` and the contact names (metadata)."""
@@ -332,7 +374,8 @@ class BrogliatoController:
         task_position[k] = self.X
         task_desired[k] = desired.reference[0]
         task_target[k] = desired.target[0]
-        lambda_d[k] = desired.force
+        applied = self._lambda_d_output
+        lambda_d[k] = desired.force if applied is None else applied[machine.coordinates]
         contact_force[k] = self.contact_force
 
     def _measure(self, t: float, contacts: ContactState) -> NDArray[np.bool_]:
@@ -373,117 +416,30 @@ class BrogliatoController:
             settled[i] = speed[j] >= -IMPACT_SPEED
         return closed
 
-    def _advance(
-        self, t: float, closed: NDArray[np.bool_], lyapunov: Callable[[DesiredState], float]
-    ) -> tuple[DesiredState, float]:
-        """Update the phases at ``t``; the desired state after it and V1 (``lyapunov``) on it."""
-        machine = self.machine
-        desired = machine.desired(t)
-        V1 = lyapunov(desired)
-        if machine.update(t, closed, V1, desired):
-            desired = machine.desired(t)
-            V1 = lyapunov(desired)
-        self.desired = desired
-        return desired, V1
-
     def _find_contacts(self, names: list[str]) -> list[int]:
         missing = [name for name in self.machine.contacts if name not in names]
         if missing:
             raise NotFoundError("plant contact", missing[0], names)
         return [names.index(name) for name in self.machine.contacts]
 
-    def _kinematics(self, q: Vector, v: Vector) -> tuple[TaskState, Matrix, _Dynamics]:
-        """Task state, mass matrix and the terms of the law at (q, v)."""
-        model, data = self._model, self._data
-        coriolis = self._pinocchio_pass(q, v)
-        M = self._M
-        M[...] = data.M
-        M[self._lower] = M.T[self._lower]  # crba fills the upper triangle
-        state = self.task.evaluate(model, data, v)
-        J, dJ = state.J, state.dJ
-        JJt = J @ J.T
-        J_pinv = np.asarray(np.linalg.solve(JJt, J).T, dtype=float)  # J⁺ = Jᵀ(JJᵀ)⁻¹, (nv, m)
-        dJ_pinv = -J_pinv @ dJ @ J_pinv
-        if self._redundant:
-            N = np.eye(self.robot.nv) - J_pinv @ J
-            dJ_pinv += N @ np.linalg.solve(JJt, dJ).T
-            dN = -(dJ_pinv @ J + J_pinv @ dJ)
-            xi = -self.gains.posture_gain * pin.difference(model, self.posture, q)  # [rad/s]
-            d_xi = -self.gains.posture_gain * v
-            null = (N, N @ xi, dN @ xi + N @ d_xi)
-        else:
-            null = None
-        return state, M, _Dynamics(v, J_pinv, dJ_pinv, null, data.nle.copy(), coriolis)
+    def _evaluate_law(self, desired: DesiredState) -> None:
+        """Run the law on ``desired``; its outputs (tau, V1, V, X) hold the values.
 
-    def _pinocchio_pass(self, q: Vector, v: Vector) -> Matrix:
-        """Fill ``self._data`` with what the law needs at (q, v); return C(q, v) (nv, nv).
-
-        ``computeCoriolisMatrix`` leaves the joint placements, the joint Jacobians and their
-        time variation in the data; ``crba`` adds M (upper triangle), ``nonLinearEffects`` h,
-        ``updateFramePlacement`` the task frame's placement.
+        The state's inputs are those :meth:`__call__` wrote in place or bound; the outputs
+        are the law's buffers, rewritten by its next run.
         """
-        model, data = self._model, self._data
-        coriolis = pin.computeCoriolisMatrix(model, data, q, v)
-        pin.crba(model, data, q)
-        pin.nonLinearEffects(model, data, q, v)
-        pin.updateFramePlacement(model, data, self.task.frame_id)
-        return coriolis
-
-    def _compiled_call(self, t: float, q: Vector, v: Vector, closed: NDArray[np.bool_]) -> Vector:
-        """The law through its compiled form (same terms as :meth:`_torque`)."""
-        inputs = self._law_inputs
-        model, data = self._model, self._pass_data  # the pass of _pinocchio_pass, inlined
-        configuration = self._configuration_input
-        if configuration is not None:  # C and the frame's kinematics inside the law
-            configuration[...] = q
-        else:
-            pin.computeCoriolisMatrix(model, data, q, v)  # C, the joint Jacobians, ...
-        if not self._plant_terms:  # bound inputs (M and h: the plant's evaluation's)
-            pin.crba(model, data, q)
-            pin.nonLinearEffects(model, data, q, v)
-        if configuration is None:
-            pin.updateFramePlacement(model, data, self.task.frame_id)
-        inputs[6][...] = v
-        if self._posture_by_subtraction:  # pin.difference on vector-space joints
-            np.subtract(q, self.posture, out=inputs[7])
-        elif self._redundant:
-            inputs[7][...] = pin.difference(model, self.posture, q)
-        machine = self.machine
-        desired = machine.desired(t)
-        out = self._compiled_values(desired)
-        if machine.update(t, closed, out.item(self._V1_index), desired):
-            desired = machine.desired(t)
-            out = self._compiled_values(desired)
-        self.desired = desired
-        self.V1, self.V = out.item(self._V1_index), out.item(self._V1_index + 1)
-        views = self._out_views
-        if views is None or views[0] is not out:  # the law's output buffer stays put
-            views = self._out_views = (out, out[self._X_outputs], out[self._tau_outputs])
-        self.X[...] = views[1]
-        return views[2].copy()
-
-    def _compiled_values(self, desired: DesiredState) -> Vector:
-        """Outputs (tau, V1, V, X) of the compiled law for ``desired``.
-
-        The kinematic inputs are those :meth:`_compiled_call` wrote in place. The array
-        returned is the law's output buffer, rewritten by its next call.
-        """
-        law = self._compiled_law
-        assert law is not None
         rows = self._held_contacts(desired.constrained)
-        if rows:
-            force = self._law_inputs[10]
+        force = self._force_input
+        if force is None:  # λ_d designed in the law (state profile)
+            self._write_state_force_inputs(desired, rows)
+        elif rows:
             force.fill(0.0)
             self._force_written = True
-            force_gain = self.gains.force_gain
-            measured, persistent = self.contact_force.tolist(), self._persistent.tolist()
-            lambda_ds = desired.force.tolist()
-            for i, j in rows:  # the measured force where valid, else λ_d [N]
-                lambda_d = lambda_ds[i]
-                force_i = measured[i] if persistent[i] else lambda_d
-                force[j] = -lambda_d + force_gain * (force_i - lambda_d)
+            terms = self._force_terms(desired, rows)[1]
+            for i, j in rows:
+                force[j] = terms[i]
         elif self._force_written:  # no contact held: no force term
-            self._law_inputs[10].fill(0.0)
+            force.fill(0.0)
             self._force_written = False
         target, reference, stacked = desired.target, desired.reference, desired.stacked
         if stacked is not None and stacked.size == self._target_buffer.size:
@@ -494,10 +450,47 @@ class BrogliatoController:
         if reference[0] is target[0] and reference[1] is target[1]:  # nothing clipped
             self._reference_buffer[...] = self._target_head
         else:
-            X_ref, dX_ref = self._law_columns[3:]
+            X_ref, dX_ref = self._law_columns[3:5]
             X_ref[...], dX_ref[...] = reference
+            if self._clipped_reference:  # the clipped rows at rest, the others the target's
+                ddX_ref = self._law_columns[5]
+                ddX_ref[...] = target[2]
+                ddX_ref[(reference[0] != target[0]) | (reference[1] != target[1])] = 0.0
         self._run_law()
-        return self._rigid_law_output
+
+    def _write_state_force_inputs(self, desired: DesiredState, rows: list[tuple[int, int]]) -> None:
+        """The inputs of the state-based λ_d: held and active rows, time profile, force."""
+        assert self._state_force_inputs is not None
+        held, active, lambda_time, measured, lambda_measured = self._state_force_inputs
+        for values in self._state_force_inputs:
+            values.fill(0.0)
+        active[self.machine.coordinates[self._closed]] = 1.0
+        force, contact_force = desired.force, self.contact_force
+        held_before = self.desired.constrained  # at the last call
+        for i, j in rows:
+            held[j] = active[j] = 1.0
+            lambda_time[j] = force[i]  # [N]
+            if self._persistent[i] and held_before[i]:  # a force of this law
+                measured[j], lambda_measured[j] = 1.0, contact_force[i]
+
+    def _force_terms(
+        self, desired: DesiredState, rows: list[tuple[int, int]]
+    ) -> tuple[list[float], list[float]]:
+        r"""The force λ used and the force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)`.
+
+        Per declared contact, in [N], on Python scalars (n is a handful): λ is the measured
+        force of a held contact (``rows``, :meth:`_held_contacts`) where it is a valid
+        measurement, else :math:`\lambda_d` (0 off the constrained phase, so the term is 0).
+        """
+        force_gain = self.gains.force_gain
+        lambda_d = desired.force.tolist()
+        used = lambda_d.copy()
+        measured, persistent = self.contact_force.tolist(), self._persistent.tolist()
+        for i, _ in rows:
+            if persistent[i]:
+                used[i] = measured[i]
+        terms = [-d + force_gain * (m - d) for d, m in zip(lambda_d, used, strict=True)]
+        return used, terms
 
     def _held_contacts(self, held: NDArray[np.bool_]) -> list[tuple[int, int]]:
         """(contact, task row) of each declared contact that ``held`` flags; [] for none.
@@ -515,65 +508,15 @@ class BrogliatoController:
         self._held_rows = None if held.flags.writeable else (held, rows)
         return rows
 
-    def _sliding(self, state: TaskState, X_d: Vector, dX_d: Vector, dyn: _Dynamics) -> Vector:
-        r""":math:`s_q = v - \dot q_r` for the desired (X_d, dX_d), shape (nv,), in [rad/s]."""
-        dX_r = dX_d - self.gains.gamma2 * (state.X - X_d)  # [m/s]
-        dq_r = dyn.J_pinv @ dX_r
-        if dyn.null is not None:
-            dq_r += dyn.null[1]
-        return dyn.v - dq_r
-
-    def _torque(self, state: TaskState, M: Matrix, dyn: _Dynamics, desired: DesiredState) -> Vector:
-        gains = self.gains
-        X_d, dX_d, ddX_d = desired.target
-        dX_r = dX_d - gains.gamma2 * (state.X - X_d)  # [m/s]
-        ddX_r = ddX_d - gains.gamma2 * (state.dX - dX_d)  # [m/s²]
-        s_q = self._sliding(state, X_d, dX_d, dyn)
-        ddq_r = dyn.dJ_pinv @ dX_r + dyn.J_pinv @ ddX_r
-        J = state.J
-        s = J @ s_q  # task sliding variable [m/s]
-        tau = M @ ddq_r + dyn.nle - dyn.coriolis @ s_q - gains.gamma1 * (J.T @ s)
-        if dyn.null is not None:
-            N, _, null_acceleration = dyn.null
-            tau += M @ null_acceleration - gains.null_space_gain * (N.T @ (M @ (N @ s_q)))
-        if desired.constrained.any():
-            held = desired.constrained
-            J_c = J[self.machine.coordinates[held]]
-            lambda_d = desired.force[held]
-            force = np.where(self._persistent[held], self.contact_force[held], lambda_d)  # [N]
-            tau += J_c.T @ (-lambda_d + gains.force_gain * (force - lambda_d))
-        return tau[self.robot.actuated]
-
-
-@dataclass(frozen=True)
-class _Dynamics:
-    r"""Terms of the law at (q, v) shared by the reference and the torque.
-
-    Attributes:
-        v: Velocity, shape (nv,).
-        J_pinv: :math:`J^+`, shape (nv, m).
-        dJ_pinv: Its time derivative, shape (nv, m).
-        null: For a redundant task: N (nv, nv), :math:`N\xi` (nv,) and
-            :math:`\frac{d}{dt}(N \xi)` (nv,); None for a square task.
-        nle: :math:`C(q, v) v + g(q)`, shape (nv,).
-        coriolis: C(q, v) with :math:`\dot M - 2C` skew-symmetric, shape (nv, nv).
-    """
-
-    v: Vector
-    J_pinv: Matrix
-    dJ_pinv: Matrix
-    null: tuple[Matrix, Vector, Vector] | None
-    nle: Vector
-    coriolis: Matrix
-
 
 def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
-    """The parameter input of :func:`_rigid_law_function`: A, b, the gains."""
+    """The parameter input of :func:`_rigid_law_function`: A, b, γ1, γ2, γp, γN, K_f."""
     return np.concatenate(
         [
             task.A.ravel(order="F"),
             task.b,
             [gains.gamma1, gains.gamma2, gains.posture_gain, gains.null_space_gain],
+            [gains.force_gain],
         ]
     )
 
@@ -587,7 +530,9 @@ def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
     symmetric) its time variation, from :class:`~ucontrol.model.symbolic_model.SymbolicModel`.
     None above :data:`~ucontrol.model.symbolic_model.SMALL_ROBOT_MAX_NV` joints (where
     Pinocchio's Coriolis pass is faster) or for joints it does not model
-    (a free-flyer base, spherical or continuous joints).
+    (a free-flyer base, spherical or continuous joints). The second source of the law's
+    kinematics beside Pinocchio's pass, kept because it saves more than 5 % of a closed-loop
+    step of the two-link scenes (docs/controller.md, "One law, two paths").
     """
     from ucontrol.model.symbolic_model import SMALL_ROBOT_MAX_NV, SymbolicModel
 
@@ -606,39 +551,60 @@ def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
 
 
 def _rigid_law_function(
-    nv: int, m: int, redundant: bool, support: list[int], kinematics: ca.Function | None = None
+    nv: int,
+    m: int,
+    redundant: bool,
+    support: list[int],
+    kinematics: ca.Function | None = None,
+    *,
+    state_force: bool = False,
+    clipped_reference: bool = False,
 ) -> ca.Function:
-    r"""The rigid law of :class:`BrogliatoController` as one casadi Function (for C code).
+    r"""The rigid law of :class:`BrogliatoController`: its one definition, a casadi Function.
 
-    The same terms as :meth:`BrogliatoController._kinematics` and
-    :meth:`BrogliatoController._torque`. Inputs: M (nv, nv) (upper triangle read),
-    C(q, v) (nv, nv), h (nv,), the joint Jacobians and their time variation in the WORLD
-    convention (6, nv) (Pinocchio's ``data.J``, ``data.dJ``), the frame position (3,),
-    v (nv,), :math:`q \ominus q_p` (nv,), the target (m, 3) (position, velocity,
-    acceleration as columns), the reference (m, 2), the force term
+    :class:`~ucontrol.model.compiled_function.CompiledFunction` runs it compiled to C, or in
+    casadi's virtual machine (the reference, ``UCONTROL_NO_COMPILE=1``). Inputs, by name:
+    ``M`` (nv, nv) (upper triangle read), ``nle`` h(q, v) (nv,), ``v`` (nv,),
+    ``posture_error`` :math:`q \ominus q_p` (nv,), ``target`` (m, 3) (position, velocity,
+    acceleration as columns), ``reference`` (m, 2), ``force`` the force term
     :math:`-\lambda_d + K_f(\lambda - \lambda_d)` on the task rows (m,) (0 off the held
-    contacts), the parameters (:func:`_law_parameters`: the task map A (m, 3) column-major,
-    b (m,), γ1, γ2, γp, γN), so that one compiled library serves every task geometry and
-    every gain of a given robot (sweeps do not recompile), and the spatial velocity of the
-    frame's parent joint in the world (6,) (linear, angular; ``data.ov``). The frame's
-    Jacobian and its time variation in LOCAL_WORLD_ALIGNED on the columns ``support`` are
-    those of ``pin.getFrameJacobian`` and ``pin.getFrameJacobianTimeVariation``, in their
-    operations. With ``kinematics`` (:func:`_symbolic_kinematics`) a last input q (nv,)
-    gives C, the frame position, its Jacobian and their time variation inside the call
-    instead (the inputs C, J, dJ, p and the joint velocity are then unused). Output, stacked:
-    tau (nv,), V1, V on the reference, the task coordinates X (m,).
+    contacts), ``parameters`` (:func:`_law_parameters`: the task map A (m, 3) column-major,
+    b (m,), γ1, γ2, γp, γN, K_f), so that one compiled library serves every task geometry and
+    every gain of a given robot (sweeps do not recompile). The kinematics come in one of two
+    ways. Without ``kinematics``, from Pinocchio's pass: ``C`` C(q, v) (nv, nv), ``J`` and
+    ``dJ`` the joint Jacobians and their time variation in the WORLD convention (6, nv)
+    (``data.J``, ``data.dJ``), ``p`` the frame position (3,) and ``joint_velocity`` the
+    spatial velocity of the frame's parent joint in the world (6,) (linear, angular;
+    ``data.ov``); the frame's Jacobian and its time variation in LOCAL_WORLD_ALIGNED on the
+    columns ``support`` are then those of ``pin.getFrameJacobian`` and
+    ``pin.getFrameJacobianTimeVariation``, in their operations. With ``kinematics``
+    (:func:`_symbolic_kinematics`), from ``q`` (nv,) inside the call. Outputs, by name
+    (:data:`LAW_OUTPUTS`): ``tau`` (nv,), ``V1`` and ``V`` on the reference, ``X`` (m,).
+
+    With ``clipped_reference`` (``reference_after_impact = "clipped"``, the book's law) the
+    ``reference`` is (m, 3), with the clipped target's acceleration (0 on the clipped rows),
+    and :math:`\dot q_r`, :math:`\ddot q_r` are built on it, :math:`\bar s` on ``target``;
+    without it :math:`\dot q_r` is built on ``target`` too.
+
+    With ``state_force`` (``force_profile = "state"``, :func:`_state_force`) the law designs
+    :math:`\lambda_d` from the state itself: the input ``force`` is replaced by ``held``
+    (1 on the task rows of the held contacts, else 0), ``active`` (1 on the rows of the held
+    contacts and of those closed over the last step), ``lambda_time`` (the time profile on
+    the held rows), ``measured`` (1 where the measured force is valid) and ``lambda_measured``
+    (each (m,)), and a last output ``lambda_d`` (m,) gives the :math:`\lambda_d` applied.
     """
     M_upper, C = ca.SX.sym("M", nv, nv), ca.SX.sym("C", nv, nv)
     nle, v = ca.SX.sym("nle", nv), ca.SX.sym("v", nv)
     J_world, dJ_world = ca.SX.sym("J", 6, nv), ca.SX.sym("dJ", 6, nv)
     p, posture_error = ca.SX.sym("p", 3), ca.SX.sym("posture_error", nv)
     joint_velocity = ca.SX.sym("joint_velocity", 6)
-    target, reference = ca.SX.sym("target", m, 3), ca.SX.sym("reference", m, 2)
+    target = ca.SX.sym("target", m, 3)
+    reference = ca.SX.sym("reference", m, 3 if clipped_reference else 2)
     force = ca.SX.sym("force", m)
-    parameters = ca.SX.sym("parameters", 3 * m + m + 4)
+    parameters = ca.SX.sym("parameters", 3 * m + m + 5)
     A = ca.reshape(parameters[: 3 * m], m, 3)
     b = parameters[3 * m : 4 * m]
-    gamma1, gamma2, posture_gain, null_space_gain = ca.vertsplit(parameters[4 * m :], 1)
+    gamma1, gamma2, posture_gain, null_space_gain, force_gain = ca.vertsplit(parameters[4 * m :], 1)
     M = ca.triu(M_upper) + ca.triu(M_upper, False).T
     # Frame Jacobian: v_p = v_O + ω × p; its time variation adds -(v_j + ω_j × p) × ω_col.
     J_lin, dJ_lin = ca.SX.zeros(3, nv), ca.SX.zeros(3, nv)
@@ -646,14 +612,21 @@ def _rigid_law_function(
     for j in support:
         J_lin[:, j] = J_world[:3, j] - _cross(p, J_world[3:, j])
         dJ_lin[:, j] = dJ_world[:3, j] - _cross(p, dJ_world[3:, j]) - _cross(shift, J_world[3:, j])
-    inputs = [
-        *(M_upper, C, nle, J_world, dJ_world, p, v, posture_error),
-        *(target, reference, force, parameters, joint_velocity),
-    ]
-    if kinematics is not None:  # the same terms from the symbolic model
+    inputs = {"M": M_upper, "nle": nle, "v": v, "posture_error": posture_error}
+    inputs |= {"target": target, "reference": reference}
+    if state_force:
+        force_inputs = {name: ca.SX.sym(name, m) for name in _STATE_FORCE_INPUTS}
+        inputs |= force_inputs
+    else:
+        inputs["force"] = force
+    inputs["parameters"] = parameters
+    if kinematics is None:  # C and the frame's kinematics from Pinocchio's pass
+        inputs |= {"C": C, "J": J_world, "dJ": dJ_world, "p": p}
+        inputs["joint_velocity"] = joint_velocity
+    else:  # the same terms from the symbolic model
         q = ca.SX.sym("q", nv)
         C, p, J_lin, dJ_lin = kinematics(q, v)
-        inputs.append(q)
+        inputs["q"] = q
     J, dJ = A @ J_lin, A @ dJ_lin
     X = A @ p - b  # [m]
     dX = J @ v
@@ -670,24 +643,111 @@ def _rigid_law_function(
     else:
         N_xi = ca.SX.zeros(nv)
 
-    def sliding(X_d: ca.SX, dX_d: ca.SX) -> tuple[ca.SX, ca.SX]:
-        dX_r = dX_d - gamma2 * (X - X_d)  # [m/s]
-        return v - (J_pinv @ dX_r + N_xi), dX_r
+    def sliding(desired: tuple[ca.SX, ca.SX, ca.SX]) -> tuple[ca.SX, ...]:
+        """s_q, X̃ [m], dX_r [m/s] and ddX_r [m/s²] for ``desired`` (X_d, dX_d, ddX_d)."""
+        X_error, _, dX_r, ddX_r = _reference_terms(X, dX, desired, gamma2)
+        return v - (J_pinv @ dX_r + N_xi), X_error, dX_r, ddX_r
 
-    s_reference, _ = sliding(reference[:, 0], reference[:, 1])
+    # V on the reference (its acceleration used by the book's q̇_r only).
+    reference_acceleration = reference[:, 2] if clipped_reference else ca.SX.zeros(m)
+    s_reference, X_error, dX_r_reference, ddX_r_reference = sliding(
+        (reference[:, 0], reference[:, 1], reference_acceleration)
+    )
     V1 = 0.5 * ca.dot(s_reference, M @ s_reference)  # [J]
-    X_error = X - reference[:, 0]
     V = V1 + gamma1 * gamma2 * ca.dot(X_error, X_error)
-    X_d, dX_d, ddX_d = target[:, 0], target[:, 1], target[:, 2]
-    s_q, dX_r = sliding(X_d, dX_d)
-    ddX_r = ddX_d - gamma2 * (dX - dX_d)  # [m/s²]
+    s_q, _, dX_r, ddX_r = sliding((target[:, 0], target[:, 1], target[:, 2]))
+    s_coriolis = s_q  # C q̇_r = C v - C s_q: q̇_r on the target
+    if clipped_reference:  # the book: q̇_r on the clipped target, s̄ on the virtual one
+        dX_r, ddX_r, s_coriolis = dX_r_reference, ddX_r_reference, s_reference
     ddq_r = dJ_pinv @ dX_r + J_pinv @ ddX_r
     s = J @ s_q
-    tau = M @ ddq_r + nle - C @ s_q - gamma1 * (J.T @ s)
+    tau = M @ ddq_r + nle - C @ s_coriolis - gamma1 * (J.T @ s)
+    dissipation = C @ s_q + gamma1 * (J.T @ s)  # [N m], of the closed loop (_state_force)
     if redundant:
         tau += M @ null_acceleration - null_space_gain * (N.T @ (M @ (N @ s_q)))
+        dissipation += null_space_gain * (N.T @ (M @ (N @ s_q)))
+        ddq_r += null_acceleration
+    outputs = dict(zip(LAW_OUTPUTS, (tau, V1, V, X), strict=True))
+    if state_force:
+        closed_loop = (M, J, dJ @ v, ddq_r, dissipation)
+        force, outputs["lambda_d"] = _state_force(closed_loop, force_inputs, force_gain)
     tau += J.T @ force
-    return ca.Function("brogliato_law", inputs, [ca.vertcat(tau, V1, V, X)])
+    outputs["tau"] = tau
+    return ca.Function(
+        "brogliato_state_force_law" if state_force else "brogliato_law",
+        list(inputs.values()),
+        list(outputs.values()),
+        list(inputs),
+        list(outputs),
+    )
+
+
+#: Inputs of the law with the state-based desired force (:func:`_state_force`), each (m,).
+_STATE_FORCE_INPUTS = ("held", "active", "lambda_time", "measured", "lambda_measured")
+
+
+def _state_force(
+    closed_loop: tuple[ca.SX, ...], inputs: dict[str, ca.SX], force_gain: ca.SX
+) -> tuple[ca.SX, ca.SX]:
+    r"""The force term and :math:`\lambda_d` designed from the state (book §8.1.4).
+
+    In the constrained phase the closed loop of the law is
+    :math:`M \dot s_q + D = (1 + K_f) J_c^T (\lambda - \lambda_d)`, D the law's
+    dissipation :math:`C s_q + \gamma_1 J^T s (+ \gamma_N N^T M N s_q)`, and the held
+    contacts keep :math:`J_c \dot v + \dot J_c v = 0`. Eliminating :math:`\dot v` gives the
+    contact force the law produces,
+
+    .. math::
+
+        \lambda = \lambda_d + \frac{\Lambda_c \big(J_c M^{-1} D - J_c \ddot q_r
+        - \dot J_c v\big)}{1 + K_f}, \qquad \Lambda_c = (J_c M^{-1} J_c^T)^{-1},
+
+    and :math:`\lambda_d` is chosen so that it is the time profile :math:`\lambda_t > 0`:
+    :math:`\lambda_d = \lambda_t - \Lambda_c(\cdots)/(1 + K_f)`; where the measured force
+    is not valid (the law then uses :math:`\lambda_d` for it, without feedback) the factor
+    is 1 instead of :math:`1 + K_f`. The rows c are those of
+    the *active* contacts: the held ones and the others closed over the last step (a
+    contact in its transition, whose force the law does not command but which holds its
+    gap as well); inactive rows are decoupled (identity) and masked out, and
+    :math:`\lambda_d` is 0 off the held rows.
+
+    Args:
+        closed_loop: M (nv, nv), the task Jacobian J (m, nv), :math:`\dot J v` (m,),
+            :math:`\ddot q_r` (nv,) and D (nv,).
+        inputs: The symbols of :data:`_STATE_FORCE_INPUTS`.
+        force_gain: :math:`K_f`.
+
+    Returns:
+        The force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and
+        :math:`\lambda_d`, on the task rows (m,), in [N].
+    """
+    M, J, dJ_v, ddq_r, dissipation = closed_loop
+    held, active = inputs["held"], inputs["active"]
+    J_active = ca.diag(active) @ J
+    contact_inertia = J_active @ ca.solve(M, J_active.T) + ca.diag(1.0 - active)  # [1/kg]
+    residual = active * (J_active @ ca.solve(M, dissipation) - J @ ddq_r - dJ_v)  # [m/s²]
+    total = ca.solve(contact_inertia, residual)  # force on the active rows [N]
+    measured = inputs["measured"]
+    lambda_d = held * (inputs["lambda_time"] - total / (1.0 + force_gain * measured))
+    used = lambda_d + measured * (inputs["lambda_measured"] - lambda_d)  # λ where valid [N]
+    return -lambda_d + force_gain * (used - lambda_d), lambda_d
+
+
+def _reference_terms(
+    x: ca.SX, dx: ca.SX, desired: tuple[ca.SX, ca.SX, ca.SX], gamma2: ca.SX
+) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    r"""Slotine–Li's errors and reference, shared by the rigid and the flexible law.
+
+    For coordinates x (task coordinates, or the links of the flexible law) and their rate
+    dx, each (k,), and the desired :math:`(x_d, \dot x_d, \ddot x_d)`: the errors
+    :math:`\tilde x = x - x_d`, :math:`\dot{\tilde x}`, the reference velocity
+    :math:`\dot x_r = \dot x_d - \gamma_2 \tilde x` and its derivative
+    :math:`\ddot x_r = \ddot x_d - \gamma_2 \dot{\tilde x}`
+    (so that :math:`s = \dot x - \dot x_r = \dot{\tilde x} + \gamma_2 \tilde x`).
+    """
+    x_d, dx_d, ddx_d = desired
+    error, rate_error = x - x_d, dx - dx_d
+    return error, rate_error, dx_d - gamma2 * error, ddx_d - gamma2 * rate_error
 
 
 def _cross(a: ca.SX, b: ca.SX) -> ca.SX:

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol._validation import as_float, as_in_interval, as_positive
+from ucontrol._validation import as_float, as_in_interval, as_non_negative, as_positive
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.trajectory_segment import smooth_step
 from ucontrol.exceptions import (
@@ -40,6 +40,10 @@ Vector = NDArray[np.float64]
 PATH_TOLERANCE = 1e-6
 #: Samples per period used to check the nominal path against the obstacles.
 PATH_SAMPLES = 4000
+#: The values of ``DesiredCycle.force_profile``.
+FORCE_PROFILES = ("state", "time")
+#: The values of ``DesiredCycle.reference_after_impact``.
+REFERENCES_AFTER_IMPACT = ("clipped", "virtual")
 
 
 class NominalPath(Protocol):
@@ -98,8 +102,11 @@ class DesiredCycle:
             the nominal arrival and reaches the virtual target at rest after as long.
         depth_gain: α of the virtual depth :math:`d = \alpha V_1(\tau_0)^p`, in [m J^-p].
         depth_exponent: p of the virtual depth, in (0, 1] (1: the book's φ V1, 1/2: α √V1).
-        depth_min: Smallest virtual depth in [m], > 0, so that contact is reached in finite
-            time even after perfect tracking.
+        depth_min: Smallest virtual depth :math:`d_{min}` in [m], >= 0: above 0, contact is
+            reached in finite time even after perfect tracking; with 0 (the book's
+            :math:`d = \alpha V_1(\tau_0)^p` unclipped below) a cycle tracked perfectly
+            reaches the surface only asymptotically, and the takeoff at :math:`t_d` then
+            starts without a constrained phase.
         depth_max: Largest virtual depth in [m].
         rest_time: The impacts have accumulated (:math:`t_f`) once the contact stayed closed
             (a positive impulse every step) for this long, in [s].
@@ -116,6 +123,15 @@ class DesiredCycle:
             (:class:`ucontrol.control.trajectory_segment.SmoothParabola`).
         blend_time: Duration in [s] of the blend of coordinates frozen during a transition
             back into the nominal path, from :math:`t_f`.
+        force_profile: How :math:`\lambda_d` of the constrained phase is made:
+            ``"time"`` (default), the profile of :meth:`desired_force` (plateau, then a
+            smooth fall to 0 at :math:`t_d`); ``"state"``, designed from the state at each
+            call so that the contact force the law produces is that profile (book §8.1.4,
+            the rigid law; docs/controller.md, "The desired contact force").
+        reference_after_impact: What the rigid law builds :math:`\dot q_r` on from the first
+            impact to :math:`t_f`: ``"virtual"`` (default), the virtual target, as
+            :math:`\bar s`; ``"clipped"``, the target clipped at the surface, as the book does
+            (docs/controller.md, "After the first impact").
     """
 
     path: NominalPath
@@ -131,12 +147,13 @@ class DesiredCycle:
     takeoff_time: float = 0.4
     takeoff_ramp_time: float = 0.1
     blend_time: float = 0.8
+    force_profile: str = "time"
+    reference_after_impact: str = "virtual"
 
     def __post_init__(self) -> None:
         for name in (
             "approach_time",
             "depth_gain",
-            "depth_min",
             "depth_max",
             "rest_time",
             "force_fall_time",
@@ -146,6 +163,17 @@ class DesiredCycle:
             "blend_time",
         ):
             object.__setattr__(self, name, as_positive(name, getattr(self, name)))
+        object.__setattr__(self, "depth_min", as_non_negative("depth_min", self.depth_min))
+        if self.reference_after_impact not in REFERENCES_AFTER_IMPACT:
+            raise InvalidParameterError(
+                "reference_after_impact",
+                self.reference_after_impact,
+                f"one of {list(REFERENCES_AFTER_IMPACT)}",
+            )
+        if self.force_profile not in FORCE_PROFILES:
+            raise InvalidParameterError(
+                "force_profile", self.force_profile, f"one of {list(FORCE_PROFILES)}"
+            )
         object.__setattr__(
             self, "depth_exponent", as_in_interval("depth_exponent", self.depth_exponent, 0, 1)
         )

@@ -100,7 +100,11 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+from ucontrol.control.brogliato_controller import (
+    BrogliatoController,
+    BrogliatoGains,
+    _reference_terms,
+)
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.phase_machine import DesiredState
@@ -154,8 +158,9 @@ class FlexibleBrogliatoController(BrogliatoController):
 
     Raises:
         InvalidParameterError: The task is redundant, ``flexible`` belongs to another robot
-            or has dampers, a joint is not revolute or prismatic, or the robot is not fully
-            actuated.
+            or has dampers, a joint is not revolute or prismatic, the robot is not fully
+            actuated, or the cycle's ``force_profile`` is not ``"time"`` or its
+            ``reference_after_impact`` not ``"virtual"``.
         FrameNotFoundError: The task frame is not in the robot.
     """
 
@@ -184,6 +189,19 @@ class FlexibleBrogliatoController(BrogliatoController):
                 task.names,
                 f"a square task of m = nv = {robot.nv} coordinates (the flexible law inverts "
                 "the task map; redundant tasks are not supported)",
+            )
+        if cycle.force_profile != "time":
+            raise InvalidParameterError(
+                "force_profile",
+                cycle.force_profile,
+                '"time" for the flexible-joint law (the state-based λ_d is the rigid law\'s)',
+            )
+        if cycle.reference_after_impact != "virtual":
+            raise InvalidParameterError(
+                "reference_after_impact",
+                cycle.reference_after_impact,
+                '"virtual" for the flexible-joint law (its motor reference needs the '
+                "derivatives of one target)",
             )
         if np.any(flexible.damping != 0.0):
             raise InvalidParameterError(
@@ -221,7 +239,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._state_input = (x[:nv], x[nv + nf : 2 * nv + nf], x[nv : nv + nf], x[size - nf : size])
         self._reference_input = x[size : size + 5 * nv]  # then q1d and its 4 derivatives
         self._target_input = tuple(x[size + k * nv : size + (k + 1) * nv] for k in range(1, 5))
-        self._force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
+        self._model_force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
         self._reference_derivatives.bind_input(0, self._reference_input)
         # Views of the reference input: q1d, the targets' derivatives 1 to 4 (those of q1d
         # once solved), all 5 as rows; of Newton's input and output.
@@ -282,7 +300,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         # The measured state: the same input for every evaluation, (q1, q2) and (dq1, dq2) as
         # the plant orders them.
         self._q_input[...], self._v_input[...] = q, v
-        machine = self.machine  # _advance with the law's evaluation, inlined
+        machine = self.machine
         desired = machine.desired(t)
         V1 = self._evaluate(t, q1, desired)
         if machine.update(t, closed, V1, desired):
@@ -347,13 +365,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             # row (λ - λ_d is λ_d' - λ_d' and λ_d'' - λ_d'' on the derivative rows), then λ:
             # on Python scalars (n is a handful).
             force_gain = self.gains.force_gain
-            lambda_d = desired.force.tolist()
-            lambda_m = lambda_d.copy()
-            measured, persistent = self.contact_force.tolist(), self._persistent.tolist()
-            for i, _ in held:
-                if persistent[i]:
-                    lambda_m[i] = measured[i]  # [N]
-            values = [-d + force_gain * (m - d) for d, m in zip(lambda_d, lambda_m, strict=True)]
+            lambda_m, values = self._force_terms(desired, held)
             rates = desired.force_derivatives
             cached = self._force_rates
             if cached is None or cached[0] is not rates:  # else read-only values seen last call
@@ -363,10 +375,10 @@ class FlexibleBrogliatoController(BrogliatoController):
                 # Kept only for read-only values (the machine's plateau, shared between calls).
                 frozen = not any(d.flags.writeable for d in rates)
                 self._force_rates = cached if frozen else None
-            self._force_input[...] = values + cached[1] + lambda_m + cached[2]
+            self._model_force_input[...] = values + cached[1] + lambda_m + cached[2]
             self._force_written = True
         elif self._force_written:  # no contact held: no force in the model
-            self._force_input.fill(0.0)
+            self._model_force_input.fill(0.0)
             self._force_written = False
         self._run_flexible_law()
         self._law_output = self._flexible_law_output
@@ -484,10 +496,8 @@ def _law_function(
     link_X = ca.substitute(X, q, q1)
     J_c = ca.jacobian(link_X, q1)[[int(c) for c in coordinates], :]
     M, C, g = model.mass_matrix(q1), model.coriolis_matrix(q1, dq1), model.gravity(q1)
-    q1_error, dq1_error = q1 - r[0], dq1 - r[1]
+    q1_error, dq1_error, dq1_r, ddq1_r = _reference_terms(q1, dq1, (r[0], r[1], r[2]), gamma2)
     s1 = dq1_error + gamma2 * q1_error
-    dq1_r = r[1] - gamma2 * q1_error
-    ddq1_r = r[2] - gamma2 * dq1_error
     U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ f[0]  # [N m]
     link_input = ca.SX.zeros(nv)
     link_input[motors] = K * (q2 - q1[motors])  # spring torque on the links

@@ -312,9 +312,7 @@ class PhaseMachine:
             force, force_derivatives = self._plateau
         else:
             force, force_derivatives = self._forces(t)
-        # Every field, without the NamedTuple's Python-level __new__ (its argument handling).
-        values = (target, reference, force, self._constrained, force_derivatives, samples)
-        return tuple.__new__(DesiredState, values)  # type: ignore[type-var]
+        return DesiredState(target, reference, force, self._constrained, force_derivatives, samples)
 
     def _nominal(self, t: float) -> NDArray[np.float64]:
         r"""The nominal path and its derivatives at ``t`` [s] in task coordinates, ((order + 1) m,).
