@@ -66,6 +66,10 @@ CONNECT_TIMEOUT_S = 5.0
 NO_WORKER_TIMEOUT_S = 60.0
 #: Period in [s] of the check for finished runs and connected workers.
 _POLL_S = 0.1
+#: Modules the workers of a local cluster import as soon as they are up, all at once and before
+#: the first run (the scene layer, the closed loop, Pinocchio): a run's time is its own. A worker
+#: started later (after one died) imports them in its first run.
+WORKER_IMPORTS = ("ucontrol.campaign.prebuilt_scene", "ucontrol.simulate")
 #: Dask settings of the local cluster. A run whose worker dies is tried once more on a fresh
 #: worker, then recorded as killed; each worker holds only the run it executes (with dask's
 #: default saturation, 1.1, a single-threaded worker also holds the next run, and its death
@@ -450,10 +454,19 @@ def _client(client: Any, scheduler: str | None, workers: int | None, pending: in
         )
     local = Client(cluster)
     try:
+        local.run(_import_run_modules)
         yield local
     finally:
         local.close()
         cluster.close()
+
+
+def _import_run_modules() -> None:
+    """Import :data:`WORKER_IMPORTS` (on a worker, by ``Client.run``)."""
+    import importlib
+
+    for module in WORKER_IMPORTS:
+        importlib.import_module(module)
 
 
 class _Signalled(KeyboardInterrupt):
