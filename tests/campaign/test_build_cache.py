@@ -66,6 +66,23 @@ TWO_LINK_RUNS = [
     [
         ("two_link_one_constraint", 6.0, TWO_LINK_RUNS),
         (
+            "two_link_one_constraint_impedance",
+            6.0,
+            [
+                ({**NOISE, "sensors.seed": 1}, "built", "built"),
+                ({**NOISE, "sensors.seed": 2}, "reused", "reused"),
+                ({"controller.stiffness": 300.0}, "reused", "built"),
+            ],
+        ),
+        (
+            "panda_landing_rs",
+            3.0,
+            [
+                ({}, "built", "built"),
+                ({"duration": 2.5}, "reused", "reused"),
+            ],
+        ),
+        (
             "panda_table",
             4.0,
             [
