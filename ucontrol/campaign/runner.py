@@ -21,9 +21,22 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from ucontrol._validation import as_positive
+from ucontrol.campaign.build_cache import (
+    BUILT,
+    CONTROLLER,
+    INTEGRATOR,
+    REUSED,
+    WORKER_CACHE,
+    BuildCache,
+    controller_key,
+    integrator_key,
+    reset_integrator,
+    reusable_controller,
+    reusable_integrator,
+)
 from ucontrol.campaign.criterion import parse_criterion
 from ucontrol.campaign.metrics import Metric
 from ucontrol.campaign.overrides import apply_overrides
@@ -53,6 +66,10 @@ CONNECT_TIMEOUT_S = 5.0
 NO_WORKER_TIMEOUT_S = 60.0
 #: Period in [s] of the check for finished runs and connected workers.
 _POLL_S = 0.1
+#: Modules the workers of a local cluster import as soon as they are up, all at once and before
+#: the first run (the scene layer, the closed loop, Pinocchio): a run's time is its own. A worker
+#: started later (after one died) imports them in its first run.
+WORKER_IMPORTS = ("ucontrol.campaign.prebuilt_scene", "ucontrol.simulate")
 #: Dask settings of the local cluster. A run whose worker dies is tried once more on a fresh
 #: worker, then recorded as killed; each worker holds only the run it executes (with dask's
 #: default saturation, 1.1, a single-threaded worker also holds the next run, and its death
@@ -97,12 +114,15 @@ def run_task(task: Mapping[str, Any]) -> dict[str, Any]:
     Args:
         task: ``run_id``, ``index``, ``scene`` (base table), ``scene_ref``, ``parameters``
             (dotted key -> value), ``metrics`` (list of (name, spec)), ``success``
-            (criterion text or None), ``python_path``.
+            (criterion text or None), ``python_path``, and optionally ``reuse`` (default
+            True: the integrator and controller come from this process's
+            :data:`~ucontrol.campaign.build_cache.WORKER_CACHE` where the run allows).
 
     Returns:
         ``run_id``, ``index``, ``parameters``, ``metrics``, ``success``, ``status``
         (``"ok"`` or ``"error"``), ``error`` (exception text, empty when ok),
-        ``wall_time_s`` and ``worker`` (host:pid).
+        ``wall_time_s``, ``worker`` (host:pid) and, once the run's objects are made,
+        ``build`` (``"integrator"`` and ``"controller"``: ``"built"`` or ``"reused"``).
     """
     start = time.perf_counter()
     record: dict[str, Any] = {
@@ -117,13 +137,17 @@ def run_task(task: Mapping[str, Any]) -> dict[str, Any]:
         "worker": f"{socket.gethostname()}:{os.getpid()}",
     }
     try:
-        from ucontrol.scene import Scene
-        from ucontrol.simulate import simulate
-
         path = scene_file(task["scene_ref"])
         table = apply_overrides(task["scene"], task["parameters"])
-        scene = Scene.from_dict(table, base_dir=path.parent, default_name=path.stem)
-        result = simulate(scene, progress=False)
+        if task.get("reuse", True):
+            result, record["build"] = simulate_cached(table, path)
+        else:
+            from ucontrol.scene import Scene
+            from ucontrol.simulate import simulate
+
+            scene = Scene.from_dict(table, base_dir=path.parent, default_name=path.stem)
+            result = simulate(scene, progress=False)
+            record["build"] = {INTEGRATOR: BUILT, CONTROLLER: BUILT}
         python_path = tuple(task.get("python_path", ()))
         metrics = {
             name: Metric(name, spec).evaluate(result, python_path) for name, spec in task["metrics"]
@@ -139,6 +163,50 @@ def run_task(task: Mapping[str, Any]) -> dict[str, Any]:
     return record
 
 
+def simulate_cached(
+    table: dict[str, Any], path: Path, cache: BuildCache = WORKER_CACHE
+) -> tuple[Any, dict[str, str]]:
+    """Run the scene ``table`` (from file ``path``) with builds of ``cache`` where it has them.
+
+    The integrator and the controller are taken from ``cache`` under the run's keys
+    (:func:`~ucontrol.campaign.build_cache.integrator_key`, ``controller_key``) and reset, or
+    built; they go back to it after the run.
+
+    Returns:
+        The :class:`~ucontrol.simulate.SimulationResult` and, per kind, whether the object
+        was ``"built"`` or ``"reused"``. Objects go back to the cache only after a run that
+        completed (a failed run's are dropped).
+    """
+    from ucontrol.campaign.prebuilt_scene import PrebuiltScene
+    from ucontrol.simulate import simulate
+
+    built = PrebuiltScene.from_dict(table, base_dir=path.parent, default_name=path.stem)
+    scene = cast(PrebuiltScene, built)  # from_dict builds the class it is called on
+    keys = {
+        INTEGRATOR: integrator_key(str(path), table),
+        CONTROLLER: controller_key(str(path), table),
+    }
+    build = {}
+    integrator = cache.checkout(INTEGRATOR, keys[INTEGRATOR])
+    if integrator is None:
+        integrator, build[INTEGRATOR] = scene.build_integrator(), BUILT
+    else:
+        reset_integrator(integrator, scene)
+        build[INTEGRATOR] = REUSED
+    controller = cache.checkout(CONTROLLER, keys[CONTROLLER])
+    if controller is None:
+        controller, build[CONTROLLER] = scene.build_controller(), BUILT
+    else:
+        controller.reset()
+        build[CONTROLLER] = REUSED
+    result = simulate(scene.use_integrator(integrator), controller, progress=False)
+    if reusable_integrator(integrator):
+        cache.checkin(INTEGRATOR, keys[INTEGRATOR], integrator)
+    if reusable_controller(controller):
+        cache.checkin(CONTROLLER, keys[CONTROLLER], controller)
+    return result, build
+
+
 def run_campaign(
     campaign: Campaign,
     out: str | Path,
@@ -149,6 +217,7 @@ def run_campaign(
     formats: tuple[str, ...] = ("csv",),
     progress: bool | None = None,
     worker_timeout: float = NO_WORKER_TIMEOUT_S,
+    reuse: bool = True,
 ) -> CampaignOutcome:
     """Run the runs of ``campaign`` not yet in ``out`` and write the campaign table.
 
@@ -164,6 +233,9 @@ def run_campaign(
         progress: Show a progress bar; default only when stderr is a terminal.
         worker_timeout: Longest wait in [s] with no worker connected while runs are pending;
             then the campaign stops as interrupted, with the reason.
+        reuse: Let each worker reuse the integrator and controller of its earlier runs where
+            the overrides leave them as built (:mod:`ucontrol.campaign.build_cache`); False
+            builds both for every run. The records are the same either way.
 
     Raises:
         OutputDirectoryError: ``out`` cannot be created or written.
@@ -187,7 +259,8 @@ def run_campaign(
                 with _client(client, scheduler, workers, len(pending)) as dask_client:
                     bar = _progress_bar(len(plan), skipped, progress)
                     try:
-                        for record in _results(dask_client, campaign, pending, worker_timeout):
+                        records = _results(dask_client, campaign, pending, worker_timeout, reuse)
+                        for record in records:
                             if isinstance(record, str):  # no worker left: stop
                                 reason = record
                                 break
@@ -275,7 +348,7 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S) -> Any:
 
 
 def _results(
-    client: Any, campaign: Campaign, pending: list[Any], worker_timeout: float
+    client: Any, campaign: Campaign, pending: list[Any], worker_timeout: float, reuse: bool
 ) -> Iterator[dict[str, Any] | str]:
     """Submit the pending runs and yield each record as its run ends.
 
@@ -293,6 +366,7 @@ def _results(
             "metrics": [(m.name, m.spec) for m in campaign.metrics],
             "success": None if campaign.criterion is None else campaign.criterion.expression,
             "python_path": list(campaign.python_path),
+            "reuse": reuse,
         }
         for run in pending
     ]
@@ -380,10 +454,19 @@ def _client(client: Any, scheduler: str | None, workers: int | None, pending: in
         )
     local = Client(cluster)
     try:
+        local.run(_import_run_modules)
         yield local
     finally:
         local.close()
         cluster.close()
+
+
+def _import_run_modules() -> None:
+    """Import :data:`WORKER_IMPORTS` (on a worker, by ``Client.run``)."""
+    import importlib
+
+    for module in WORKER_IMPORTS:
+        importlib.import_module(module)
 
 
 class _Signalled(KeyboardInterrupt):

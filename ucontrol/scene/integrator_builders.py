@@ -19,6 +19,7 @@ from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 if TYPE_CHECKING:
     from ucontrol.plant import Integrator
     from ucontrol.scene.scene_data import SceneData
+    from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
 
 
 def build_integrator(
@@ -85,9 +86,15 @@ def build_integrator(
     return _moreau_jean(scene, h, compiled) if name == "moreau_jean" else _BUILDERS[name](scene, h)
 
 
-def _moreau_jean(scene: SceneData, dt: float, compiled: bool = True) -> Integrator:
+def contact_solvers(scene: SceneData) -> tuple[LCPSolver, CoulombSolver | None]:
+    """New contact solvers of a Moreau–Jean integrator with ``scene``'s settings.
+
+    The frictionless solver and, where the scene has friction (contacts or Coulomb joints),
+    the friction solver; without their warm starts (a campaign gives a reused integrator
+    fresh ones for each run).
+    """
     settings = scene.integrator
-    contact_solver, friction_solver = build_contact_solvers(
+    return build_contact_solvers(
         settings.contact_solver,
         friction=scene.constraints.has_friction or _joint_coulomb(scene),
         eps_abs=settings.contact_tolerance,
@@ -95,6 +102,11 @@ def _moreau_jean(scene: SceneData, dt: float, compiled: bool = True) -> Integrat
         residual_tolerance=settings.friction_tolerance,
         friction_max_iter=settings.friction_max_iter,
     )
+
+
+def _moreau_jean(scene: SceneData, dt: float, compiled: bool = True) -> Integrator:
+    settings = scene.integrator
+    contact_solver, friction_solver = contact_solvers(scene)
     return MoreauJean(
         scene.robot,
         scene.constraints,
