@@ -23,8 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ucontrol._validation import as_float, as_in_interval, as_positive
-from ucontrol.exceptions import InvalidParameterError
+from ucontrol._validation import as_in_interval, as_non_negative, as_positive
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -49,16 +48,11 @@ class ClearanceJoint:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "clearance", as_positive("clearance", self.clearance))
-        radius = as_float("journal_radius", self.journal_radius)
-        if radius < 0.0:
-            raise InvalidParameterError("journal_radius", radius, ">= 0 [m]")
+        radius = as_non_negative("journal_radius", self.journal_radius)
         object.__setattr__(self, "journal_radius", radius)
         object.__setattr__(
             self, "restitution", as_in_interval("restitution", self.restitution, 0.0, 1.0)
         )
-        friction = as_float("friction", self.friction)
-        if friction < 0.0:
-            raise InvalidParameterError("friction", friction, ">= 0")
-        object.__setattr__(self, "friction", friction)
+        object.__setattr__(self, "friction", as_non_negative("friction", self.friction))
         if not self.name:
             object.__setattr__(self, "name", f"{self.joint}/clearance")

@@ -408,9 +408,8 @@ class ConstraintSet:
                         "v", None, "the velocity for the drift of clearance joints"
                     )
                 play = self._play[int(i) - self._stops_end]
-                offset = play.offset(data)
-                distance = float(np.sqrt(offset.dot(offset)))
-                normal = play.gap_normal(data)[1]
+                gap, normal = play.gap_normal(data)
+                distance = play.clearance - gap  # |p| [m]
                 sliding = v[play.v_xy[1]] * normal[0] - v[play.v_xy[0]] * normal[1]  # t·ṗ
                 drift[row] = -(sliding**2) / distance if distance > 0.0 else 0.0
             elif i < self._n_point:

@@ -666,7 +666,9 @@ class MoreauJean:
         if tangents is not None and friction_impulse is not None:
             _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
         v_next = v_free + Minv_Jt.dot(solution.impulses)
-        q_next = constraints.clamp_play(self._advance_theta(state, v_next))
+        q_next = self._advance_theta(state, v_next)
+        if constraints.clearances:  # journals back into their bearings (clearance_joint)
+            q_next = constraints.clamp_play(q_next)
         if self._bilateral is not None:  # held contacts' normal rows kept by the projection
             held = np.vstack(
                 (J[:m][impulse[indices] > 0.0, : self.robot.nv], constraints.play_rows(q_next))
