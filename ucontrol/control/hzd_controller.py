@@ -242,8 +242,8 @@ class HZDController:
             "contact", contact, f"one of the feet's constraints {[g.contact for g in self.legs]}"
         )
 
-    def _indices(self, stance: int) -> tuple[list[int], list[int]]:
-        """Configuration and velocity indices of q_a with leg ``stance`` on the ground."""
+    def output_indices(self, stance: int) -> tuple[list[int], list[int]]:
+        """Configuration and velocity indices of q_a (4 each) with leg ``stance`` (0 or 1) down."""
         swing = 1 - stance
         return self._q[stance] + self._q[swing], self._v[stance] + self._v[swing]
 
@@ -298,7 +298,7 @@ class HZDController:
         theta, theta_dot = self.phase_variable(q, stance, v)
         h, dh, _ = bezier(s.bezier, s.phase(theta))
         scale = 1.0 / (s.theta_minus - s.theta_plus)  # ds/dθ [1/rad]
-        q_index, v_index = self._indices(stance)
+        q_index, v_index = self.output_indices(stance)
         return q[q_index] - h, v[v_index] - dh * scale * theta_dot
 
     def torque(self, q: Vector, v: Vector, contact: int) -> Vector:
@@ -341,7 +341,7 @@ class HZDController:
         theta_drift -= 2.0 * theta_dot * (a * da + b * db) / r2  # θ̈ = J_θ v̇ + this [rad/s²]
         scale = 1.0 / (settings.theta_minus - settings.theta_plus)  # [1/rad]
         h, dh, ddh = bezier(settings.bezier, (theta - settings.theta_plus) * scale)
-        q_index, v_index = self._indices(stance)
+        q_index, v_index = self.output_indices(stance)
         y = q[q_index] - h
         y_dot = v[v_index] - dh * scale * theta_dot
         # ÿ = H v̇ + drift
