@@ -161,16 +161,17 @@ def test_outputs_relabel_at_the_leg_swap() -> None:
     v = np.zeros(7)
     assert law.settings.phase(law.phase_variable(q, 0)[0]) > 0.5
     assert law.stance == 0
-    law(0.0, q, v, _contacts([0.0, 0.01], [0.0, -0.3]))  # swing foot 1 cm up: no swap
+    law(0.0, q, v, _contacts([0.0, 0.01], [0.0, 0.0]))  # swing foot 1 cm up: no swap
     assert law.stance == 0
     law(0.0, q, v, _contacts([0.0, 5e-4], [0.0, 0.3]))  # close but rising: no swap
     assert law.stance == 0
-    u = law(0.0, q, v, _contacts([0.0, 5e-4], [0.0, -0.3]))  # touching down: swap
+    law(0.0, q, v, _contacts([0.0, 5e-4], [0.0, -0.3]))  # approaching, not yet struck
+    assert law.stance == 0
+    u = law(0.0, q, v, _contacts([0.0, -2e-4], [0.0, 1e-3]))  # stopped by the impact: swap
     assert law.stance == 1
     np.testing.assert_allclose(u, law.torque(q, v, 1), atol=1e-12)
-    y_right = (
-        law.outputs(q, v, 1)[0] + bezier(ALPHA, law.settings.phase(law.phase_variable(q, 1)[0]))[0]
-    )
+    s_right = law.settings.phase(law.phase_variable(q, 1)[0])
+    y_right = law.outputs(q, v, 1)[0] + bezier(ALPHA, s_right)[0]
     np.testing.assert_allclose(y_right, q[[5, 6, 3, 4]], atol=1e-14)
 
 
@@ -181,7 +182,7 @@ def test_no_swap_early_in_the_step() -> None:
     assert isinstance(law, HZDController)
     q = np.array([0.0, 0.0, 0.05, -0.35, 0.2, 0.2, 0.6])
     assert law.settings.phase(law.phase_variable(q, 0)[0]) < 0.5
-    law(0.0, q, np.zeros(7), _contacts([0.0, 0.0], [0.0, -0.1]))
+    law(0.0, q, np.zeros(7), _contacts([0.0, 0.0], [0.0, 0.0]))
     assert law.stance == 0
 
 
