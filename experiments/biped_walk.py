@@ -21,12 +21,14 @@ docs/figures/legged).
 from __future__ import annotations
 
 import argparse
+import itertools
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
+from biped_gait_design import FEET, momentum
 from matplotlib.figure import Figure
+from scipy.integrate import solve_ivp
 
 from ucontrol.analysis.biped_section import BipedSection
 from ucontrol.analysis.gait import Gait, find_gait
@@ -38,18 +40,8 @@ from ucontrol.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures" / "legged"
-FEET = ("foot_left", "foot_right")
-
-
-def momentum(scene: Scene, q: np.ndarray, v: np.ndarray, foot: str) -> float:
-    """Angular momentum about a foot, about the y axis [kg m²/s]."""
-    model = scene.robot.model
-    data = pin.Data(model)
-    pin.computeCentroidalMomentum(model, data, q, v)
-    com = pin.centerOfMass(model, data, q, v)
-    r = com - scene.robot.frame_position(q, foot)
-    p = pin.computeTotalMass(model) * data.vcom[0]
-    return float(data.hg.angular[1] + r[2] * p[0] - r[0] * p[2])
+#: Moreau–Jean's steps last up to 5 % longer than the event-driven gait's (measured).
+SLOWER = 1.06
 
 
 def gait_cycle(section: BipedSection, gait: Gait, samples: int = 200) -> np.ndarray:
@@ -59,12 +51,9 @@ def gait_cycle(section: BipedSection, gait: Gait, samples: int = 200) -> np.ndar
 
     def rate(_: float, y: np.ndarray) -> np.ndarray:
         q, v = y[:nv], y[nv:]
-        tau = flow._selection @ law.torque(q, v, 0)
-        return np.concatenate((v, flow.acceleration(q, v, 0, tau)[0]))
+        return np.concatenate((v, flow.acceleration(q, v, 0, flow.law_input(q, v, 0))[0]))
 
     times = np.linspace(0.0, gait.period, samples)
-    from scipy.integrate import solve_ivp
-
     solution = solve_ivp(
         rate,
         (0.0, gait.period),
@@ -88,10 +77,7 @@ def walk(scene: Scene, law: HZDController, log: Log) -> dict[str, np.ndarray]:
     )
     starts = np.concatenate(([0], swaps))
     lengths = np.array([feet[k, stance[k]] - feet[k, 1 - stance[k]] for k in swaps])
-    slip = [
-        float(np.ptp(feet[a + 2 : b - 2, stance[a]]))
-        for a, b in zip(starts[:-1], starts[1:], strict=True)
-    ]
+    slip = [float(np.ptp(feet[a + 2 : b - 2, stance[a]])) for a, b in itertools.pairwise(starts)]
     return {
         "t": t,
         "q": q,
@@ -147,11 +133,10 @@ def _relabelled(u: np.ndarray, stance: np.ndarray) -> np.ndarray:
 def main(argv: Sequence[str] | None = None) -> dict[str, object]:
     """Run the studies; returns the measured figures."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=FIGURES, help="folder of the outputs")
     parser.add_argument("--steps", type=int, default=100, help="steps under Moreau–Jean")
     parser.add_argument("--dt", type=float, default=1e-3, help="Moreau–Jean step [s]")
-    parser.add_argument("--out", type=Path, default=FIGURES, help="folder of the outputs")
     args = parser.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
     scene = load_scene("rabbit_walk")
     law = scene.build_controller()
     assert isinstance(law, HZDController)
@@ -161,13 +146,14 @@ def main(argv: Sequence[str] | None = None) -> dict[str, object]:
     gait = find_gait(flow, section.to_state, section.from_state, z0, drop_trivial=1, tol=1e-9)
     stride = flow.stride(gait.q, gait.v)
     delta2 = (
-        momentum(scene, stride.q, stride.v, FEET[1])
-        / momentum(scene, stride.q, stride.v_minus, FEET[0])
+        momentum(scene.robot, stride.q, stride.v, FEET[1])
+        / momentum(scene.robot, stride.q, stride.v_minus, FEET[0])
     ) ** 2
 
-    duration = (args.steps + 0.5) * gait.period
+    duration = (args.steps + 1) * SLOWER * gait.period
     log = simulate(scene, duration=duration, dt=args.dt, progress=False).log
-    walked = walk(scene, scene.build_controller(), log)  # type: ignore[arg-type]
+    walked = walk(scene, law, log)
+    args.out.mkdir(parents=True, exist_ok=True)
     figure(gait_cycle(section, gait), walked, args.out / "biped_walk.png")
     q, t = walked["q"], walked["t"]
     late = t > t[-1] - 2.0
@@ -179,7 +165,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, object]:
         f"zero dynamics' multiplier delta^2 = {delta2:.8f} "
         f"(leading multiplier {abs(gait.multipliers[0]):.8f})",
         f"Moreau–Jean, dt = {args.dt:g} s, {duration:.2f} s: {walked['swaps'].size} steps "
-        f"(asked {args.steps}), hip never below {np.min(q[:, 1]):.4f} m",
+        f"(asked at least {args.steps}), hip never below {np.min(q[:, 1]):.4f} m",
         f"step periods {np.min(walked['periods']):.4f}–{np.max(walked['periods']):.4f} s, "
         f"lengths {np.min(walked['lengths']):.4f}–{np.max(walked['lengths']):.4f} m, "
         f"speed {(q[-1, 0] - q[0, 0]) / t[-1]:.4f} m/s",
