@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from ucontrol.log import Log
     from ucontrol.model.robot_model import RobotModel
 
-#: Largest |normal velocity| in [m/s] of a swing foot that has touched down. After a plastic
+#: Largest absolute normal velocity [m/s] of a swing foot that has touched down. After a plastic
 #: Moreau–Jean impact the foot's normal velocity, evaluated at the new configuration, is
 #: O(h) (0.9e-3 m/s on ``rabbit_walk`` at h = 1 ms); before it, the foot approaches at about
 #: 0.7 m/s.
