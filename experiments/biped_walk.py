@@ -10,6 +10,8 @@ r"""RABBIT walking under the HZD law: its gait judged on the stride map, and 100
 - ``walk``: ``--steps`` steps under Moreau–Jean from the scene's start: the step periods and
   lengths, the speed, the lowest hip, the largest output error and torque, the stance feet's
   slip;
+- ``robustness``: runs of ``--robustness-duration`` under a heavier model in the controller
+  and under pushes;
 - the figure ``biped_walk.png``: the limit cycle θ–θ̇ of every step (Moreau–Jean) over the
   event-driven gait, the step lengths and periods, the torques of the last two steps.
 
@@ -22,6 +24,8 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import tomllib
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -33,9 +37,12 @@ from scipy.integrate import solve_ivp
 from ucontrol.analysis.biped_section import BipedSection
 from ucontrol.analysis.gait import Gait, find_gait
 from ucontrol.analysis.stance_flow import StanceFlow
+from ucontrol.campaign.overrides import apply_overrides
 from ucontrol.control.hzd_controller import HZDController
+from ucontrol.exceptions import PhysicsWarning
 from ucontrol.log import Log
 from ucontrol.scene import Scene, load_scene
+from ucontrol.scene.builtin_scenes import builtin_scene
 from ucontrol.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -130,12 +137,48 @@ def _relabelled(u: np.ndarray, stance: np.ndarray) -> np.ndarray:
     return np.where(stance[:, None] == 0, u, swapped)
 
 
+#: Disturbances of the robustness runs: name, scene overrides, pushes ([[pushes]] tables).
+DISTURBANCES = (
+    ("controller's model 10 % heavier", {"controller.model.mass_scale": 1.1}, []),
+    ("pushed forward 0.3 m/s at 1 s", {}, [{"time": 1.0, "velocity": [0.3, *[0.0] * 6]}]),
+    ("pushed backward 0.3 m/s at 1 s", {}, [{"time": 1.0, "velocity": [-0.3, *[0.0] * 6]}]),
+    ("pitch rate +0.5 rad/s at 1 s", {}, [{"time": 1.0, "velocity": [0, 0, 0.5, 0, 0, 0, 0]}]),
+)
+
+
+def robustness(duration: float, dt: float) -> list[str]:
+    """One line per disturbance: steps taken, lowest hip, last step periods, mean speed."""
+    path = builtin_scene("rabbit_walk")
+    lines = []
+    for name, overrides, pushes in DISTURBANCES:
+        table = apply_overrides(tomllib.loads(path.read_text()), overrides)
+        table["pushes"] = pushes
+        scene = Scene.from_dict(table, base_dir=path.parent)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PhysicsWarning)
+            log = simulate(scene, duration=duration, dt=dt, progress=False).log
+        t, q = np.asarray(log.t), np.asarray(log.q)
+        swaps = t[1:][np.diff(np.asarray(log.stance)) != 0]
+        periods = np.diff(np.concatenate(([0.0], swaps)))
+        fell = np.min(q[:, 1]) < 0.5  # the hip below 0.5 m [m]
+        lines.append(
+            f"- {name}: {'FELL' if fell else 'walks'}, {swaps.size} steps in {duration:g} s, "
+            f"hip never below {np.min(q[:, 1]):.3f} m, last step periods "
+            f"{np.array2string(periods[-3:], precision=3)} s, "
+            f"speed {(q[-1, 0] - q[0, 0]) / t[-1]:.3f} m/s"
+        )
+    return lines
+
+
 def main(argv: Sequence[str] | None = None) -> dict[str, object]:
     """Run the studies; returns the measured figures."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=FIGURES, help="folder of the outputs")
     parser.add_argument("--steps", type=int, default=100, help="steps under Moreau–Jean")
     parser.add_argument("--dt", type=float, default=1e-3, help="Moreau–Jean step [s]")
+    parser.add_argument(
+        "--robustness-duration", type=float, default=6.0, help="runs under disturbances [s]"
+    )
     args = parser.parse_args(argv)
     scene = load_scene("rabbit_walk")
     law = scene.build_controller()
@@ -172,6 +215,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, object]:
         f"largest |y| over the last 2 s {np.max(np.abs(walked['y'][late])):.2e} rad, "
         f"largest |u| {np.max(np.abs(walked['u'])):.1f} N m, "
         f"largest stance-foot slip per step {1e3 * np.max(walked['slip']):.3f} mm",
+        "Disturbed (Moreau–Jean, from the scene's start):",
+        *robustness(args.robustness_duration, args.dt),
     ]
     text = "\n".join(lines)
     print(text)

@@ -190,7 +190,8 @@ def test_momentum_observer_runs(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_biped_walk_runs(tmp_path: Path) -> None:
-    result = _load("biped_walk").main(["--steps", "2", "--out", str(tmp_path)])
+    flags = ["--steps", "2", "--robustness-duration", "0.3", "--out", str(tmp_path)]
+    result = _load("biped_walk").main(flags)
     assert result["gait"].stable
     assert result["walked"]["swaps"].size >= 2
     assert (tmp_path / "biped_walk.png").is_file() and (tmp_path / "biped_walk.md").is_file()

@@ -10,8 +10,9 @@ import pytest
 
 from ucontrol.analysis.stance_flow import StanceFlow
 from ucontrol.control.controller import ContactState
-from ucontrol.control.hzd_controller import HZDController, HZDSettings, bezier
+from ucontrol.control.hzd_controller import HZDController, HZDSettings, Leg, bezier
 from ucontrol.exceptions import (
+    FrameNotFoundError,
     InvalidParameterError,
     JointNotFoundError,
     NonFiniteValueError,
@@ -263,6 +264,17 @@ def test_other_actuated_joints_are_refused() -> None:
     table["robot"]["passive"] = ["x", "z"]
     with pytest.raises(InvalidParameterError, match="hips and two knees"):
         Scene.from_dict(table, base_dir=ROBOTS).build_controller()
+
+
+def test_bad_legs_are_refused() -> None:
+    scene = _scene()
+    settings = HZDSettings(bezier=ALPHA, **SETTINGS)
+    left = Leg("hip_left", "knee_left", "foot_left", 0)
+    with pytest.raises(InvalidParameterError, match="legs"):
+        HZDController(scene.robot, legs=[left], stance="foot_left", settings=settings)
+    ghost = Leg("hip_right", "knee_right", "toe", 1)
+    with pytest.raises(FrameNotFoundError, match="toe"):
+        HZDController(scene.robot, legs=[left, ghost], stance="foot_left", settings=settings)
 
 
 def test_unknown_contact_is_refused() -> None:

@@ -200,12 +200,11 @@ class HZDController:
             q_index, v_index = [], []
             for name in (leg.hip, leg.knee):
                 joint = model.joints[robot.joint_id(name)]
-                if joint.nq != 1 or joint.nv != 1:
+                if joint.nq != 1 or joint.nv != 1 or int(joint.idx_v) not in actuated:
+                    kind = "passive" if joint.nq == 1 else f"nq = {joint.nq}"
                     raise InvalidParameterError(
-                        f"joint {name!r}", f"nq = {joint.nq}", "a revolute joint"
+                        f"joint {name!r}", kind, "an actuated one-coordinate joint"
                     )
-                if int(joint.idx_v) not in actuated:
-                    raise InvalidParameterError(f"joint {name!r}", "passive", "an actuated joint")
                 q_index.append(int(joint.idx_q))
                 v_index.append(int(joint.idx_v))
             if leg.foot not in robot.frame_names:
