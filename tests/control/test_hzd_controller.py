@@ -68,11 +68,12 @@ def _scene(**controller: Any) -> Scene:
 
 
 def _contacts(gap: list[float], normal_velocity: list[float]) -> ContactState:
+    """A contact state with NaN impulses: the law must not read them."""
     return ContactState(
         ["foot_left", "foot_right"],
         np.array(gap),
         np.array(normal_velocity),
-        np.zeros(2),
+        np.full(2, np.nan),
         np.zeros(2, dtype=bool),
         1e-3,
     )
@@ -170,6 +171,7 @@ def test_outputs_relabel_at_the_leg_swap() -> None:
     assert law.stance == 0
     u = law(0.0, q, v, _contacts([0.0, -2e-4], [0.0, 1e-3]))  # stopped by the impact: swap
     assert law.stance == 1
+    assert np.all(np.isfinite(u))  # the NaN impulses were not read
     np.testing.assert_allclose(u, law.torque(q, v, 1), atol=1e-12)
     s_right = law.settings.phase(law.phase_variable(q, 1)[0])
     y_right = law.outputs(q, v, 1)[0] + bezier(ALPHA, s_right)[0]
