@@ -170,11 +170,12 @@ class EnergyLedger:
     r"""Work and losses of an :class:`EventDriven` integrator since its construction, in [J].
 
     The energy balance of a run from its first step reads
-    :math:`E(t) - E(0) = W_	au + W_f - \Delta_	ext{impacts}` (:attr:`balance`), to the
-    integration's tolerance (docs/integrators.md).
+    :math:`E(t) - E(0) = W_\tau + W_f - \Delta_\text{impacts}` (:attr:`balance`), to the
+    integration's tolerance, against fixed surfaces (a moving surface works on the robot) and
+    without viscous joint friction (which it does not count).
 
     Attributes:
-        actuator_work: :math:`\int 	au \cdot v\,dt` of the generalized forces held.
+        actuator_work: :math:`\int \tau \cdot v\,dt` of the generalized forces held.
         friction_work: :math:`\int \lambda_t u_t\,dt` of sustained contacts (<= 0).
         impact_loss: Kinetic energy lost at impacts (:math:`T^- - T^+`, the frictional
             impulses included) and at the captures of the accumulation rule.
