@@ -147,6 +147,20 @@ def test_rows_against_finite_differences_and_frame_velocities(seed: int) -> None
 
     finite = row(pin.integrate(model, q, 1e-7 * v)) - row(pin.integrate(model, q, -1e-7 * v))
     np.testing.assert_allclose(drift, finite @ v / 2e-7, rtol=1e-6)
+    # The tangential row's drift (event_driven's sustained friction), the same way.
+    pin.forwardKinematics(model, data, q, v, np.zeros(robot.nv))
+    tangent_drift = constraints.tangent_drift(data, [0], v)[0]
+
+    def tangent_row(q_: Vector) -> Vector:
+        data_ = pin.Data(model)
+        pin.forwardKinematics(model, data_, q_)
+        return constraints.tangent_rows(data_, [0])[0][0]
+
+    finite = tangent_row(pin.integrate(model, q, 1e-7 * v)) - tangent_row(
+        pin.integrate(model, q, -1e-7 * v)
+    )
+    assert abs(tangent_drift) > 1e-3  # (a case where it matters)
+    np.testing.assert_allclose(tangent_drift, finite @ v / 2e-7, rtol=1e-6)
 
 
 def test_friction_gives_one_tangent_and_the_play_is_clamped_onto_its_circle() -> None:
