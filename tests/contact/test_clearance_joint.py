@@ -16,12 +16,12 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import load_experiment
 from numpy.typing import NDArray
 
 from ucontrol.contact.clearance_joint import ClearanceJoint
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import InvalidParameterError, JointNotFoundError, UnknownKeyError
-from ucontrol.integrators.event_driven import EnergyLedger, EventDriven
 from ucontrol.model.joint_clearance import ideal_to_play, with_joint_clearance
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.scene.scene import Scene
@@ -31,6 +31,7 @@ Vector = NDArray[np.float64]
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 SCENE = ROBOTS / "slider_crank_clearance.toml"
 _LWA = pin.LOCAL_WORLD_ALIGNED
+CLEARANCE_ENERGY = load_experiment("clearance_energy")
 
 
 def _ideal() -> RobotModel:
@@ -276,40 +277,20 @@ def test_energy_lost_equals_the_work_of_the_contact_impulses_to_order_one() -> N
     assert imbalance[0] < 1e-2 and imbalance[1] < imbalance[0] / 5
 
 
-def _event_driven_balance(
-    table: dict[str, Any], duration: float
-) -> tuple[float, int, EnergyLedger]:
-    """Energy change [J] over ``duration`` [s] under event_driven, its ledger's account of it."""
-    table["integrator"] = {"name": "event_driven", "dt": 1e-3}
-    scene = Scene.from_dict(table, base_dir=ROBOTS)
-    integrator = scene.build_integrator()
-    assert isinstance(integrator, EventDriven)
-    q, v, t = scene.q0, scene.v0, 0.0
-    start = integrator.evaluate(q, v, t)
-    impacts = 0
-    for _ in range(round(duration / 1e-3)):
-        outcome = integrator.step(integrator.evaluate(q, v, t), np.zeros(scene.robot.nv))
-        q, v, t = outcome.q, outcome.v, t + 1e-3
-        impacts += len(outcome.impacts)
-    end = integrator.evaluate(q, v, t)
-    change = end.kinetic_energy + end.potential_energy
-    change -= start.kinetic_energy + start.potential_energy
-    return change, impacts, integrator.ledger
-
-
 @pytest.mark.slow
 def test_event_driven_closes_the_energy_balance_of_the_clearance_mechanism() -> None:
     """E(t) - E(0) = friction work - impact losses, with the journal striking and sliding.
 
     The shipped scene (bearing e = 0.5, μ = 0.1; slider on the floor, μ = 0.3) under
-    event_driven: measured 1.6e-15 relative to the 0.46 J dissipated in 0.1 s (6e-14 over the
-    scene's 1 s). Moreau–Jean closes it only to its order one (above).
+    event_driven (experiments/clearance_energy.py): measured 3.5e-15 relative to the 0.46 J
+    dissipated in 0.1 s (6.2e-14 of 2.68 J over the scene's 1 s). Moreau–Jean closes it only
+    to its order one (above).
     """
-    change, impacts, ledger = _event_driven_balance(_table(5e-4, 0.1), 0.1)
-    dissipated = ledger.impact_loss - ledger.friction_work
-    assert impacts >= 10 and ledger.impact_loss > 0.01 and ledger.friction_work < -0.4
+    balance = CLEARANCE_ENERGY.energy_balance(CLEARANCE_ENERGY.scene_table(), 0.1)
+    ledger = balance.ledger
+    assert balance.impacts >= 10 and ledger.impact_loss > 0.01 and ledger.friction_work < -0.4
     assert ledger.actuator_work == 0.0
-    assert abs(change - ledger.balance) <= 1e-6 * dissipated
+    assert abs(balance.residual) <= 1e-6 * balance.dissipated
 
 
 @pytest.mark.slow
@@ -318,13 +299,13 @@ def test_event_driven_conserves_energy_with_an_elastic_frictionless_bearing() ->
 
     Measured |ΔE| = 3e-15 J of 1.05 J over 0.3 s and 42 impacts.
     """
-    table = _table(5e-4, 0.0)
-    table["clearance"][0]["restitution"] = 1.0
-    del table["contacts"], table["surfaces"]
-    table["robot"]["gravity"] = [0.0, 0.0, 0.0]
-    change, impacts, ledger = _event_driven_balance(table, 0.3)
-    assert impacts >= 20
-    assert ledger.friction_work == 0.0 and ledger.impact_loss <= 1e-12
-    scene = Scene.from_dict(table, base_dir=ROBOTS)
-    energy = scene.build_integrator().evaluate(scene.q0, scene.v0, 0.0).kinetic_energy
-    assert abs(change) <= 1e-6 * energy
+    balance = CLEARANCE_ENERGY.energy_balance(CLEARANCE_ENERGY.scene_table(elastic=True), 0.3)
+    assert balance.impacts >= 20
+    assert balance.ledger.friction_work == 0.0 and balance.ledger.impact_loss <= 1e-12
+    assert abs(balance.change) <= 1e-6 * balance.initial
+
+
+def test_clearance_energy_experiment_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    balance = CLEARANCE_ENERGY.main(["--duration", "0.02"])
+    assert "of the energy dissipated" in capsys.readouterr().out
+    assert abs(balance.residual) <= 1e-6 * balance.dissipated
