@@ -100,8 +100,8 @@ def friction_modes(
     Raises:
         PainleveError: No mode is consistent, or more than ``MAX_MODES`` combinations.
     """
-    k = friction.size
-    m = b.size - k
+    problem = _Problem(W, b, friction, owner)
+    k, m = friction.size, problem.m
     counts = 2**m * int(np.prod(allowed.sum(axis=1))) if k else 2**m
     if counts > MAX_MODES:
         raise PainleveError(
@@ -116,19 +116,9 @@ def friction_modes(
         live = closed[owner] if k else np.zeros(0, dtype=bool)
         per_row = [row if live[r] else np.array([STICK]) for r, row in enumerate(choices)]
         for modes_tuple in itertools.product(*per_row):
-            modes = np.array(modes_tuple, dtype=np.intp)
-            found = _solve_mode(W, b, friction, owner, closed, live, modes)
+            found = _solve_mode(problem, closed, live, np.array(modes_tuple, dtype=np.intp))
             if found is not None and _consistent(
-                found,
-                W,
-                b,
-                friction,
-                owner,
-                closed,
-                live & ~sliding,
-                modes,
-                value_tolerance,
-                force_tolerance,
+                problem, found, ~sliding, value_tolerance, force_tolerance
             ):
                 return found
     raise PainleveError(
@@ -140,18 +130,34 @@ def friction_modes(
     )
 
 
+@dataclass(frozen=True)
+class _Problem:
+    """The map W (m + k, m + k), its offset b, μ (k,) and each tangential row's normal row."""
+
+    W: Vector
+    b: Vector
+    friction: Vector
+    owner: NDArray[np.intp]
+
+    @property
+    def m(self) -> int:
+        """Number of normal rows."""
+        return self.b.size - self.friction.size
+
+
 def _solve_mode(
-    W: Vector,
-    b: Vector,
-    friction: Vector,
-    owner: NDArray[np.intp],
+    problem: _Problem,
     closed: NDArray[np.bool_],
     live: NDArray[np.bool_],
     modes: NDArray[np.intp],
 ) -> FrictionModes | None:
-    """The forces of one mode (least norm), or None when its equalities have no solution."""
-    k = friction.size
-    m = b.size - k
+    """The forces of one mode (least norm), or None when its equalities have no solution.
+
+    ``closed`` (m,) the normal modes, ``live`` (k,) the tangential rows of closed constraints,
+    ``modes`` (k,) their tangential modes.
+    """
+    W, b, friction, owner = problem.W, problem.b, problem.friction, problem.owner
+    k, m = friction.size, problem.m
     stick = live & (modes == STICK)
     sign = np.where(live, np.take(_SIGNS, modes), 0.0)
     normals = np.flatnonzero(closed)
@@ -159,10 +165,8 @@ def _solve_mode(
     # λ = S x, x = (λ_n of the closed, λ_t of the sticking)
     S = np.zeros((m + k, normals.size + sticks.size))
     S[normals, np.arange(normals.size)] = 1.0
-    for r in range(k):
-        if live[r] and not stick[r]:
-            column = int(np.searchsorted(normals, owner[r]))
-            S[m + r, column] = -friction[r] * sign[r]
+    for r in np.flatnonzero(live & ~stick):
+        S[m + r, int(np.searchsorted(normals, owner[r]))] = -friction[r] * sign[r]
     S[m + sticks, normals.size + np.arange(sticks.size)] = 1.0
     rows = np.concatenate((normals, m + sticks))
     A = W[rows] @ S
@@ -177,26 +181,23 @@ def _solve_mode(
 
 
 def _consistent(
+    problem: _Problem,
     found: FrictionModes,
-    W: Vector,
-    b: Vector,
-    friction: Vector,
-    owner: NDArray[np.intp],
-    closed: NDArray[np.bool_],
-    live: NDArray[np.bool_],
-    modes: NDArray[np.intp],
+    from_rest: NDArray[np.bool_],
     value_tolerance: float,
     force_tolerance: float,
 ) -> bool:
-    """Whether the mode's forces and values satisfy its inequalities (``live``: slip checked)."""
-    m = closed.size
-    y = W @ np.concatenate((found.lambda_n, found.lambda_t)) + b
+    r"""Whether a mode's forces and values satisfy its inequalities.
+
+    The slip direction is checked (:math:`s y_t \ge 0`) on the rows ``from_rest`` (k,) only.
+    """
+    m, closed = problem.m, found.closed
+    y = problem.W @ np.concatenate((found.lambda_n, found.lambda_t)) + problem.b
     scale = force_tolerance * max(1.0, float(np.max(np.abs(found.lambda_n), initial=0.0)))
     if np.any(found.lambda_n[closed] < -scale) or np.any(y[:m][~closed] < -value_tolerance):
         return False
-    stick = found.stick & closed[owner]
-    cone = friction * found.lambda_n[owner]
-    if np.any(np.abs(found.lambda_t[stick]) > cone[stick] + scale):
+    cone = problem.friction * found.lambda_n[problem.owner]
+    if np.any(np.abs(found.lambda_t[found.stick]) > cone[found.stick] + scale):
         return False
-    slipping = live & (modes != STICK)
+    slipping = from_rest & (found.sign != 0.0)
     return not np.any(found.sign[slipping] * y[m:][slipping] < -value_tolerance)
