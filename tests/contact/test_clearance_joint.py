@@ -21,7 +21,12 @@ from numpy.typing import NDArray
 
 from ucontrol.contact.clearance_joint import ClearanceJoint
 from ucontrol.contact.constraint_set import ConstraintSet
-from ucontrol.exceptions import InvalidParameterError, JointNotFoundError, UnknownKeyError
+from ucontrol.exceptions import (
+    InvalidParameterError,
+    JointNotFoundError,
+    SimulationError,
+    UnknownKeyError,
+)
 from ucontrol.model.joint_clearance import ideal_to_play, with_joint_clearance
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.scene.scene import Scene
@@ -309,3 +314,14 @@ def test_clearance_energy_experiment_runs(capsys: pytest.CaptureFixture[str]) ->
     balance = CLEARANCE_ENERGY.main(["--duration", "0.02"])
     assert "of the energy dissipated" in capsys.readouterr().out
     assert abs(balance.residual) <= 1e-6 * balance.dissipated
+
+
+def test_energetic_simultaneous_frictional_impacts_with_a_closure_are_refused() -> None:
+    """The journal strikes while the slider slides: LZB with friction, held by the closure."""
+    table = CLEARANCE_ENERGY.scene_table()
+    table["integrator"]["impact_law"] = "energetic"
+    with pytest.raises(SimulationError) as caught:
+        simulate(Scene.from_dict(table, base_dir=ROBOTS), duration=0.1, progress=False)
+    cause = caught.value.__cause__
+    assert isinstance(cause, InvalidParameterError)
+    assert "robot held by bilateral constraints" in str(cause)
