@@ -275,3 +275,23 @@ def test_tangent_drift_of_a_rolling_point_contact_against_finite_differences() -
     finite = row(pin.integrate(model, q, 1e-7 * v)) - row(pin.integrate(model, q, -1e-7 * v))
     assert abs(drift) > 0.1
     np.testing.assert_allclose(drift, finite @ v / 2e-7, rtol=1e-6)
+
+
+def test_pushed_block_actuator_and_friction_work_close_the_balance(robots: Path) -> None:
+    """A 10 N push along a rough floor: ∫ τ·v dt = F s, ∫ λ_t u_t dt = -μ m g s, ΔT their sum."""
+    scene = _incline(robots, 0.0, 0.3, 0.0)
+    integrator = scene.build_integrator()
+    assert isinstance(integrator, EventDriven)
+    push = np.array([10.0, 0.0])  # [N]
+    q, v, t = scene.q0, scene.v0, 0.0
+    for _ in range(50):  # 0.5 s
+        outcome = integrator.step(integrator.evaluate(q, v, t), push)
+        q, v, t = outcome.q, outcome.v, t + integrator.dt
+    acceleration = push[0] / _MASS - 0.3 * _G  # [m/s²]
+    distance = 0.5 * acceleration * t**2  # [m]
+    ledger = integrator.ledger
+    assert q[0] == pytest.approx(distance, rel=1e-12)
+    assert ledger.actuator_work == pytest.approx(push[0] * distance, rel=1e-10)
+    assert ledger.friction_work == pytest.approx(-0.3 * _MASS * _G * distance, rel=1e-10)
+    kinetic = 0.5 * _MASS * float(v @ v)
+    assert kinetic == pytest.approx(ledger.balance, rel=1e-10)
