@@ -316,6 +316,16 @@ class IntegrationError(UControlError):
         super().__init__(f"{integrator} cannot advance ({time:.6g} s into the step): {reason}")
 
 
+class PainleveError(IntegrationError):
+    """No contact mode with Coulomb friction is consistent (Painlevé), or too many to try.
+
+    Raised by event_driven's sustained friction
+    (:func:`ucontrol.integrators.friction_modes.friction_modes`): the rigid model with Coulomb
+    friction has no acceleration (or impulse) solution at this state, or more mode
+    combinations than it enumerates.
+    """
+
+
 class CompiledCallError(UControlError):
     """A call of a casadi Function (compiled to C, or in casadi's virtual machine) failed.
 

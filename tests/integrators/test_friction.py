@@ -212,9 +212,9 @@ def test_qpsolvers_backend_runs_a_frictionless_scene() -> None:
 
 def test_scene_settings_errors(cases) -> None:
     friction = cases.incline(0.3, _MU)
-    with pytest.raises(InvalidParameterError, match="'moreau_jean' for contacts with friction"):
+    with pytest.raises(InvalidParameterError, match="'event_driven' for contacts with friction"):
         dataclasses.replace(
-            friction, integrator=IntegratorSettings(name="event_driven")
+            friction, integrator=IntegratorSettings(name="compliant")
         ).build_integrator()
     with pytest.raises(InvalidParameterError, match="qpsolvers backends solve the frictionless"):
         dataclasses.replace(

@@ -165,14 +165,33 @@ def test_rod_strikes_a_rough_floor_in_event_driven(
     assert transition is None or transition in result.names()
 
 
+@pytest.mark.parametrize("law", ["newton", "energetic"])
+def test_plastic_landing_then_sliding_closes_the_energy_balance(law: str) -> None:
+    """The rod lands plastically on one end, falls flat, slides and stops (sustained friction).
+
+    Its energy change is the friction work of the sliding phases minus the impacts' losses
+    (:class:`~ucontrol.integrators.event_driven.EnergyLedger`): measured to 1.2e-13 J of 4.15 J.
+    """
+    plastic = _rough_rod(0.6, [0.0, -1.0, 0.0], restitution=0.0, g=9.81, impact_law=law)
+    integrator = plastic.build_integrator()
+    assert isinstance(integrator, EventDriven)
+    q, v, t = plastic.q0, plastic.v0, 0.0
+    start = integrator.evaluate(q, v, t)
+    for _ in range(50):  # 1 s
+        outcome = integrator.step(integrator.evaluate(q, v, t), np.zeros(3))
+        q, v, t = outcome.q, outcome.v, t + integrator.dt
+    end = integrator.evaluate(q, v, t)
+    change = end.kinetic_energy + end.potential_energy - start.kinetic_energy
+    change -= start.potential_energy
+    ledger = integrator.ledger
+    assert ledger.friction_work < -0.01 and ledger.impact_loss > 1.0
+    assert abs(change - ledger.balance) <= 1e-9 * abs(change)
+    np.testing.assert_allclose(v, 0.0, atol=1e-12)  # at rest, flat: it stuck
+    assert abs(q[1]) <= 1e-12 and abs(q[2]) <= 1e-12
+
+
 def test_rod_refusals_in_event_driven() -> None:
-    """Newton's law with friction, a plastic landing, and both ends striking together."""
-    with pytest.raises(InvalidParameterError, match=r"impact_law 'poisson' or 'energetic'"):
-        _rough_rod(0.6, [1.0, -1.0, 0.0]).build_integrator()
-    plastic = _rough_rod(0.6, [0.0, -1.0, 0.0], restitution=0.0, g=9.81, impact_law="energetic")
-    with pytest.raises(SimulationError) as caught:
-        simulate(plastic, duration=0.2)
-    assert "stay at contact" in str(caught.value.__cause__)
+    """Poisson's law and 3D friction at both ends striking together."""
     flat = _rough_rod(0.0, [0.0, -1.0, 0.0], impact_law="poisson")
     with pytest.raises(SimulationError) as caught:
         simulate(flat, duration=0.2)

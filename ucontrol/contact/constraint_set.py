@@ -433,6 +433,52 @@ class ConstraintSet:
                 drift[row] = normal @ acceleration + tangential.dot(tangential) / distance
         return drift
 
+    def sustains_friction(self, i: int) -> bool:
+        """Whether constraint ``i`` has the tangential drift :meth:`tangent_drift` gives.
+
+        A point contact against a fixed surface or a clearance joint, with one tangent (planar
+        friction); not collision rows, sphere–sphere contacts, moving surfaces or 3D friction.
+        """
+        if self.tangent_count[i] != 1:
+            return False
+        if i >= self._stops_end:
+            return True
+        return i < self._n_point and self.contacts[i].surface.motion is None
+
+    def tangent_drift(
+        self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp], v: Vector
+    ) -> Vector:
+        r"""``J̇_t v`` of the tangential rows of ``indices`` in [m/s²], shape (len(indices),).
+
+        For constraints with :meth:`sustains_friction` (one tangential row each, in the order of
+        :meth:`tangent_rows`): :math:`t \cdot a_F + \ell \cdot \dot\omega_F` for a point
+        contact (t and the lever :math:`\ell` are fixed with the surface; classical
+        accelerations at zero joint acceleration), and for a clearance joint
+        :math:`\dot t \cdot \dot p = -(t \cdot \dot p)(n \cdot \dot p) / \|p\|` (the
+        tangent turns with the normal, :math:`\dot n = t\,(t \cdot \dot p)/\|p\|`).
+        ``data`` must hold ``pin.forwardKinematics(model, data, q, v, 0)`` and the frame
+        placements; ``v`` is the velocity, shape (nv,).
+        """
+        model = self.robot.model
+        drift = np.zeros(len(indices))
+        for row, i in enumerate(_index_list(indices)):
+            if i >= self._stops_end:
+                play = self._play[i - self._stops_end]
+                gap, normal = play.gap_normal(data)
+                distance = play.clearance - gap  # |p| [m]
+                rate = v[play.v_xy]  # ṗ [m/s]
+                sliding = rate[1] * normal[0] - rate[0] * normal[1]  # t·ṗ
+                drift[row] = -sliding * normal.dot(rate) / distance if distance > 0.0 else 0.0
+            else:
+                acceleration = pin.getFrameClassicalAcceleration(
+                    model, data, self._frame_ids[i], _LWA
+                )
+                drift[row] = (
+                    self._plane_tangents[i][0] @ acceleration.linear
+                    + self._plane_levers[i][0] @ acceleration.angular
+                )
+        return drift
+
     def clamp_play(self, q: Vector) -> Vector:
         r"""``q`` with each clearance joint's play moved back into its disc :math:`\|p\| \le c`.
 

@@ -1,4 +1,4 @@
-r"""Event-driven integration (the accuracy reference), frictionless between impacts.
+r"""Event-driven integration (the accuracy reference), with planar Coulomb friction.
 
 Between events the set :math:`I_2` of closed constraints (:math:`g_a = 0`, :math:`u_a = 0`) is
 fixed and the motion is smooth: :math:`M \dot v = \tau - h + J_{I_2}^T \lambda` with
@@ -38,15 +38,36 @@ and control period. Its impulse is that of the step: impacts plus :math:`\int \l
 its :attr:`~ucontrol.plant.StepOutcome.impacts` are the located times of the step's impacts
 (the events at which a closing constraint gets an impulse), to solve_ivp's event accuracy.
 
-**Frictional impacts.** A constraint with a friction coefficient and the ``"poisson"`` or
-``"energetic"`` restitution law has its impacts integrated with Coulomb's law by
-:func:`~ucontrol.integrators.frictional_impact.frictional_impact` on its normal and tangent rows
-(the step's impulse logs the normal part). There are no sliding or sticking phases between
-impacts: a frictional constraint that stays closed raises :class:`IntegrationError`. An
-impact at several constraints, one frictional, takes the LZB law with planar friction
-(:func:`~ucontrol.integrators.lzb_impact.lzb_impact_with_friction`) when all are energetic and
-the robot planar, and raises :class:`InvalidParameterError` otherwise. Fixed surfaces and no
-bilateral constraints (the scene builder checks both).
+**Frictional impacts.** A constraint with a friction coefficient has its impacts integrated
+with Coulomb's law: alone at contact, by
+:func:`~ucontrol.integrators.frictional_impact.frictional_impact` (Darboux–Keller) with its
+restitution law on its normal and tangent rows (the step's impulse logs the normal part);
+with other constraints at contact (a journal striking while the slider slides, a heel strike
+with the stance foot down) and every law Newton's, by Newton's law with Coulomb friction at
+impulse level (Moreau's impact law: :math:`0 \le P_n \perp u_n^+ + e u_n^- \ge 0`, Coulomb on
+:math:`u_t^+`), solved by :func:`~ucontrol.integrators.friction_modes.friction_modes`; all
+energetic and planar, by the LZB law with planar friction
+(:func:`~ucontrol.integrators.lzb_impact.lzb_impact_with_friction`, no bilateral constraints);
+otherwise :class:`InvalidParameterError`.
+
+**Sustained friction.** A frictional constraint that stays closed slides or sticks (one
+tangent: planar robots, ``planar_axis``, and clearance joints; point contacts against fixed
+surfaces). At each event the acceleration-level problem with Coulomb friction is solved by
+mode enumeration (:func:`~ucontrol.integrators.friction_modes.friction_modes`): stick
+(:math:`\dot u_t = 0`, :math:`|\lambda_t| \le \mu\lambda_n`) or slip
+(:math:`\lambda_t = -\mu\,\mathrm{sign}(u_t)\,\lambda_n`); no consistent mode is Painlevé's
+inconsistency, a :class:`~ucontrol.exceptions.PainleveError`. Between events a sticking row is
+held like a closed one and a slipping row adds its friction to its normal column; the events
+are slip → stick or slip reversal (:math:`u_t` crosses 0), stick → slip (:math:`|\lambda_t|`
+reaches :math:`\mu\lambda_n`), besides lift-off and impacts. 3D friction (two tangents),
+collision shapes, sphere–sphere contacts and moving surfaces have no sustained friction: a
+frictional constraint of theirs that stays closed raises :class:`IntegrationError`.
+
+**Energy ledger.** The friction work :math:`\int \lambda_t u_t\,dt` and the actuator work
+:math:`\int \tau \cdot v\,dt` are integrated as extra states, and each impact's (and capture's)
+kinetic-energy loss is added up: :attr:`EventDriven.ledger` (:class:`EnergyLedger`) closes
+:math:`E(t) - E(0) = W_\tau + W_f - \Delta_\text{impacts}` to the integration's tolerance
+(measured 6e-14 relative on the clearance slider-crank over 1 s, docs/clearance.md).
 
 **Bilateral constraints.** With :attr:`~ucontrol.contact.ConstraintSet.bilateral` (loop
 closures, joint couplings: rows :math:`J_b`, residual :math:`h(q)`) the bilateral rows are
@@ -81,7 +102,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
+import time as time_module
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -93,7 +114,19 @@ from scipy.integrate import solve_ivp
 
 from ucontrol._validation import as_in_interval, as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
-from ucontrol.exceptions import IntegrationError, InvalidParameterError, ShapeError, SolverError
+from ucontrol.exceptions import (
+    IntegrationError,
+    InvalidParameterError,
+    PainleveError,
+    ShapeError,
+    SolverError,
+)
+from ucontrol.integrators.friction_modes import (
+    SLIP_NEGATIVE,
+    SLIP_POSITIVE,
+    STICK,
+    friction_modes,
+)
 from ucontrol.integrators.frictional_impact import (
     FRICTIONAL_IMPACT_LAWS,
     check_restitution,
@@ -125,6 +158,40 @@ _PROJECTION_GAP = 1e-15
 
 
 @dataclass(frozen=True)
+class _Modes:
+    """Tangential modes of the closed frictional constraints: stick, or slip along ``sign``."""
+
+    stick: Mask  # shape (n,)
+    sign: Vector  # slip direction ±1, 0 in stick or not closed, shape (n,)
+
+
+@dataclass(frozen=True)
+class EnergyLedger:
+    r"""Work and losses of an :class:`EventDriven` integrator since its construction, in [J].
+
+    The energy balance of a run from its first step reads
+    :math:`E(t) - E(0) = W_\tau + W_f - \Delta_\text{impacts}` (:attr:`balance`), to the
+    integration's tolerance, against fixed surfaces (a moving surface works on the robot) and
+    without viscous joint friction (which it does not count).
+
+    Attributes:
+        actuator_work: :math:`\int \tau \cdot v\,dt` of the generalized forces held.
+        friction_work: :math:`\int \lambda_t u_t\,dt` of sustained contacts (<= 0).
+        impact_loss: Kinetic energy lost at impacts (:math:`T^- - T^+`, the frictional
+            impulses included) and at the captures of the accumulation rule.
+    """
+
+    actuator_work: float = 0.0
+    friction_work: float = 0.0
+    impact_loss: float = 0.0
+
+    @property
+    def balance(self) -> float:
+        r"""The energy change they account for, :math:`W_\tau + W_f - \Delta`, in [J]."""
+        return self.actuator_work + self.friction_work - self.impact_loss
+
+
+@dataclass(frozen=True)
 class _Settled:
     """State after the impact, active-set and projection stages at an event."""
 
@@ -135,6 +202,8 @@ class _Settled:
     max_step: float
     solutions: list[ContactSolution]
     impacts: tuple[int, ...] = ()  # the constraints with an impact (closing, with an impulse)
+    modes: _Modes | None = None  # tangential modes of the closed frictional constraints
+    impact_loss: float = 0.0  # kinetic energy lost at the impact and capture, in [J]
 
 
 @dataclass(frozen=True)
@@ -147,6 +216,10 @@ class _Segment:
     duration: float
     closing: Mask  # open constraints whose gap event fired
     releasing: Mask  # closed constraints whose multiplier event fired
+    left_stick: Mask  # sticking constraints whose friction reached the cone
+    stopped: Mask  # slipping constraints whose sliding velocity reached zero
+    friction_work: float = 0.0  # ∫ λ_t u_t dt [J]
+    actuator_work: float = 0.0  # ∫ τ·v dt [J]
 
 
 class EventDriven:
@@ -262,7 +335,9 @@ class EventDriven:
         )
         self._n = constraints.size
         self._bilateral = constraints.bilateral is not None
-        self._carry: tuple[Vector, Vector, Mask] | None = None
+        self._carry: tuple[Vector, Vector, Mask, _Modes | None] | None = None
+        #: Work and losses since construction (:class:`EnergyLedger`).
+        self.ledger = EnergyLedger()
 
     def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
         """Gaps, normal velocities and energies at (q, v) (at time t [s] with moving surfaces)."""
@@ -278,8 +353,9 @@ class EventDriven:
 
         Raises:
             IntegrationError: solve_ivp failed, the events stalled, more than
-                ``max_events`` events fell in the step, or a frictional constraint stays
-                closed (no sliding or sticking phases).
+                ``max_events`` events fell in the step, or a frictional constraint without
+                sustained friction (3D, collision shapes, moving surfaces) stays closed.
+            PainleveError: No contact mode with Coulomb friction is consistent.
             InvalidParameterError: Simultaneous impacts the restitution laws do not cover
                 (Poisson's or mixed laws; with friction, not all energetic or spatial).
             SolverError: An impact or acceleration LCP was not solved.
@@ -288,26 +364,34 @@ class EventDriven:
         start = 0.0 if state.t is None else float(state.t)  # [s], absolute time of the step
         impulse = np.zeros(self._n)
         active = np.zeros(self._n, dtype=bool)
-        closed = self._carried_closed_set(q, v)
-        closing = releasing = np.zeros(self._n, dtype=bool)
+        closed, modes = self._carried_closed_set(q, v)
+        none = np.zeros(self._n, dtype=bool)
+        closing = releasing = left_stick = stopped = none
         solutions: list[ContactSolution] = []
         impacts: list[tuple[int, float]] = []  # (constraint, absolute time [s])
         t, events, stalls = 0.0, 0, 0
+        actuator_work = friction_work = impact_loss = 0.0  # [J]
         while True:
-            settled = self._settle(q, v, tau, closed, closing, releasing, start + t)
-            q, v, closed = settled.q, settled.v, settled.closed
+            settled = self._settle(
+                q, v, tau, closed, closing, releasing, start + t, modes, left_stick, stopped
+            )
+            q, v, closed, modes = settled.q, settled.v, settled.closed, settled.modes
             impulse += settled.impulse
+            impact_loss += settled.impact_loss
             active |= closed | (settled.impulse > 0.0)
             solutions += settled.solutions
             impacts += [(i, start + t) for i in settled.impacts]
             if h - t <= _STALL_TIME:
                 break
-            segment = self._integrate(q, v, tau, closed, h - t, settled.max_step, start, t)
+            segment = self._integrate(q, v, tau, closed, modes, h - t, settled.max_step, start, t)
             q, v = segment.q, segment.v
             impulse[closed] += segment.impulse
+            actuator_work += segment.actuator_work
+            friction_work += segment.friction_work
             t += segment.duration
             closing, releasing = segment.closing, segment.releasing
-            if not (closing.any() or releasing.any()):
+            left_stick, stopped = segment.left_stick, segment.stopped
+            if not (closing.any() or releasing.any() or left_stick.any() or stopped.any()):
                 break
             events += 1
             stalls = stalls + 1 if segment.duration <= _STALL_TIME else 0
@@ -316,9 +400,10 @@ class EventDriven:
                     self.name,
                     start + t,
                     f"{stalls} events without the time advancing (constraints "
-                    f"{self._names(closing | releasing)}): impacts accumulate faster than the "
-                    f"time resolution (raise zeno_velocity = {self.zeno_velocity:g} m/s) or the "
-                    "active set chatters in a degenerate configuration (use moreau_jean)",
+                    f"{self._names(closing | releasing | left_stick | stopped)}): impacts "
+                    f"accumulate faster than the time resolution (raise zeno_velocity = "
+                    f"{self.zeno_velocity:g} m/s) or the active set chatters in a degenerate "
+                    "configuration (use moreau_jean)",
                 )
             if events > self.max_events:
                 raise IntegrationError(
@@ -329,19 +414,24 @@ class EventDriven:
                     f"{self.zeno_velocity:g} m/s catches; raise zeno_velocity or max_events",
                 )
         if closed.any() or self._bilateral:  # the step's end on the constraint manifold
-            q, v = self._project(q, v, closed, start + h)
-        self._carry = (q.copy(), v.copy(), closed.copy())
+            q, v = self._project(q, v, closed, start + h, modes)
+        self._carry = (q.copy(), v.copy(), closed.copy(), modes)
+        self.ledger = EnergyLedger(
+            actuator_work=self.ledger.actuator_work + actuator_work,
+            friction_work=self.ledger.friction_work + friction_work,
+            impact_loss=self.ledger.impact_loss + impact_loss,
+        )
         worst = max(solutions, key=lambda solution: solution.residual, default=None)
         return StepOutcome(q, v, impulse, active, worst, events, impacts=tuple(impacts))
 
-    def _carried_closed_set(self, q: Vector, v: Vector) -> Mask | None:
-        """The closed set the last step ended with, if this step continues it exactly."""
+    def _carried_closed_set(self, q: Vector, v: Vector) -> tuple[Mask | None, _Modes | None]:
+        """The closed set and modes the last step ended with, if this step continues it."""
         if self._carry is None:
-            return None
-        q_end, v_end, closed = self._carry
+            return None, None
+        q_end, v_end, closed, modes = self._carry
         if np.array_equal(q, q_end) and np.array_equal(v, v_end):
-            return closed
-        return None
+            return closed, modes
+        return None, None
 
     def _settle(
         self,
@@ -352,10 +442,15 @@ class EventDriven:
         closing: Mask,
         releasing: Mask,
         time: float,
+        modes: _Modes | None = None,
+        left_stick: Mask | None = None,
+        stopped: Mask | None = None,
     ) -> _Settled:
         """Impact, active set and projection at an event (or at the start of a step).
 
-        ``time`` is the absolute time in [s] (the moving surfaces' positions).
+        ``time`` is the absolute time in [s] (the moving surfaces' positions); ``modes`` the
+        tangential modes before the event, ``left_stick`` and ``stopped`` the constraints
+        whose friction events fired.
         """
         dynamics = self._dynamics
         gap, u = dynamics.kinematics(q, v, time)
@@ -372,9 +467,11 @@ class EventDriven:
         u_near = u[indices]
         solutions = []
         impacts: tuple[int, ...] = ()
+        loss = 0.0
         if np.any(u_near < -self.closure_velocity):
+            kinetic = self._kinetic_energy(q, v, time)
             if self.constraints.friction[indices].any():
-                solution, jump = self._frictional_impact(v, terms, u_near, indices)
+                solution, jump = self._frictional_impact(q, v, tau, terms, u_near, indices, time)
             else:
                 solution = self._checked(self.impact_solver, self._impact(terms, u_near, indices))
                 jump = terms.Minv_Jt @ solution.impulses
@@ -387,27 +484,26 @@ class EventDriven:
             impulse[indices] += capture
             terms = dynamics.constraint_terms(q, v, tau, indices, t=time)
             u_near = terms.velocity(v)
+            loss = kinetic - self._kinetic_energy(q, v, time)
         candidates = (np.abs(u_near) <= self.closure_velocity) & ~releasing[indices]
         closed = np.zeros(self._n, dtype=bool)
+        new_modes = None
         if candidates.any():
             rows = np.flatnonzero(candidates)
-            D = terms.delassus()[np.ix_(rows, rows)]
-            solution = self._checked(
-                self.acceleration_solver,
-                self.acceleration_solver.solve(D, terms.acceleration_bias()[rows]),
-            )
-            solutions.append(solution)
-            closed[indices[rows[solution.velocity <= self.closure_acceleration]]] = True
-        if (closed & (self.constraints.friction > 0.0)).any():
-            raise IntegrationError(
-                self.name,
-                time,
-                f"constraints {self._names(closed & (self.constraints.friction > 0.0))} with "
-                "friction stay at contact: event_driven applies frictional impact laws but has "
-                "no sliding or sticking phases between impacts (use moreau_jean)",
-            )
+            if self.constraints.friction[indices[rows]].any():
+                closed, new_modes = self._frictional_modes(
+                    q, v, tau, indices[rows], time, modes, left_stick, stopped
+                )
+            else:
+                D = terms.delassus()[np.ix_(rows, rows)]
+                solution = self._checked(
+                    self.acceleration_solver,
+                    self.acceleration_solver.solve(D, terms.acceleration_bias()[rows]),
+                )
+                solutions.append(solution)
+                closed[indices[rows[solution.velocity <= self.closure_acceleration]]] = True
         if closed.any() or self._bilateral:
-            q, v = self._project(q, v, closed, time)
+            q, v = self._project(q, v, closed, time, new_modes)
         return _Settled(
             q,
             v,
@@ -416,7 +512,85 @@ class EventDriven:
             self._max_step(terms, u_near, closed[indices]),
             solutions,
             impacts,
+            new_modes,
+            loss,
         )
+
+    def _kinetic_energy(self, q: Vector, v: Vector, time: float) -> float:
+        """The kinetic energy at (q, v) in [J] (motors included), at the absolute time [s]."""
+        return float(self._dynamics.evaluate(q, v, time).kinetic_energy)
+
+    def _frictional_modes(
+        self,
+        q: Vector,
+        v: Vector,
+        tau: Vector,
+        candidates: NDArray[np.intp],
+        time: float,
+        modes: _Modes | None,
+        left_stick: Mask | None,
+        stopped: Mask | None,
+    ) -> tuple[Mask, _Modes]:
+        r"""Closed set and stick/slip modes of the constraints at rest, some frictional.
+
+        The acceleration-level problem with planar Coulomb friction
+        (:func:`~ucontrol.integrators.friction_modes.friction_modes`): a contact sliding
+        (:math:`|u_t| >` ``closure_velocity``) keeps its direction; one whose stick just
+        reached the cone slips, one whose slip just stopped sticks or slips back.
+
+        Raises:
+            IntegrationError: A frictional constraint at rest without sustained friction (3D
+                friction, collision rows, sphere–sphere contacts, moving surfaces).
+            PainleveError: No consistent mode.
+        """
+        constraints = self.constraints
+        frictional = candidates[constraints.friction[candidates] > 0.0]
+        unsupported = [int(i) for i in frictional if not constraints.sustains_friction(int(i))]
+        if unsupported:
+            mask = np.isin(np.arange(self._n), unsupported)
+            raise IntegrationError(
+                self.name,
+                time,
+                f"constraints {self._names(mask)} with friction stay at contact: event_driven's "
+                "sustained friction covers one tangent (planar robots, planar_axis) at point "
+                "contacts against fixed surfaces and clearance joints; 3D friction (two "
+                "tangents), collision shapes, sphere–sphere contacts and moving surfaces have "
+                "no sliding or sticking phases here (use moreau_jean)",
+            )
+        terms = self._dynamics.constraint_terms(q, v, tau, candidates, t=time, tangents=frictional)
+        rows = np.vstack((terms.J, terms.T))
+        W = rows @ np.hstack((terms.Minv_Jt, terms.Minv_Tt))
+        b = np.concatenate((terms.acceleration_bias(), terms.T @ terms.a_free + terms.drift_t))
+        u_t = terms.T @ v
+        sliding = np.abs(u_t) > self.closure_velocity
+        allowed = np.ones((frictional.size, 3), dtype=bool)
+        allowed[sliding] = False
+        allowed[sliding, np.where(u_t[sliding] > 0.0, SLIP_POSITIVE, SLIP_NEGATIVE)] = True
+        if left_stick is not None:
+            allowed[left_stick[frictional] & ~sliding, STICK] = False
+        if stopped is not None and modes is not None:
+            for r in np.flatnonzero(stopped[frictional] & ~sliding):
+                previous = modes.sign[frictional[r]]
+                allowed[r, SLIP_POSITIVE if previous > 0.0 else SLIP_NEGATIVE] = False
+        try:
+            found = friction_modes(
+                W,
+                b,
+                constraints.friction[frictional],
+                np.searchsorted(candidates, frictional),
+                allowed,
+                sliding,
+                value_tolerance=self.closure_acceleration,
+            )
+        except PainleveError as error:
+            raise PainleveError(self.name, time, error.reason) from None
+        closed = np.zeros(self._n, dtype=bool)
+        closed[candidates[found.closed]] = True
+        stick = np.zeros(self._n, dtype=bool)
+        stick[frictional[found.stick]] = True
+        sign = np.zeros(self._n)
+        sign[frictional] = found.sign
+        return closed, _Modes(stick, sign)
 
     def _impact(
         self, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
@@ -443,49 +617,61 @@ class EventDriven:
             law = self.impact_law.select(indices)
             if np.max(-restitution * u_minus) < self.zeno_velocity:  # an accumulation: plastic
                 law = dataclasses.replace(law, restitution=np.zeros(indices.size))
-            start = time.perf_counter()
+            start = time_module.perf_counter()
             result = law.solve_contact_space(terms.delassus(), u_minus)
-            elapsed = time.perf_counter() - start
+            elapsed = time_module.perf_counter() - start
             return ContactSolution(result.impulse, result.u, "solved", result.steps, 0.0, elapsed)
         bounces = (u_minus < 0.0) & (-restitution * u_minus >= self.zeno_velocity)
         e = np.where(bounces, restitution, 0.0)
         return self.impact_solver.solve(terms.delassus(), (1.0 + e) * u_minus)
 
     def _frictional_impact(
-        self, v: Vector, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
+        self,
+        q: Vector,
+        v: Vector,
+        tau: Vector,
+        terms: ConstraintTerms,
+        u_minus: Vector,
+        indices: NDArray[np.intp],
+        time: float,
     ) -> tuple[ContactSolution, Vector]:
-        """Impulse and velocity jump of an impact at one constraint with Coulomb friction.
+        """Impulse and velocity jump of an impact at constraints, some with Coulomb friction.
 
-        Darboux–Keller integration (:func:`frictional_impact`) with the constraint's law; the
-        pinocchio data hold the configuration of ``terms``.
-
-        Several constraints at contact together take the LZB law with planar friction
-        (:func:`lzb_impact_with_friction`) when every law among them is the energetic one.
+        One constraint at contact: Darboux–Keller integration (:func:`frictional_impact`) with
+        its law. Several, every law Newton's without tangential restitution and one tangent
+        each: Newton's law with Coulomb friction at impulse level (:meth:`_coulomb_impact`).
+        Several, all energetic: the LZB law with planar friction
+        (:func:`lzb_impact_with_friction`). The rows are those of the robot held by its
+        bilateral constraints.
 
         Raises:
             InvalidParameterError: Several constraints at contact together, one with friction,
-                and not all energetic, or with two tangents (3D friction: not provided).
+                and none of the cases above.
         """
         if indices.size > 1:
+            laws = self.restitution_law[indices]
+            if (
+                np.all(laws == "newton")
+                and self.tangential_restitution is None
+                and np.all(self.constraints.tangent_count[indices] <= 1)
+            ):
+                return self._coulomb_impact(q, v, tau, u_minus, indices, time)
             return self._lzb_frictional_impact(v, terms, u_minus, indices)
         index = int(indices[0])
-        dynamics = self._dynamics
-        rows, _ = self.constraints.tangent_rows(dynamics.data, indices)
-        Minv_rows = np.column_stack(
-            [pin.cholesky.solve(dynamics.model, dynamics.data, row) for row in rows]
+        full = self._dynamics.constraint_terms(
+            q, v, tau, indices, with_drift=False, t=time, tangents=indices
         )
-        pad = terms.Minv_Jt.shape[0] - Minv_rows.shape[0]  # motor coordinates: untouched
-        Minv_Ht = np.hstack((terms.Minv_Jt, np.vstack((Minv_rows, np.zeros((pad, rows.shape[0]))))))
-        H = np.vstack((terms.J[:, : rows.shape[1]], rows))
+        H = np.vstack((full.J, full.T))
+        Minv_Ht = np.hstack((full.Minv_Jt, full.Minv_Tt))
         W = np.zeros((3, 3))
-        W[: H.shape[0], : H.shape[0]] = H @ Minv_Ht[: H.shape[1]]
+        W[: H.shape[0], : H.shape[0]] = H @ Minv_Ht
         u = np.zeros(3)
-        u[: H.shape[0]] = np.concatenate((u_minus, rows @ v[: rows.shape[1]]))
+        u[: H.shape[0]] = np.concatenate((u_minus, full.T @ v))
         e = float(self.constraints.restitution[index])
         law = str(self.restitution_law[index])
         if -e * u_minus[0] < self.zeno_velocity:  # an accumulation: plastic
             e = 0.0
-        start = time.perf_counter()
+        start = time_module.perf_counter()
         result = frictional_impact(
             W,
             u,
@@ -494,15 +680,72 @@ class EventDriven:
             law=law,
             tangential_restitution=self.tangential_restitution if law == "newton" else None,
         )
-        elapsed = time.perf_counter() - start
+        elapsed = time_module.perf_counter() - start
         solution = ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)
         return solution, Minv_Ht @ result.impulse[: H.shape[0]]
+
+    def _coulomb_impact(
+        self,
+        q: Vector,
+        v: Vector,
+        tau: Vector,
+        u_minus: Vector,
+        indices: NDArray[np.intp],
+        time: float,
+    ) -> tuple[ContactSolution, Vector]:
+        r"""Simultaneous impacts under Newton's law with planar Coulomb friction.
+
+        The impulse problem of :func:`~ucontrol.integrators.friction_modes.friction_modes`:
+        :math:`0 \le P_n \perp u_n^+ + e\,u_n^- \ge 0` (e zero for constraints not
+        approaching or below ``zeno_velocity``) and Coulomb's law on :math:`u_t^+` (stick,
+        or slip opposite to it), Moreau's impact law with friction.
+
+        Raises:
+            PainleveError: No consistent mode.
+        """
+        constraints = self.constraints
+        frictional = indices[constraints.tangent_count[indices] == 1]
+        full = self._dynamics.constraint_terms(
+            q, v, tau, indices, with_drift=False, t=time, tangents=frictional
+        )
+        H = np.vstack((full.J, full.T))
+        Minv_Ht = np.hstack((full.Minv_Jt, full.Minv_Tt))
+        restitution = constraints.restitution[indices]
+        bounces = (u_minus < 0.0) & (-restitution * u_minus >= self.zeno_velocity)
+        e = np.where(bounces, restitution, 0.0)
+        b = np.concatenate(((1.0 + e) * u_minus, full.T @ v))
+        start = time_module.perf_counter()
+        try:
+            found = friction_modes(
+                H @ Minv_Ht,
+                b,
+                constraints.friction[frictional],
+                np.searchsorted(indices, frictional),
+                np.ones((frictional.size, 3), dtype=bool),
+                np.zeros(frictional.size, dtype=bool),
+                value_tolerance=self.closure_velocity,
+            )
+        except PainleveError as error:
+            raise PainleveError(self.name, time, error.reason) from None
+        elapsed = time_module.perf_counter() - start
+        P = np.concatenate((found.lambda_n, found.lambda_t))  # [N s]
+        u_plus = full.J @ (v + Minv_Ht @ P)
+        solution = ContactSolution(found.lambda_n, u_plus, "solved", 1, 0.0, elapsed)
+        return solution, Minv_Ht @ P
 
     def _lzb_frictional_impact(
         self, v: Vector, terms: ConstraintTerms, u_minus: Vector, indices: NDArray[np.intp]
     ) -> tuple[ContactSolution, Vector]:
         """Simultaneous impacts with friction: the LZB law with one tangent per contact."""
         names = self._names(np.isin(np.arange(self._n), indices))
+        if self._bilateral:
+            raise InvalidParameterError(
+                "restitution_law",
+                sorted(set(self.restitution_law[indices].tolist())),
+                f"'newton' at simultaneous frictional impacts with bilateral constraints "
+                f"(constraints {names} at contact together): the LZB law with friction is "
+                "not provided for a robot held by bilateral constraints",
+            )
         if self.impact_law is None or not np.all(self.restitution_law[indices] == "energetic"):
             raise InvalidParameterError(
                 "restitution_law",
@@ -528,11 +771,11 @@ class EventDriven:
         law = self.impact_law.select(indices)
         if np.max(-self.constraints.restitution[indices] * u_minus) < self.zeno_velocity:
             law = dataclasses.replace(law, restitution=np.zeros(indices.size))
-        start = time.perf_counter()
+        start = time_module.perf_counter()
         result = lzb_impact_with_friction(
             law, M, terms.J[:, :nv], J_t, v[:nv], self.constraints.friction[indices]
         )
-        elapsed = time.perf_counter() - start
+        elapsed = time_module.perf_counter() - start
         solution = ContactSolution(result.impulse, result.u, "solved", result.steps, 0.0, elapsed)
         jump = np.zeros(v.size)
         jump[:nv] = result.v - v[:nv]  # motor coordinates: untouched
@@ -545,9 +788,9 @@ class EventDriven:
         e = float(restitution[0]) if -restitution[0] * u_minus[0] >= self.zeno_velocity else 0.0
         W = np.zeros((3, 3))
         W[0, 0] = terms.delassus()[0, 0]
-        start = time.perf_counter()
+        start = time_module.perf_counter()
         result = frictional_impact(W, [u_minus[0], 0.0, 0.0], friction=0.0, restitution=e, law=law)
-        elapsed = time.perf_counter() - start
+        elapsed = time_module.perf_counter() - start
         return ContactSolution(result.impulse[:1], result.u[:1], "solved", 1, 0.0, elapsed)
 
     def _capture(self, terms: ConstraintTerms, v: Vector) -> tuple[Vector, Vector]:
@@ -584,12 +827,15 @@ class EventDriven:
             raise SolverError(solver.name, solution.status, solution.residual)
         return solution
 
-    def _project(self, q: Vector, v: Vector, closed: Mask, time: float) -> tuple[Vector, Vector]:
+    def _project(
+        self, q: Vector, v: Vector, closed: Mask, time: float, modes: _Modes | None = None
+    ) -> tuple[Vector, Vector]:
         r"""Project (q, v) onto the closed and bilateral constraints in the metric of M.
 
         Gauss–Newton steps :math:`q \leftarrow q \ominus M^{-1} J^T D^+ r` on the stacked
         residuals r (closed gaps, then :math:`h(q)`), then :math:`v \leftarrow v - M^{-1} J^T
-        D^+ (J v + \partial g/\partial t)`, at the absolute ``time`` [s].
+        D^+ (J v + \partial g/\partial t)`, at the absolute ``time`` [s]; the tangential rows
+        of the sticking constraints of ``modes`` join the velocity rows (:math:`u_t = 0`).
         """
         dynamics = self._dynamics
         indices = np.flatnonzero(closed)
@@ -600,8 +846,20 @@ class EventDriven:
             q = dynamics.configuration(q, -terms.Minv_Jt @ _solve(terms.delassus(), terms.residual))
         else:
             terms = dynamics.manifold_terms(q, v, indices, time)
-        if terms.velocity.size:
-            v = v - terms.Minv_Jt @ _solve(terms.delassus(), terms.velocity)
+        J, Minv_Jt, velocity = terms.J, terms.Minv_Jt, terms.velocity
+        if modes is not None and modes.stick.any():  # (manifold_terms left data at q)
+            sticking = np.flatnonzero(modes.stick)
+            rows = self.constraints.tangent_rows(dynamics.data, sticking)[0]
+            nv = rows.shape[1]
+            Minv_rows = np.zeros((Minv_Jt.shape[0], rows.shape[0]))
+            for k, row in enumerate(rows):
+                Minv_rows[:nv, k] = pin.cholesky.solve(dynamics.model, dynamics.data, row)
+            rows = np.hstack((rows, np.zeros((rows.shape[0], J.shape[1] - nv))))
+            J = np.vstack((J, rows))
+            Minv_Jt = np.hstack((Minv_Jt, Minv_rows))
+            velocity = np.concatenate((velocity, rows @ v))
+        if velocity.size:
+            v = v - Minv_Jt @ _solve(J @ Minv_Jt, velocity)
         return q, v
 
     def _max_step(self, terms: ConstraintTerms, u_near: Vector, closed_near: Mask) -> float:
@@ -621,12 +879,13 @@ class EventDriven:
         v0: Vector,
         tau: Vector,
         closed: Mask,
+        modes: _Modes | None,
         duration: float,
         max_step: float,
         start: float,
         t_start: float,
     ) -> _Segment:
-        """Integrate with the closed set fixed until ``duration`` [s] or the first event.
+        r"""Integrate with the closed set and modes fixed until ``duration`` [s] or an event.
 
         ``start + t_start`` is the absolute time in [s] of the segment's start (``start`` that
         of the step).
@@ -635,6 +894,13 @@ class EventDriven:
         closure tolerances: it just released, or its acceleration barely opened it) fires at
         g = -closure_gap rather than at g = 0, which it starts on: it marks the constraint
         coming back, not its start. The next active-set solve and projection then close it.
+
+        A closed frictional constraint in stick holds :math:`\dot u_t = 0` with a free
+        multiplier :math:`\lambda_t` (events :math:`\mu \lambda_n \mp \lambda_t = 0`); one
+        in slip along s gets :math:`\lambda_t = -\mu s \lambda_n` in its normal column
+        (event :math:`s u_t = 0`, at :math:`-` ``closure_velocity`` when it starts from rest).
+        The state carries :math:`\int \lambda_n dt`, :math:`\int \lambda_t u_t dt` and
+        :math:`\int \tau \cdot v\,dt`.
         """
         dynamics, nv = self._dynamics, self._dynamics.nv
         closed_indices = np.flatnonzero(closed)
@@ -644,6 +910,16 @@ class EventDriven:
         gap0, u0 = dynamics.kinematics(q0, v0, origin)
         resting = (gap0 <= self.closure_gap) & (np.abs(u0) <= self.closure_velocity)
         offsets = np.where(resting, self.closure_gap, 0.0)[open_indices]  # [m] or [rad]
+        frictional = closed_indices[self.constraints.friction[closed_indices] > 0.0]
+        k = frictional.size
+        stick = modes.stick[frictional] if modes is not None else np.zeros(k, dtype=bool)
+        sign = modes.sign[frictional] if modes is not None else np.zeros(k)
+        mu_s = self.constraints.friction[frictional] * sign  # μ s of the slipping rows
+        owner = np.searchsorted(closed_indices, frictional)
+        sticking = np.flatnonzero(stick)
+        slipping = np.flatnonzero(~stick)
+        tangents = frictional if k else None
+        slip_offsets = np.zeros(slipping.size)  # [m/s]
         cache: dict[str, Any] = {"key": None}
 
         def evaluate(t: float, y: Vector) -> tuple[Vector, Vector]:
@@ -651,34 +927,83 @@ class EventDriven:
             if cache["key"] != key:
                 dq, v = y[:nv], y[nv : 2 * nv]
                 q = dynamics.configuration(q0, dq)
+                friction_power = 0.0  # [W]
+                margins = np.zeros(0)
                 if m or self._bilateral:
-                    terms = dynamics.constraint_terms(q, v, tau, closed_indices, t=origin + t)
-                    multipliers = (
-                        _solve(terms.delassus(), -terms.acceleration_bias()) if m else np.zeros(0)
+                    terms = dynamics.constraint_terms(
+                        q, v, tau, closed_indices, t=origin + t, tangents=tangents
                     )
-                    acceleration = terms.a_free + terms.Minv_Jt @ multipliers
+                    if k:
+                        forces = terms.Minv_Jt.copy()  # the slipping rows' friction joins
+                        forces[:, owner[slipping]] -= terms.Minv_Tt[:, slipping] * mu_s[slipping]
+                        G = np.hstack((forces, terms.Minv_Tt[:, sticking]))
+                        A = np.vstack((terms.J, terms.T[sticking]))
+                        bias = np.concatenate(
+                            (
+                                terms.acceleration_bias(),
+                                terms.T[sticking] @ terms.a_free + terms.drift_t[sticking],
+                            )
+                        )
+                        x = _solve(A @ G, -bias)
+                        multipliers = x[:m]
+                        lambda_t = -mu_s * multipliers[owner]
+                        lambda_t[sticking] = x[m:]
+                        u_t = terms.T @ v
+                        friction_power = float(lambda_t @ u_t)
+                        cone = self.constraints.friction[frictional] * multipliers[owner]
+                        margins = np.concatenate(
+                            (
+                                cone[sticking] - lambda_t[sticking],
+                                cone[sticking] + lambda_t[sticking],
+                                sign[slipping] * u_t[slipping] + slip_offsets,
+                            )
+                        )
+                        acceleration = terms.a_free + G @ x
+                    else:
+                        multipliers = (
+                            _solve(terms.delassus(), -terms.acceleration_bias())
+                            if m
+                            else np.zeros(0)
+                        )
+                        acceleration = terms.a_free + terms.Minv_Jt @ multipliers
                     gap = terms.gap
                 else:
                     multipliers = np.zeros(0)
                     gap, _ = dynamics.kinematics(q, v, origin + t)
                     acceleration = dynamics.free_acceleration(q, v, tau)
-                rate = np.concatenate((dynamics.chart_rate(q0, dq, v), acceleration, multipliers))
+                rate = np.concatenate(
+                    (
+                        dynamics.chart_rate(q0, dq, v),
+                        acceleration,
+                        multipliers,
+                        [friction_power, float(tau @ v)],
+                    )
+                )
                 cache["key"] = key
                 cache["value"] = (
                     rate,
-                    np.concatenate((gap[open_indices] + offsets, multipliers)),
+                    np.concatenate((gap[open_indices] + offsets, multipliers, margins)),
                 )
             value: tuple[Vector, Vector] = cache["value"]
             return value
 
-        y0 = np.concatenate((np.zeros(nv), v0, np.zeros(m)))
+        y0 = np.concatenate((np.zeros(nv), v0, np.zeros(m + 2)))
+        initial = evaluate(0.0, y0)[1]
+        at_rest = np.abs(initial[open_indices.size + m + 2 * sticking.size :]) <= (
+            self.closure_velocity
+        )
+        slip_offsets[at_rest] = self.closure_velocity  # s u_t starts at 0: fire at -ε
+        cache["key"] = None
+        initial = evaluate(0.0, y0)[1]
         watched = np.concatenate(
             (
                 np.ones(open_indices.size, dtype=bool),
-                evaluate(0.0, y0)[1][open_indices.size :] > self.release_force,
+                initial[open_indices.size : open_indices.size + m + 2 * sticking.size]
+                > self.release_force,
+                np.ones(slipping.size, dtype=bool),
             )
         )
-        events = [_event(evaluate, int(k)) for k in np.flatnonzero(watched)]
+        events = [_event(evaluate, int(j)) for j in np.flatnonzero(watched)]
         solution = solve_ivp(
             lambda t, y: evaluate(t, y)[0],
             (0.0, duration),
@@ -693,22 +1018,32 @@ class EventDriven:
         if solution.status < 0:
             raise IntegrationError(self.name, origin + float(solution.t[-1]), solution.message)
         y = solution.y[:, -1]
-        fired = np.zeros(open_indices.size + m, dtype=bool)
+        fired = np.zeros(watched.size, dtype=bool)
         if solution.status == 1:
             watched_indices = np.flatnonzero(watched)
-            for k, times in enumerate(solution.t_events):
-                fired[watched_indices[k]] = times.size > 0
+            for j, times in enumerate(solution.t_events):
+                fired[watched_indices[j]] = times.size > 0
         closing = np.zeros(self._n, dtype=bool)
         releasing = np.zeros(self._n, dtype=bool)
-        closing[open_indices[fired[: open_indices.size]]] = True
-        releasing[closed_indices[fired[open_indices.size :]]] = True
+        left_stick = np.zeros(self._n, dtype=bool)
+        stopped = np.zeros(self._n, dtype=bool)
+        n_open, n_stick = open_indices.size, sticking.size
+        closing[open_indices[fired[:n_open]]] = True
+        releasing[closed_indices[fired[n_open : n_open + m]]] = True
+        cone_fired = fired[n_open + m : n_open + m + 2 * n_stick]
+        left_stick[frictional[sticking[cone_fired[:n_stick] | cone_fired[n_stick:]]]] = True
+        stopped[frictional[slipping[fired[n_open + m + 2 * n_stick :]]]] = True
         return _Segment(
             q=dynamics.configuration(q0, y[:nv]),
             v=y[nv : 2 * nv].copy(),
-            impulse=y[2 * nv :].copy(),
+            impulse=y[2 * nv : 2 * nv + m].copy(),
             duration=float(solution.t[-1]),
             closing=closing,
             releasing=releasing,
+            left_stick=left_stick,
+            stopped=stopped,
+            friction_work=float(y[-2]),
+            actuator_work=float(y[-1]),
         )
 
     def _names(self, mask: Mask) -> list[str]:

@@ -51,7 +51,7 @@ refused (Moreau–Jean treats it).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
@@ -85,6 +85,10 @@ class ConstraintTerms:
             shape (m,).
         rate: :math:`\partial g_I / \partial t` in [m/s] (zero against fixed surfaces), shape
             (m,).
+        T: Tangential rows of the constraints asked for (``tangents``), shape (k, nv); empty
+            when none were.
+        Minv_Tt: :math:`M^{-1} T^T` (held by the bilateral rows), shape (nv, k).
+        drift_t: :math:`\dot T v` in [m/s²] (zero without ``with_drift``), shape (k,).
 
     With bilateral constraints ``a_free`` and ``Minv_Jt`` are those of the robot held by
     them (module docstring).
@@ -97,6 +101,9 @@ class ConstraintTerms:
     Minv_Jt: Vector
     drift: Vector
     rate: Vector
+    T: Vector = field(default_factory=lambda: np.zeros((0, 0)))
+    Minv_Tt: Vector = field(default_factory=lambda: np.zeros((0, 0)))
+    drift_t: Vector = field(default_factory=lambda: np.zeros(0))
 
     def velocity(self, v: Vector) -> Vector:
         r"""Normal velocities :math:`J_I v + \partial g_I/\partial t` of I at ``v`` (nv,)."""
@@ -259,6 +266,7 @@ class SmoothDynamics:
         *,
         with_drift: bool = True,
         t: float | None = None,
+        tangents: NDArray[np.intp] | None = None,
     ) -> ConstraintTerms:
         """Everything the constraints ``indices`` (m,) need at (q, v) under forces ``tau``.
 
@@ -270,6 +278,9 @@ class SmoothDynamics:
             with_drift: Compute ``J̇ v``; without it ``drift`` is zero (and, with bilateral
                 constraints, their own drift is left out of ``a_free``).
             t: Time in [s]; required when some surface moves.
+            tangents: Constraints whose tangential row (one each, those of
+                :meth:`~ucontrol.contact.ConstraintSet.sustains_friction`) and its drift are
+                wanted too, shape (k,); None: none.
         """
         model, data = self.model, self.data
         q1, v1, link_force, motor_acceleration = self._split_forces(q, v, tau)
@@ -279,18 +290,23 @@ class SmoothDynamics:
         pin.cholesky.decompose(model, data)
         a_free = pin.cholesky.solve(model, data, link_force - data.nle)
         J = self.constraints.jacobian(data, indices)
+        k = 0
+        if tangents is not None and tangents.size:  # stacked under the normal rows
+            T = self.constraints.tangent_rows(data, tangents)[0]
+            k = T.shape[0]
+            J = np.vstack((J, T))
         bilateral = self.bilateral
         J_b = bilateral.jacobian(data) if bilateral is not None else None
-        if J_b is None and len(indices) == 1:  # M⁻¹ Jᵀ by one triangular solve, not M⁻¹
+        if J_b is None and J.shape[0] == 1:  # M⁻¹ Jᵀ by one triangular solve, not M⁻¹
             Minv_Jt = pin.cholesky.solve(model, data, J[0])[:, None]
             Minv = None
         else:
             Minv = pin.cholesky.computeMinv(model, data)
             Minv_Jt = Minv @ J.T
         drift, drift_b = (
-            self._drift(q1, v1, indices, t)
+            self._drift(q1, v1, indices, t, tangents if k else None)
             if with_drift
-            else (np.zeros(len(indices)), np.zeros(0 if J_b is None else J_b.shape[0]))
+            else (np.zeros(len(indices) + k), np.zeros(0 if J_b is None else J_b.shape[0]))
         )
         if J_b is not None and Minv is not None:  # held by the bilateral rows
             Minv_Jbt = Minv @ J_b.T
@@ -307,7 +323,21 @@ class SmoothDynamics:
             a_free = np.concatenate((a_free, motor_acceleration))
             J = np.hstack((J, np.zeros((J.shape[0], motors))))
             Minv_Jt = np.vstack((Minv_Jt, np.zeros((motors, Minv_Jt.shape[1]))))
-        return ConstraintTerms(gap, normal_velocity, a_free, J, Minv_Jt, drift, rate)
+        if not k:
+            return ConstraintTerms(gap, normal_velocity, a_free, J, Minv_Jt, drift, rate)
+        m = len(indices)
+        return ConstraintTerms(
+            gap,
+            normal_velocity,
+            a_free,
+            J[:m],
+            Minv_Jt[:, :m],
+            drift[:m],
+            rate,
+            J[m:],
+            Minv_Jt[:, m:],
+            drift[m:],
+        )
 
     def manifold_terms(
         self, q: Vector, v: Vector, indices: NDArray[np.intp], t: float | None = None
@@ -362,21 +392,29 @@ class SmoothDynamics:
         return q[:nq], v[:nv], link_force, force[nv:] / flexible.motor_inertia
 
     def _drift(
-        self, q: Vector, v: Vector, indices: NDArray[np.intp], t: float | None
+        self,
+        q: Vector,
+        v: Vector,
+        indices: NDArray[np.intp],
+        t: float | None,
+        tangents: NDArray[np.intp] | None = None,
     ) -> tuple[Vector, Vector]:
         r"""``J̇ v`` at the link state (q, v) of the constraints ``indices`` and bilateral rows.
 
         Zero for stops and couplings; a contact against a moving surface adds
-        :math:`-n \cdot \ddot x(t)`. Returns shapes (m,) and (m_b,).
+        :math:`-n \cdot \ddot x(t)`. Returns shapes (m,) and (m_b,); with ``tangents``
+        (k,), the drift of their tangential rows follows the normal ones, shape (m + k,).
         """
         bilateral = self.bilateral
         drift = np.zeros(len(indices))
         drift_b = np.zeros(0 if bilateral is None else bilateral.size)
-        if bilateral is not None or self.constraints.has_drift(indices):
+        if bilateral is not None or tangents is not None or self.constraints.has_drift(indices):
             model, data = self.model, self.data
             pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
             pin.updateFramePlacements(model, data)
             drift = self.constraints.normal_drift(data, indices, q=q, v=v, t=t)
+            if tangents is not None:
+                drift = np.concatenate((drift, self.constraints.tangent_drift(data, tangents, v)))
             if bilateral is not None:
                 drift_b = bilateral.drift(data)
         if t is not None:  # (moving surfaces need t: constraints.evaluate raised without it)

@@ -30,11 +30,11 @@ def build_integrator(
     ``compiled = False`` runs Moreau–Jean's reference stages alone (no generated fast path).
 
     Raises:
-        InvalidParameterError: The scene has friction and the integrator is not
-            ``moreau_jean`` (the others are frictionless), a ``qpsolvers:`` contact
+        InvalidParameterError: The scene has friction and the integrator is compliant (it is
+            frictionless) or event_driven against moving surfaces, a ``qpsolvers:`` contact
             solver was asked for a scene with friction, the compliant integrator for a
-            scene with moving surfaces or bilateral constraints, or Coulomb joint friction or
-            clearance joints with an integrator other than ``moreau_jean``.
+            scene with moving surfaces, bilateral constraints or clearance joints, or Coulomb
+            joint friction with an integrator other than ``moreau_jean``.
     """
     name = scene.integrator.name
     laws = _impact_laws(scene)
@@ -49,17 +49,15 @@ def build_integrator(
         raise InvalidParameterError(
             "[integrator] name",
             name,
-            "'moreau_jean' for contacts with friction (compliant is frictionless; event_driven "
-            "takes frictional impacts only, with impact_law 'poisson' or 'energetic' at the "
-            "frictional contacts, or Newton's with a tangential_restitution, fixed surfaces "
-            "and no bilateral constraints)",
+            "'moreau_jean' or 'event_driven' for contacts with friction (compliant is "
+            "frictionless; event_driven takes friction against fixed surfaces only)",
         )
-    if scene.clearances and name != "moreau_jean":
+    if scene.clearances and name == "compliant":
         raise InvalidParameterError(
             "[integrator] name",
             name,
-            "'moreau_jean' for scenes with [[clearance]] joints (a journal sliding on its "
-            f"bearing is an unending sequence of events for {name}; docs/clearance.md)",
+            "'moreau_jean' or 'event_driven' for scenes with [[clearance]] joints (compliant "
+            "does not hold the bilateral constraints of a mechanism; docs/clearance.md)",
         )
     if scene.constraints.bilateral is not None and name == "compliant":
         raise InvalidParameterError(
@@ -156,18 +154,8 @@ def _event_driven(scene: SceneData, dt: float) -> Integrator:
 
 
 def _frictional_impacts(scene: SceneData) -> bool:
-    """Whether event_driven may take the scene's frictional contacts (at impacts only)."""
-    constraints = scene.constraints
-    laws = np.array(_impact_laws(scene))
-    allowed = ["poisson", "energetic"]
-    if scene.integrator.tangential_restitution is not None:
-        allowed.append("newton")  # Brach's law
-    return (
-        scene.integrator.name == "event_driven"
-        and constraints.bilateral is None
-        and not constraints.time_dependent
-        and bool(np.all(np.isin(laws[constraints.friction > 0.0], allowed)))
-    )
+    """Whether event_driven may take the scene's frictional contacts (fixed surfaces)."""
+    return scene.integrator.name == "event_driven" and not scene.constraints.time_dependent
 
 
 def _impact_laws(scene: SceneData) -> list[str]:

@@ -69,7 +69,7 @@ class IntegratorSettings:
             contacts, then the stops, in the order of the scene).
         tangential_restitution: Brach's tangential coefficient e_t in [-1, 1] as an option of
             Newton's law at event_driven's frictional impacts (docs/impact_laws.md); None:
-            none, and Newton's law is then refused with friction in event_driven.
+            none (Newton's law with Coulomb friction).
         lzb_stiffness: Contact stiffness of the LZB law, one or one per constraint (only
             ratios matter with equal exponents).
         lzb_exponent: Elasticity exponent of the LZB law (1 linear, 1.5 Hertz), one or one per
