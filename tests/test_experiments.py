@@ -187,3 +187,12 @@ def test_momentum_observer_runs(capsys: pytest.CaptureFixture[str]) -> None:
     assert len(rows) == 8 and rows[0].startswith("| two_link_one_constraint | oracle |")
     assert "0 false" in rows[1]  # the default observer flags no impact the plant did not make
     assert "| run |" in capsys.readouterr().out
+
+
+def test_cli_run_speed_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    speed = _load("cli_run_speed")
+    figures = speed.main(["--scenes", "default", "--rounds", "1"])
+    default = figures["default"]
+    assert default["command_cpu_s"] > 0.0 and default["command_wall_s"] > 0.0
+    assert all(default[key] > 0.0 for key in ("rtf_wall", "rtf_cpu", "in_process_rtf_cpu"))
+    assert "| default |" in capsys.readouterr().out
