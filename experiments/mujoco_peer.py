@@ -28,17 +28,6 @@ from numpy.typing import NDArray
 from ucontrol.contact import PointContact
 
 Vector = NDArray[np.float64]
-#: Joint axes of Pinocchio's one-axis joints, in the joint frame; None: read from the joint.
-_AXES = {
-    "JointModelRX": ("hinge", (1.0, 0.0, 0.0)),
-    "JointModelRY": ("hinge", (0.0, 1.0, 0.0)),
-    "JointModelRZ": ("hinge", (0.0, 0.0, 1.0)),
-    "JointModelRevoluteUnaligned": ("hinge", None),
-    "JointModelPX": ("slide", (1.0, 0.0, 0.0)),
-    "JointModelPY": ("slide", (0.0, 1.0, 0.0)),
-    "JointModelPZ": ("slide", (0.0, 0.0, 1.0)),
-    "JointModelPrismaticUnaligned": ("slide", None),
-}
 
 
 def available() -> bool:
@@ -49,7 +38,9 @@ def available() -> bool:
 def mjcf_of(model: pin.Model, contacts: Sequence[PointContact], dt: float) -> str:
     """The MJCF text of ``model`` with sphere ``contacts`` on their plane, step ``dt`` in [s].
 
-    Every contact must be on the same plane (a :class:`~ucontrol.contact.Plane`).
+    Every joint has one degree of freedom, a hinge or a slide along its motion subspace S
+    (Pinocchio's, constant for these joints); every contact is on the same plane (a
+    :class:`~ucontrol.contact.Plane`).
     """
     plane = contacts[0].surface
     spheres: dict[int, list[str]] = {}
@@ -63,12 +54,15 @@ def mjcf_of(model: pin.Model, contacts: Sequence[PointContact], dt: float) -> st
     children: dict[int, list[int]] = {}
     for joint in range(1, model.njoints):
         children.setdefault(model.parents[joint], []).append(joint)
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))  # each joint's motion subspace S
 
     def body(joint: int) -> str:
         placement, inertia = model.jointPlacements[joint], model.inertias[joint]
-        kind, axis = _AXES[model.joints[joint].shortname()]
-        if axis is None:
-            axis = tuple(model.joints[joint].extract().axis)
+        if model.joints[joint].nv != 1:
+            raise ValueError(f"joint {model.names[joint]!r}: one degree of freedom expected")
+        S = np.asarray(data.joints[joint].S).ravel()  # (linear, angular) in the joint frame
+        kind, axis = ("slide", S[:3]) if np.any(S[:3]) else ("hinge", S[3:])
         I_c = inertia.inertia
         full = (I_c[0, 0], I_c[1, 1], I_c[2, 2], I_c[0, 1], I_c[0, 2], I_c[1, 2])
         index = model.joints[joint].idx_v

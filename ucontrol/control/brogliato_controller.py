@@ -540,7 +540,7 @@ def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
     kinematics beside Pinocchio's pass, kept because it saves more than 5 % of a closed-loop
     step of the two-link scenes (docs/controller.md, "One law, two paths").
     """
-    from ucontrol.model.symbolic_model import SMALL_ROBOT_MAX_NV, SymbolicModel
+    from ucontrol.model.symbolic_model import INERTIA_SIZE, SMALL_ROBOT_MAX_NV, SymbolicModel
 
     if robot.nv > SMALL_ROBOT_MAX_NV or robot.nq != robot.nv:
         return None
@@ -549,7 +549,7 @@ def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
     except InvalidParameterError:
         return None
     q, v = ca.SX.sym("q", robot.nv), ca.SX.sym("v", robot.nv)
-    inertia = ca.SX.sym("inertia", model.inertia.numel())
+    inertia = ca.SX.sym("inertia", INERTIA_SIZE * (robot.model.njoints - 1))
     p = model.frame_position(frame)(q)
     J = ca.jacobian(p, q)
     dJ = ca.jacobian(J @ v, q)
