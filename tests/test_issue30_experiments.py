@@ -15,18 +15,9 @@ from ucontrol.model import example_robot_data_dir
 
 pytestmark = pytest.mark.slow  # subprocesses and whole runs
 
-_load = load_experiment
-
-
-def _require_example_robot_data() -> None:
-    try:
-        example_robot_data_dir()
-    except URDFError:
-        pytest.skip("example-robot-data is not installed (extra `robots`)")
-
 
 def test_cli_run_speed_runs(capsys: pytest.CaptureFixture[str]) -> None:
-    speed = _load("cli_run_speed")
+    speed = load_experiment("cli_run_speed")
     figures = speed.main(["--scenes", "default", "--rounds", "1"])
     default = figures["default"]
     assert default["command_cpu_s"] > 0.0 and default["command_wall_s"] > 0.0
@@ -37,10 +28,13 @@ def test_cli_run_speed_runs(capsys: pytest.CaptureFixture[str]) -> None:
 def test_mujoco_peer_is_the_same_robot() -> None:
     """The MJCF of the step benchmark's Panda: Pinocchio's M(q) and h(q, v), the 4 contacts."""
     pytest.importorskip("mujoco")
-    _require_example_robot_data()
+    try:
+        example_robot_data_dir()
+    except URDFError:
+        pytest.skip("example-robot-data is not installed (extra `robots`)")
     import mujoco
 
-    bench, peer = _load("bench_step"), _load("mujoco_peer")
+    bench, peer = load_experiment("bench_step"), load_experiment("mujoco_peer")
     robot, contacts, _ = bench.panda_setup(4)
     model = mujoco.MjModel.from_xml_string(peer.mjcf_of(robot.model, contacts, 1e-3))
     data = mujoco.MjData(model)
