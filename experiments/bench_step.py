@@ -18,7 +18,10 @@ singular). The loops advance the same state with the same dt, dynamics and activ
   ``aba``, ``integrate``), trusting the solvers' own stopping tests;
 - ``pin PGS, solved``: the PGS loop swept again until the complementarity residual is below
   the tolerance (pin 4.1's PGS stops after one sweep on frictionless contacts, see
-  :mod:`ucontrol.solvers.pinocchio_constraint_solver`).
+  :mod:`ucontrol.solvers.pinocchio_constraint_solver`);
+- ``mujoco mj_step``, where MuJoCo is installed (extra ``peers``): the same robot, forces and
+  sphere contacts as an MJCF model stepped by ``mj_step`` (``experiments/mujoco_peer.py``; soft
+  contacts, so a different trajectory: the cost of a step is compared).
 
 Times are µs per step, wall clock (``time.perf_counter``) or with ``--clock cpu`` the
 process's CPU time (``time.process_time``, steadier on a loaded machine), best of
@@ -26,7 +29,8 @@ process's CPU time (``time.process_time``, steadier on a loaded machine), best o
 gives the largest velocity difference to the ucontrol trajectory (``max Δv``), to check that
 the loops do the same work.
 
-The targets (issue 14) are ucontrol at most :data:`TARGET_RATIOS` times the ``pin PGS`` loop.
+The targets are ucontrol at most :data:`TARGET_RATIOS` times the ``pin PGS`` loop (issue 14)
+and at most :data:`MUJOCO_TARGET_RATIOS` times ``mj_step`` (issue 30).
 
 Run: ``python experiments/bench_step.py --steps 3000 --repeats 9 --clock cpu``.
 """
@@ -37,6 +41,7 @@ import argparse
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import mujoco_peer  # experiments/: the optional MuJoCo loop
 import numpy as np
 from numpy.typing import NDArray
 
@@ -67,9 +72,16 @@ KP = 50.0  # [N m/rad] or [N/m], joint PD stiffness
 KD = 5.0  # [N m s/rad] or [N s/m], joint PD damping
 #: Targets of ucontrol / pin PGS by number of contacts.
 TARGET_RATIOS = {1: 0.5, 4: 0.7}
+#: Targets of ucontrol / MuJoCo's mj_step by number of contacts.
+MUJOCO_TARGET_RATIOS = {1: 1.3, 4: 2.5}
+#: The MuJoCo loop's name.
+MUJOCO = "mujoco mj_step"
 
-#: Loop names, in table order; the first is the reference of the ratios and of max Δv.
-LOOPS = ("ucontrol", "ucontrol, QP always", "pin ADMM", "pin PGS", "pin PGS, solved")
+#: Loop names, in table order; the first is the reference of the ratios and of max Δv. MuJoCo
+#: only where it is installed.
+LOOPS = ("ucontrol", "ucontrol, QP always", "pin ADMM", "pin PGS", "pin PGS, solved") + (
+    (MUJOCO,) if mujoco_peer.available() else ()
+)
 
 Vector = NDArray[np.float64]
 Control = Callable[[Vector, Vector], Vector]
@@ -143,13 +155,16 @@ def make_loops(
             )
         )
 
-    return {
+    loops = {
         "ucontrol": ucontrol(exact_single=True),
         "ucontrol, QP always": ucontrol(exact_single=False),
         "pin ADMM": pinocchio("admm", False),
         "pin PGS": pinocchio("pgs", False),
         "pin PGS, solved": pinocchio("pgs", True),
     }
+    if MUJOCO in LOOPS:
+        loops[MUJOCO] = mujoco_peer.mujoco_step(robot.model, contacts, dt)
+    return loops
 
 
 def _closed_loop(control: Control) -> Forces:
@@ -247,13 +262,17 @@ def main(argv: Sequence[str] | None = None) -> list[BenchRow]:
     )
     print(markdown_table(rows))
     print()
+    targets = [("pin PGS", TARGET_RATIOS)]
+    if MUJOCO in LOOPS:
+        targets.append((MUJOCO, MUJOCO_TARGET_RATIOS))
     for row in rows:
-        ratio, target = row.ratio("pin PGS"), TARGET_RATIOS[row.contacts]
-        verdict = "holds" if ratio <= target else "does NOT hold"
-        print(
-            f"Target ucontrol <= {target} x pin PGS, {row.contacts} contact(s): "
-            f"{ratio:.2f} -> {verdict}"
-        )
+        for loop, ratios in targets:
+            ratio, target = row.ratio(loop), ratios[row.contacts]
+            verdict = "holds" if ratio <= target else "does NOT hold"
+            print(
+                f"Target ucontrol <= {target} x {loop}, {row.contacts} contact(s): "
+                f"{ratio:.2f} -> {verdict}"
+            )
     return rows
 
 

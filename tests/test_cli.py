@@ -16,6 +16,7 @@ from ucontrol.log import Log
 
 SUMMARY_KEYS = {
     "wall_time_s",
+    "cpu_time_s",
     "steps",
     "max_penetration",
     "n_impacts",
@@ -24,7 +25,7 @@ SUMMARY_KEYS = {
 LOG_KEYS = {"t", "q", "v", "u", "gap", "impulse"}
 
 
-def test_run_writes_log_and_summary(tmp_path: Path) -> None:
+def test_run_writes_log_and_summary(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "ball"
     status = main(
         [
@@ -45,6 +46,12 @@ def test_run_writes_log_and_summary(tmp_path: Path) -> None:
     summary = json.loads((out / "summary.json").read_text())
     assert SUMMARY_KEYS <= set(summary)
     assert summary["steps"] == 2000 and summary["dt"] == 5e-4 and summary["n_impacts"] == 1
+    assert summary["cpu_time_s"] > 0.0  # the loop's CPU time, and both real-time factors:
+    wall, cpu = summary["wall_time_s"], summary["cpu_time_s"]
+    assert (
+        f"({1.0 / wall:.3g}× real time; CPU {cpu:.3g} s, {1.0 / cpu:.3g}×)"
+        in capsys.readouterr().out
+    )
     with np.load(out / "log.npz") as log:
         assert LOG_KEYS <= set(log.files)
         assert log["t"][-1] == pytest.approx(1.0)

@@ -18,11 +18,16 @@ import pytest
 from ucontrol.model.compiled_function import NO_COMPILE_ENV
 
 #: Imported by other commands (convergence, design, sweep, plot, view) or by scenes with a
-#: Brogliato controller or a spline path, never by a plain run of the default scene.
+#: Brogliato controller or a spline path, never by a plain run of the default scene; the
+#: campaign package's runner and spec (dask's side), which the parser of ``ucontrol sweep``
+#: and ``--set`` need not load.
 HEAVY = (
-    "scipy.interpolate",
-    "scipy.integrate",
+    "scipy",
     "ucontrol.convergence",
+    "ucontrol.analysis.stability_check",
+    "ucontrol.campaign.runner",
+    "ucontrol.campaign.spec",
+    "ucontrol.campaign.build_cache",
     "ucontrol.control.brogliato_controller",
     "ucontrol.control.spline_path",
     "ucontrol.design.cycle_transcription",

@@ -134,6 +134,7 @@ def simulate(
         lock.acquire()
     bar = _progress_bar(n_steps, progress)
     start = last_checkpoint = time.perf_counter()
+    cpu_start = time.process_time()
     k = 0
     try:
         loop.share_plant_data()
@@ -151,7 +152,8 @@ def simulate(
         loop.finish()
         if bar is not None:
             bar.update(n_steps - bar.n)
-        summary = _run_summary(scene, loop, time.perf_counter() - start, interrupted=None)
+        times = (time.perf_counter() - start, time.process_time() - cpu_start)
+        summary = _run_summary(scene, loop, times, interrupted=None)
         if out_dir is not None:
             log.save(out_dir / "log.npz")
             _write_summary(out_dir, summary)
@@ -164,7 +166,8 @@ def simulate(
             interrupted = signal.Signals(signum).name
             with warnings.catch_warnings():  # the one line of the interruption says it all
                 warnings.simplefilter("ignore", PhysicsWarning)
-                summary = _run_summary(scene, loop, time.perf_counter() - start, interrupted)
+                times = (time.perf_counter() - start, time.process_time() - cpu_start)
+                summary = _run_summary(scene, loop, times, interrupted)
             _write_summary(out_dir, summary)
         raise
     except (UControlError, _NonFiniteState, np.linalg.LinAlgError) as error:
@@ -399,19 +402,22 @@ class _ClosedLoop:
 
 
 def _run_summary(
-    scene: Scene, loop: _ClosedLoop, wall_time: float, interrupted: str | None
+    scene: Scene, loop: _ClosedLoop, times: tuple[float, float], interrupted: str | None
 ) -> dict[str, Any]:
     """The summary of the rows of ``loop.log``, ``interrupted`` by that signal or None.
 
     Args:
         scene: The scene run.
         loop: The closed loop, its last row closed.
-        wall_time: Wall time of the loop in [s].
+        times: Wall time and CPU time (the process's) of the loop in [s].
         interrupted: The signal's name (``"SIGINT"`` for Ctrl-C) for a run stopped early,
             None for a run to its end.
     """
     log = loop.log
-    summary = summarize(log, wall_time_s=wall_time, theta=loop.integrator.theta)
+    wall_time, cpu_time = times
+    summary = summarize(
+        log, wall_time_s=wall_time, cpu_time_s=cpu_time, theta=loop.integrator.theta
+    )
     summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
     summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
     summary["interrupted"] = interrupted is not None

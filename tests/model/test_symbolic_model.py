@@ -11,6 +11,7 @@ import pytest
 
 from ucontrol.exceptions import FrameNotFoundError, InvalidParameterError, URDFError
 from ucontrol.model import RobotModel, SymbolicModel, example_robot_data_dir, resolve_urdf
+from ucontrol.model.symbolic_model import INERTIA_SIZE, inertia_parameters
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 _LWA = pin.LOCAL_WORLD_ALIGNED
@@ -99,6 +100,29 @@ def test_dynamics_match_pinocchio(name: str, rng: np.random.Generator) -> None:
         _close(C @ v + np.asarray(symbolic.gravity(q)).ravel(), robot.nonlinear_effects(q, v))
         # Both are the Christoffel matrix C_kj = Σ_i Γ_ijk v_i.
         _close(C, pin.computeCoriolisMatrix(model, data, q, v))
+
+
+@pytest.mark.parametrize("name", list(ROBOTS_UNDER_TEST))
+def test_inertias_as_an_input_give_pinocchio_on_other_inertias(
+    name: str, rng: np.random.Generator
+) -> None:
+    """One set of Functions with ``inertia`` an input: any bodies' inertias, Pinocchio's terms."""
+    robot = ROBOTS_UNDER_TEST[name](rng)
+    symbolic = SymbolicModel(robot, inertia_input=True)
+    for _ in range(3):
+        other = pin.Model(robot.model)
+        for joint in range(1, other.njoints):  # new random bodies, the same kinematic tree
+            other.inertias[joint] = _inertia(rng)
+        data = other.createData()
+        x = inertia_parameters(other)
+        assert x.shape == (INERTIA_SIZE * (other.njoints - 1),)
+        q, v = _state(robot, rng)
+        _close(symbolic.mass_matrix(q, x), pin.crba(other, data, q))
+        _close(symbolic.nonlinear_effects(q, v, x), pin.nonLinearEffects(other, data, q, v))
+        _close(symbolic.gravity(q, x), pin.computeGeneralizedGravity(other, data, q))
+        _close(symbolic.coriolis_matrix(q, v, x), pin.computeCoriolisMatrix(other, data, q, v))
+        potential = pin.computePotentialEnergy(other, data, q)
+        _close(symbolic.potential_energy(q, x), np.array(potential))
 
 
 @pytest.mark.parametrize("name", list(ROBOTS_UNDER_TEST))

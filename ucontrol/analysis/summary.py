@@ -17,12 +17,16 @@ from ucontrol.log import SOLVED, UNSOLVED, Log
 ENERGY_ROUNDING = 1e-9
 
 
-def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, Any]:
+def summarize(
+    log: Log, *, wall_time_s: float, cpu_time_s: float | None = None, theta: float = 0.5
+) -> dict[str, Any]:
     """Summary of a run (keys documented in docs/outputs.md).
 
     Args:
         log: The run's log.
         wall_time_s: Wall-clock duration of the run in [s].
+        cpu_time_s: The process's CPU time over the run in [s] (``time.process_time``: what a
+            loaded machine's other work does not add), or None (not measured).
         theta: θ of the position update, used for the actuator work over a step.
     """
     t = log.t
@@ -44,6 +48,7 @@ def summarize(log: Log, *, wall_time_s: float, theta: float = 0.5) -> dict[str, 
         "final_time": float(t[-1]) if len(log) else 0.0,
         "wall_time_s": float(wall_time_s),
         "us_per_step": 1e6 * wall_time_s / steps if steps else None,
+        "cpu_time_s": None if cpu_time_s is None else float(cpu_time_s),
         "constraints": log.constraint_names,
         "max_penetration": float(max(0.0, -gap.min())) if gap.size else 0.0,
         "n_impacts": int(impacts.sum()),

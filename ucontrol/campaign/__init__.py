@@ -8,10 +8,11 @@ table back. ``import ucontrol`` does not import this package; dask and distribut
 only when a campaign runs, pandas only when a table is built.
 """
 
-from ucontrol.campaign.overrides import apply_overrides
-from ucontrol.campaign.runner import CampaignOutcome, run_campaign, run_task
-from ucontrol.campaign.spec import Campaign, PlannedRun, check_campaign, load_campaign
-from ucontrol.campaign.table import load, wilson_interval
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
 from ucontrol.exceptions import (
     CampaignError,
     CampaignFileError,
@@ -24,6 +25,27 @@ from ucontrol.exceptions import (
     SchedulerUnreachableError,
     UnknownMetricError,
 )
+
+if TYPE_CHECKING:
+    from ucontrol.campaign.overrides import apply_overrides
+    from ucontrol.campaign.runner import CampaignOutcome, run_campaign, run_task
+    from ucontrol.campaign.spec import Campaign, PlannedRun, check_campaign, load_campaign
+    from ucontrol.campaign.table import load, wilson_interval
+
+#: Each public name and its module, imported on first use (``ucontrol run --set`` and the
+#: command line's parser import single modules of the package, not the runner).
+_EXPORTS = {
+    "Campaign": "ucontrol.campaign.spec",
+    "CampaignOutcome": "ucontrol.campaign.runner",
+    "PlannedRun": "ucontrol.campaign.spec",
+    "apply_overrides": "ucontrol.campaign.overrides",
+    "check_campaign": "ucontrol.campaign.spec",
+    "load": "ucontrol.campaign.table",
+    "load_campaign": "ucontrol.campaign.spec",
+    "run_campaign": "ucontrol.campaign.runner",
+    "run_task": "ucontrol.campaign.runner",
+    "wilson_interval": "ucontrol.campaign.table",
+}
 
 __all__ = [
     "Campaign",
@@ -47,3 +69,9 @@ __all__ = [
     "run_task",
     "wilson_interval",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        return getattr(import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

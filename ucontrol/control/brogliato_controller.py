@@ -209,6 +209,10 @@ class BrogliatoController:
         self._run_law = law.runner()
         self._bind_data(self._data)
         inputs["parameters"][:] = _law_parameters(task, gains)  # constant per controller
+        if "inertia" in inputs:  # the model's inertias (e.g. mass-scaled), constant as well
+            from ucontrol.model.symbolic_model import inertia_parameters
+
+            inputs["inertia"][:] = inertia_parameters(model)
         # The other inputs are written in place at each call: v, q ⊖ q_p, the force term, and
         # the columns of the target (X_d, dX_d, ddX_d) and of the reference (X_d, dX_d),
         # each (m,).
@@ -522,32 +526,35 @@ def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
 
 
 def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
-    r"""``(q, v) -> (C (nv, nv), p (3,), J (3, nv), dJ (3, nv))`` of ``frame``, or None.
+    r"""``(q, v, inertia) -> (C (nv, nv), p (3,), J (3, nv), dJ (3, nv))`` of ``frame``, or None.
 
     C(q, v) the Christoffel Coriolis matrix (Pinocchio's to round-off), p the frame's origin in
     the world, :math:`J = \partial p / \partial q` the linear part of its LOCAL_WORLD_ALIGNED
     Jacobian and :math:`\dot J = \partial (J v) / \partial q` (the Hessian of p is
-    symmetric) its time variation, from :class:`~ucontrol.model.symbolic_model.SymbolicModel`.
+    symmetric) its time variation, from :class:`~ucontrol.model.symbolic_model.SymbolicModel`
+    with the bodies' inertias an input (``inertia``,
+    :func:`~ucontrol.model.symbolic_model.inertia_parameters`: one library for every mass scale).
     None above :data:`~ucontrol.model.symbolic_model.SMALL_ROBOT_MAX_NV` joints (where
     Pinocchio's Coriolis pass is faster) or for joints it does not model
     (a free-flyer base, spherical or continuous joints). The second source of the law's
     kinematics beside Pinocchio's pass, kept because it saves more than 5 % of a closed-loop
     step of the two-link scenes (docs/controller.md, "One law, two paths").
     """
-    from ucontrol.model.symbolic_model import SMALL_ROBOT_MAX_NV, SymbolicModel
+    from ucontrol.model.symbolic_model import INERTIA_SIZE, SMALL_ROBOT_MAX_NV, SymbolicModel
 
     if robot.nv > SMALL_ROBOT_MAX_NV or robot.nq != robot.nv:
         return None
     try:
-        model = SymbolicModel(robot)
+        model = SymbolicModel(robot, inertia_input=True)
     except InvalidParameterError:
         return None
     q, v = ca.SX.sym("q", robot.nv), ca.SX.sym("v", robot.nv)
+    inertia = ca.SX.sym("inertia", INERTIA_SIZE * (robot.model.njoints - 1))
     p = model.frame_position(frame)(q)
     J = ca.jacobian(p, q)
     dJ = ca.jacobian(J @ v, q)
-    C = model.coriolis_matrix(q, v)
-    return ca.Function("frame_kinematics", [q, v], [C, p, J, dJ])
+    C = model.coriolis_matrix(q, v, inertia)
+    return ca.Function("frame_kinematics", [q, v, inertia], [C, p, J, dJ])
 
 
 def _rigid_law_function(
@@ -578,7 +585,8 @@ def _rigid_law_function(
     ``data.ov``); the frame's Jacobian and its time variation in LOCAL_WORLD_ALIGNED on the
     columns ``support`` are then those of ``pin.getFrameJacobian`` and
     ``pin.getFrameJacobianTimeVariation``, in their operations. With ``kinematics``
-    (:func:`_symbolic_kinematics`), from ``q`` (nv,) inside the call. Outputs, by name
+    (:func:`_symbolic_kinematics`), from ``q`` (nv,) and the bodies' ``inertia``
+    (:func:`~ucontrol.model.symbolic_model.inertia_parameters`) inside the call. Outputs, by name
     (:data:`LAW_OUTPUTS`): ``tau`` (nv,), ``V1`` and ``V`` on the reference, ``X`` (m,).
 
     With ``clipped_reference`` (``reference_after_impact = "clipped"``, the book's law) the
@@ -624,9 +632,9 @@ def _rigid_law_function(
         inputs |= {"C": C, "J": J_world, "dJ": dJ_world, "p": p}
         inputs["joint_velocity"] = joint_velocity
     else:  # the same terms from the symbolic model
-        q = ca.SX.sym("q", nv)
-        C, p, J_lin, dJ_lin = kinematics(q, v)
-        inputs["q"] = q
+        q, inertia = ca.SX.sym("q", nv), ca.SX.sym("inertia", kinematics.numel_in(2))
+        C, p, J_lin, dJ_lin = kinematics(q, v, inertia)
+        inputs["q"], inputs["inertia"] = q, inertia
     J, dJ = A @ J_lin, A @ dJ_lin
     X = A @ p - b  # [m]
     dX = J @ v

@@ -27,6 +27,8 @@ two triangular solves; the results equal the reference stages to round-off. The 
 applies the impact law (:func:`~ucontrol.integrators.step_stages.newton_offsets`, on casadi's
 symbols) to every row as if it were active, with the rows held by the step memory's
 activation: the contact problem of the step reads the active rows' terms (:meth:`offsets`).
+The restitutions are an input of the call, written once at construction, not constants of its
+C: one library serves every restitution (a Monte Carlo over restitution compiles it once).
 
 With ``single_rows``, the call also solves, for each constraint i in parallel, the step in
 which i alone is active, as the closed form of the one-row LCP
@@ -129,11 +131,13 @@ class CompiledFreeStep:
         delassus = J @ Winv_Jt
         activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
         restitution = np.asarray(rules.restitution, dtype=float)
+        # An input, not constants: one library serves every restitution (Monte Carlo draws).
+        restitution_s = ca.SX.sym("restitution", n)
         offsets = newton_offsets(
             _casadi_ops(),
             gap,
             velocity,
-            ca.DM(restitution),
+            restitution_s,
             activation > 0.0,
             h,
             rules.threshold,
@@ -149,9 +153,9 @@ class CompiledFreeStep:
             *offsets,
         ]
         inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
-        inputs += [activation, kinetic]
+        inputs += [activation, kinetic, restitution_s]
         names = ["q", "v", "tau", "M", "nle", "J_t", "gap", "u", "W0", "Kq", "F", "scalars"]
-        names += ["activation", "kinetic"]
+        names += ["activation", "kinetic", "restitution"]
         if single_rows:
             for i in range(n):
                 parts.append(
@@ -167,7 +171,7 @@ class CompiledFreeStep:
         if self.compiled:
             self.function.bind_input(index("M"), data_M)
             self.function.bind_input(index("nle"), data_nle)
-        for name, value in (("W0", W0), ("Kq", Kq), ("F", F)):
+        for name, value in (("W0", W0), ("Kq", Kq), ("F", F), ("restitution", restitution)):
             self.function.input_view(index(name))[...] = value
         self.function.input_buffer(index("scalars"))[:] = (dt, theta, horizon)
         self.single_rows = single_rows

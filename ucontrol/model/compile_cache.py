@@ -13,6 +13,9 @@ Shared by :mod:`ucontrol.model.compiled_function` (one library per casadi Functi
 - Concurrency: the build of an entry holds an exclusive ``fcntl`` lock on its lock file, and
   the library is written under a temporary name then renamed (atomic on POSIX): concurrent
   processes (tests, dask workers) build it once and never load a partial file.
+- Size: at most :data:`MAX_LIBRARIES` libraries, the least recently used removed after a build
+  (a library's modification time is its last use: each lookup that finds it touches it). A
+  process that has loaded a removed library keeps it; a later lookup builds it again.
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ CACHE_ENV = "UCONTROL_CACHE_DIR"
 CFLAGS = ("-O1", "-fPIC", "-shared")
 #: Seconds a build may take before it is abandoned for the fallback.
 BUILD_TIMEOUT_S = 300.0
+#: Libraries kept in the cache; a build beyond them removes the least recently used.
+MAX_LIBRARIES = 256
 #: Whether this process has said on the terminal that it compiles (said once).
 _announced = False
 
@@ -78,11 +83,11 @@ def build_library(
     directory = cache_dir()
     directory.mkdir(parents=True, exist_ok=True)
     library = directory / f"{stem}_{digest}.so"
-    if library.is_file():
+    if _touch(library):
         return library
     with open(directory / f"{library.name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # one builder; the others wait, then find it built
-        if library.is_file():
+        if _touch(library):
             return library
         _announce(directory)
         with tempfile.TemporaryDirectory(dir=directory) as work:
@@ -96,7 +101,38 @@ def build_library(
                 timeout=BUILD_TIMEOUT_S,
             )
             os.replace(target, library)  # atomic: readers see no partial library
+    _remove_least_recently_used(directory, library)
     return library
+
+
+def _touch(library: Path) -> bool:
+    """Whether ``library`` exists; if so its modification time becomes now (its last use)."""
+    try:
+        os.utime(library)
+    except FileNotFoundError:
+        return False
+    except OSError:  # a read-only cache: found, its use not recorded
+        return library.is_file()
+    return True
+
+
+def _remove_least_recently_used(directory: Path, built: Path) -> None:
+    """Remove the libraries (and their lock files) beyond :data:`MAX_LIBRARIES`, oldest first.
+
+    ``built`` (the library just built) is never removed.
+    """
+    used: list[tuple[float, str]] = []
+    with os.scandir(directory) as entries:
+        for entry in entries:
+            if entry.name.endswith(".so") and entry.name != built.name:
+                try:
+                    used.append((entry.stat().st_mtime, entry.name))
+                except FileNotFoundError:  # removed meanwhile by another process
+                    continue
+    used.sort()
+    for _, name in used[: max(0, len(used) + 1 - MAX_LIBRARIES)]:
+        for path in (directory / name, directory / f"{name}.lock"):
+            path.unlink(missing_ok=True)
 
 
 def _announce(directory: Path) -> None:

@@ -34,6 +34,11 @@ differentiation. The model is rebuilt from ``model.parents``, ``model.jointPlace
 
 Every joint must have one degree of freedom (nq = nv): Pinocchio's RX, RY, RZ,
 RevoluteUnaligned, PX, PY, PZ and PrismaticUnaligned joints.
+
+The bodies' inertias are constants of the expressions, or (``inertia_input=True``) a last input
+``inertia`` of every dynamics Function, :data:`INERTIA_SIZE` numbers per body
+(:func:`inertia_parameters`): then the code generated from them serves every mass and inertia
+of the robot (a Monte Carlo over the model's masses compiles it once).
 """
 
 from __future__ import annotations
@@ -53,6 +58,11 @@ from ucontrol.model.robot_model import RobotModel
 #: Christoffel terms, which grow as nv³ in the C code, dominate (docs/benchmarks.md, sixth
 #: round).
 SMALL_ROBOT_MAX_NV = 3
+
+#: Numbers per body in the ``inertia`` input (:func:`inertia_parameters`): the mass in [kg], the
+#: centre of mass in the joint frame (3,) in [m], the rotational inertia about it in [kg m²] as
+#: (xx, xy, xz, yy, yz, zz).
+INERTIA_SIZE = 10
 
 #: Supported Pinocchio joint types: (kind, axis in the joint frame; None: read it from the joint).
 _JOINT_TYPES: dict[str, tuple[str, tuple[float, float, float] | None]] = {
@@ -75,9 +85,13 @@ class SymbolicModel:
 
     Args:
         robot: A fixed-base robot whose joints are all revolute or prismatic.
+        inertia_input: Make the bodies' inertias a last input ``inertia``
+            (:func:`inertia_parameters`, shape (10 (njoints - 1),)) of the dynamics Functions
+            (M, h, C, g, V) instead of constants.
 
     Attributes:
         nv: Number of joint coordinates (nq = nv).
+        inertia: The symbol of the ``inertia`` input, or None (constants).
         mass_matrix: ``(q (nv,)) -> M (nv, nv)`` in [kg m²] (mixed units).
         nonlinear_effects: ``(q (nv,), v (nv,)) -> h (nv,)``, :math:`C(q, v) v + g(q)` in
             [N m] (or [N]).
@@ -91,12 +105,16 @@ class SymbolicModel:
             base, a spherical or a continuous joint).
     """
 
-    def __init__(self, robot: RobotModel) -> None:
+    def __init__(self, robot: RobotModel, *, inertia_input: bool = False) -> None:
         model = robot.model
         self._robot = robot
         self.nv = model.nv
         q = ca.SX.sym("q", self.nv)
         self._q, self._v = q, ca.SX.sym("v", self.nv)
+        bodies = model.njoints - 1
+        self.inertia = ca.SX.sym("inertia", INERTIA_SIZE * bodies) if inertia_input else None
+        # Each body's (mass, centre of mass (3,), rotational inertia (3, 3)): symbols or values.
+        self._bodies = [self._body_inertia(i) for i in range(1, model.njoints)]
         rotations: list[ca.SX] = [ca.SX.eye(3)]
         positions: list[ca.SX] = [ca.SX.zeros(3)]
         # Each joint's (kind, axis, index, rotation, translation) from its parent's frame.
@@ -138,7 +156,7 @@ class SymbolicModel:
     def nonlinear_effects(self) -> ca.Function:
         r"""``(q (nv,), v (nv,)) -> h (nv,)``, :math:`C(q, v) v + g(q)`, built on first use."""
         h = self._rnea(self._v, ca.SX.zeros(self.nv), gravity=True)
-        return ca.Function("h", [self._q, self._v], [h], ["q", "v"], ["h"])
+        return self._function("h", [self._q, self._v], h, ["q", "v"])
 
     @property
     def gravity(self) -> ca.Function:
@@ -163,19 +181,41 @@ class SymbolicModel:
         gravity = ca.DM(np.asarray(model.gravity.linear))
         potential = ca.SX.zeros(1)
         for i in range(1, model.njoints):
-            inertia = model.inertias[i]
-            centre = self._positions[i] + self._rotations[i] @ ca.DM(inertia.lever)  # [m]
-            potential -= inertia.mass * ca.dot(gravity, centre)
+            mass, lever, _ = self._bodies[i - 1]
+            centre = self._positions[i] + self._rotations[i] @ lever  # [m]
+            potential -= mass * ca.dot(gravity, centre)
         M_v = M @ v
         dM_v = ca.jacobian(M_v, q)
         M_dot = ca.reshape(ca.jacobian(ca.vec(M), q) @ v, nv, nv)
         C = 0.5 * (M_dot + dM_v - dM_v.T)
         return (
-            ca.Function("M", [q], [M], ["q"], ["M"]),
-            ca.Function("C", [q, v], [C], ["q", "v"], ["C"]),
-            ca.Function("g", [q], [self._rnea(None, zero, gravity=True)], ["q"], ["g"]),
-            ca.Function("V", [q], [potential], ["q"], ["V"]),
+            self._function("M", [q], M, ["q"]),
+            self._function("C", [q, v], C, ["q", "v"]),
+            self._function("g", [q], self._rnea(None, zero, gravity=True), ["q"]),
+            self._function("V", [q], potential, ["q"]),
         )
+
+    def _function(self, name: str, inputs: list[ca.SX], output: ca.SX, names: list[str]) -> Any:
+        """``ca.Function`` ``name`` of ``inputs`` (and of :attr:`inertia` if it is an input)."""
+        if self.inertia is not None:
+            inputs, names = [*inputs, self.inertia], [*names, "inertia"]
+        return ca.Function(name, inputs, [output], names, [name])
+
+    def _body_inertia(self, joint: int) -> tuple[Any, Any, Any]:
+        """Mass, centre of mass (3,) and rotational inertia (3, 3) of body ``joint``.
+
+        Values (a float and ``casadi.DM``) or, with :attr:`inertia`, its entries in the order
+        of :func:`inertia_parameters`.
+        """
+        if self.inertia is None:
+            inertia = self._robot.model.inertias[joint]
+            return inertia.mass, ca.DM(inertia.lever), ca.DM(inertia.inertia)
+        x = self.inertia[INERTIA_SIZE * (joint - 1) : INERTIA_SIZE * joint]
+        xx, xy, xz, yy, yz, zz = (x[k] for k in range(4, 10))
+        rotational = ca.vertcat(
+            ca.horzcat(xx, xy, xz), ca.horzcat(xy, yy, yz), ca.horzcat(xz, yz, zz)
+        )
+        return x[0], x[1:4], rotational
 
     def _rnea(self, v: ca.SX | None, a: ca.SX, *, gravity: bool) -> ca.SX:
         """Joint torques at velocities ``v`` and accelerations ``a`` (expressions, (nv,)).
@@ -210,9 +250,7 @@ class SymbolicModel:
                 acc_ang = acc_ang + ca.cross(ang, s_ang * qd)
                 velocity.append((lin, ang))
             acceleration.append((acc_lin, acc_ang))
-            inertia = model.inertias[i]
-            mass, c = inertia.mass, ca.DM(inertia.lever)
-            I_c = ca.DM(inertia.inertia)  # [kg m²] about the centre of mass
+            mass, c, I_c = self._bodies[i - 1]  # [kg], [m], [kg m²] about the centre of mass
             # I a and I v: linear m (a_v + a_ω × c), angular I_c a_ω + c × linear
             f_lin = mass * (acc_lin + ca.cross(acc_ang, c))
             f_ang = I_c @ acc_ang + ca.cross(c, f_lin)
@@ -272,3 +310,16 @@ def _rotation(axis: np.ndarray, angle: ca.SX) -> ca.SX:
     """
     skew = ca.DM([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     return ca.DM.eye(3) + ca.sin(angle) * skew + (1.0 - ca.cos(angle)) * (skew @ skew)
+
+
+def inertia_parameters(model: pin.Model) -> np.ndarray:
+    """The ``inertia`` input of :class:`SymbolicModel` for ``model``'s bodies.
+
+    Per body (joint 1 to njoints - 1): mass [kg], centre of mass in the joint frame (3,) [m],
+    rotational inertia about it (xx, xy, xz, yy, yz, zz) [kg m²]; shape (10 (njoints - 1),).
+    """
+    values = []
+    for inertia in model.inertias[1:]:
+        I_c = np.asarray(inertia.inertia)
+        values += [inertia.mass, *inertia.lever, *I_c[0], *I_c[1, 1:], I_c[2, 2]]
+    return np.asarray(values, dtype=float)

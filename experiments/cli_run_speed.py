@@ -1,0 +1,101 @@
+r"""``ucontrol run`` against the same loop in process: the command's cost and its real-time factors.
+
+For each scene, ``--rounds`` times, interleaved: the command ``python -m ucontrol.cli run SCENE
+--no-progress`` in a new process (its whole CPU time, user + system, and its wall time, from the
+operating system), with the real-time factors its summary reports (simulated time over the
+loop's wall time and over the loop's CPU time, ``summary.json``'s ``wall_time_s`` and
+``cpu_time_s``); then the same scene in this process, a run after a warm-up run (imports done,
+compiled laws loaded), its loop's CPU real-time factor. The default scene is the one ``ucontrol
+run`` runs without a scene (``two_link_drop``). Medians over the rounds; the load average (the
+other processes' work on a shared machine) is printed with them.
+
+Run: ``python experiments/cli_run_speed.py --scenes default two_link_one_constraint panda_table
+--rounds 5``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+#: The name that stands for ``ucontrol run`` without a scene.
+DEFAULT = "default"
+
+
+def main(argv: Sequence[str] | None = None) -> dict[str, dict[str, float]]:
+    """Measure each scene; print one markdown table; return the medians per scene."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--scenes", nargs="+", default=[DEFAULT, "two_link_one_constraint", "panda_table"]
+    )
+    parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds")
+    args = parser.parse_args(argv)
+
+    samples: dict[str, list[dict[str, float]]] = {scene: [] for scene in args.scenes}
+    with tempfile.TemporaryDirectory() as work:
+        for _ in range(args.rounds):
+            for scene in args.scenes:
+                out = Path(work) / scene
+                samples[scene].append({**_command(scene, out), **_in_process(scene)})
+    figures = {
+        scene: {key: statistics.median(run[key] for run in runs) for key in runs[0]}
+        for scene, runs in samples.items()
+    }
+    print(f"{args.rounds} rounds, load average {os.getloadavg()[0]:.1f} (1 min)")
+    print(
+        "| scene | command CPU [s] | command wall [s] | reported RTF, wall | reported RTF, CPU "
+        "| in-process RTF, CPU | reported / in-process |\n|---|---|---|---|---|---|---|"
+    )
+    for scene, f in figures.items():
+        print(
+            f"| {scene} | {f['command_cpu_s']:.3f} | {f['command_wall_s']:.3f} "
+            f"| {f['rtf_wall']:.1f}× | {f['rtf_cpu']:.1f}× | {f['in_process_rtf_cpu']:.1f}× "
+            f"| {f['rtf_cpu'] / f['in_process_rtf_cpu']:.2f} |"
+        )
+    return figures
+
+
+def _command(scene: str, out: Path) -> dict[str, float]:
+    """``ucontrol run`` in a new process: its CPU and wall time and its summary's RTFs."""
+    command = [sys.executable, "-m", "ucontrol.cli", "run", "--out", str(out), "--no-progress"]
+    if scene != DEFAULT:
+        command.insert(4, scene)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run(command, check=True, capture_output=True)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    summary = json.loads((out / "summary.json").read_text())
+    simulated = summary["final_time"]
+    return {
+        "command_cpu_s": cpu,
+        "command_wall_s": wall,
+        "rtf_wall": simulated / summary["wall_time_s"],
+        "rtf_cpu": simulated / summary["cpu_time_s"],
+    }
+
+
+def _in_process(scene: str) -> dict[str, float]:
+    """The loop's CPU real-time factor of a run in this process after a warm-up run."""
+    from ucontrol.scene import load_scene
+    from ucontrol.scene.builtin_scenes import DEFAULT_SCENE
+    from ucontrol.simulate import simulate
+
+    name = Path(DEFAULT_SCENE).stem if scene == DEFAULT else scene
+    simulate(load_scene(name), progress=False)  # warm-up: imports, compiled laws loaded
+    summary = simulate(load_scene(name), progress=False).summary
+    return {"in_process_rtf_cpu": summary["final_time"] / summary["cpu_time_s"]}
+
+
+if __name__ == "__main__":
+    main()
