@@ -25,14 +25,17 @@ stride is refused (:class:`~ucontrol.exceptions.StrideError`) rather than contin
 model that does not hold. This is the event-driven reference of the walkers run by
 Moreau–Jean with Coulomb friction (the event-driven integrator,
 :mod:`ucontrol.integrators.event_driven`, is frictionless). Robots with ``nq == nv`` only
-(planar walkers on prismatic and revolute joints); the joints receive no input.
+(planar walkers on prismatic and revolute joints). The joints receive no input, or those of a
+state-feedback law given the stance foot (``law``, e.g.
+:meth:`~ucontrol.control.hzd_controller.HZDController.torque`), evaluated inside the
+right-hand side (no zero-order hold): the stride map of a walker in closed loop.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -48,6 +51,13 @@ Vector = NDArray[np.float64]
 _LWA = pin.LOCAL_WORLD_ALIGNED
 #: Gap in [m] below which a foot counts as on the ground at the start of a stride.
 STANCE_GAP_TOLERANCE = 1e-9
+
+
+class WalkingLaw(Protocol):
+    """A state-feedback law given the stance foot."""
+
+    def torque(self, q: Vector, v: Vector, contact: int) -> Vector:
+        """Actuator inputs, shape (nu,), at (q (nq,), v (nv,)) on the foot ``contact``."""
 
 
 @dataclass(frozen=True)
@@ -84,6 +94,7 @@ class StanceFlow:
             reaches the ground behind the stance foot along it does not strike (a point foot
             scuffing the ground as the legs cross, ignored as in Garcia et al. 1998): the strike
             event of foot :math:`b` is :math:`g_b + \max(0, -(p_b - p_s) \cdot a)`.
+        law: The actuators' law given the stance contact's index, or None (a passive walker).
 
     Raises:
         InvalidParameterError: The robot has nq != nv, or a constraint is not a sticking point
@@ -98,6 +109,7 @@ class StanceFlow:
         atol: float = 1e-12,
         max_duration: float = 10.0,
         ahead: Vector | None = None,
+        law: WalkingLaw | None = None,
     ) -> None:
         robot = constraints.robot
         if robot.nq != robot.nv:
@@ -124,6 +136,9 @@ class StanceFlow:
         self._data = pin.Data(robot.model)
         self._drift_data = pin.Data(robot.model)
         self._frames = [robot.frame_id(contact.frame) for contact in constraints.contacts]
+        self.law = law
+        self._selection = np.zeros((robot.nv, robot.nu))
+        self._selection[robot.actuated, np.arange(robot.nu)] = 1.0
 
     def stance_of(self, q: Vector, v: Vector) -> int:
         """The stance foot at (q, v): of the feet on the ground, the one moving least upwards.
@@ -213,8 +228,12 @@ class StanceFlow:
         nv, mu = self.robot.nv, self.constraints.friction[stance]
         others = [i for i in range(self.constraints.size) if i != stance]
 
+        def pinned(y: Vector) -> tuple[Vector, Vector]:
+            q, v = y[:nv], y[nv:]
+            return self.acceleration(q, v, stance, self._input(q, v, stance))
+
         def rate(_: float, y: Vector) -> Vector:
-            return np.concatenate((y[nv:], self.acceleration(y[:nv], y[nv:], stance)[0]))
+            return np.concatenate((y[nv:], pinned(y)[0]))
 
         def strike_event(i: int) -> Callable[[float, Vector], float]:
             def event(_: float, y: Vector) -> float:
@@ -224,10 +243,10 @@ class StanceFlow:
             return event
 
         def lift_off(_: float, y: Vector) -> float:
-            return float(self.acceleration(y[:nv], y[nv:], stance)[1][0])
+            return float(pinned(y)[1][0])
 
         def slip(_: float, y: Vector) -> float:
-            force = self.acceleration(y[:nv], y[nv:], stance)[1]
+            force = pinned(y)[1]
             return float(mu * force[0] - np.linalg.norm(force[1:]))
 
         y0 = np.concatenate((q, v))
@@ -278,6 +297,12 @@ class StanceFlow:
         if solution.status == -1:
             raise StrideError(float(solution.t[-1]), f"solve_ivp failed: {solution.message}")
         return solution
+
+    def _input(self, q: Vector, v: Vector, stance: int) -> Vector | None:
+        """The law's generalized force (nv,) with the foot ``stance`` down, or None."""
+        if self.law is None:
+            return None
+        return self._selection @ np.asarray(self.law.torque(q, v, stance), dtype=float)
 
     def _behind(self, q: Vector, foot: int, stance: int) -> float:
         """How far ``foot`` is behind the stance foot along :attr:`ahead` in [m] (0 if ahead)."""

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     )
     from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
     from ucontrol.control.friction_compensation import FrictionCompensation
+    from ucontrol.control.hzd_controller import HZDController, HZDSettings
     from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
     from ucontrol.control.joint_pd import JointPD
     from ucontrol.control.juggling_controller import (
@@ -54,6 +55,8 @@ __all__ = [
     "Event",
     "FlexibleBrogliatoController",
     "FrictionCompensation",
+    "HZDController",
+    "HZDSettings",
     "ImpedanceController",
     "ImpedanceGains",
     "JointPD",
@@ -92,6 +95,8 @@ _MODULES = {
     "Event": "ucontrol.control.phase",
     "FlexibleBrogliatoController": "ucontrol.control.flexible_brogliato_controller",
     "FrictionCompensation": "ucontrol.control.friction_compensation",
+    "HZDController": "ucontrol.control.hzd_controller",
+    "HZDSettings": "ucontrol.control.hzd_controller",
     "ImpedanceController": "ucontrol.control.impedance_controller",
     "ImpedanceGains": "ucontrol.control.impedance_controller",
     "JointPD": "ucontrol.control.joint_pd",

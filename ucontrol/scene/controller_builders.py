@@ -24,6 +24,7 @@ from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import NotFoundError, SceneError
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.model_uncertainty import perturbed_robot
+from ucontrol.scene.hzd_table import HZD_KEYS, hzd_from_table
 from ucontrol.scene.impedance_table import (
     IMPEDANCE_KEYS,
     impedance_arguments,
@@ -62,6 +63,7 @@ _CONTROLLER_KEYS = {
     "juggling": JUGGLING_KEYS,
     "pronk": PRONK_KEYS,
     "raibert": RAIBERT_KEYS,
+    "hzd": HZD_KEYS,
 }
 # Every controller may run on its own model of the scene ([controller.model]).
 _CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
@@ -224,4 +226,5 @@ _BUILDERS: dict[str, Callable[[SceneData, Mapping[str, Any]], Controller]] = {
     "juggling": juggling_from_table,
     "pronk": pronk_from_table,
     "raibert": raibert_from_table,
+    "hzd": hzd_from_table,
 }
