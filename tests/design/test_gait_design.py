@@ -181,9 +181,10 @@ def test_scene_text_has_the_hzd_interface(gait: DesignedGait, task: GaitTask) ->
     assert np.asarray(controller["bezier"]).shape == (4, task.degree + 1)
     assert controller["legs"] == [list(leg) for leg in task.legs]
     assert controller["theta_plus"] < 0.0 < controller["theta_minus"]
-    np.testing.assert_array_equal(scene["robot"]["q0"], gait.q[0])
-    foot = task.robot.frame_position(np.asarray(scene["robot"]["q0"]), "foot_left")
-    assert abs(foot[2]) < 1e-9
+    q0 = np.asarray(scene["robot"]["q0"])
+    np.testing.assert_allclose(q0, gait.q[0], atol=1e-4)  # raised by the RK4 drift at most
+    heights = [task.robot.frame_position(q0, foot)[2] for foot in ("foot_left", "foot_right")]
+    assert min(heights) >= 0.0 and max(heights) < 1e-4
     assert all(c["restitution"] == 0.0 for c in scene["contacts"])
     assert scene["integrator"]["name"] == "moreau_jean"
 

@@ -152,7 +152,8 @@ def hzd_scene_text(
     """The TOML text of a scene walking the designed step under the HZD controller.
 
     Planar robot on the flat ground z = 0, point feet with Coulomb friction, plastic impacts
-    (e = 0), Moreau–Jean; q0 and v0 the designed step's start.
+    (e = 0), Moreau–Jean; q0 and v0 the designed step's start (q0 raised by the swing foot's
+    depth below the ground, the RK4 drift of the design's pinned foot, if any).
 
     Args:
         gait: The designed step.
@@ -166,6 +167,11 @@ def hzd_scene_text(
         name: The scene's name.
     """
     robot = gait.robot
+    # the swing foot starts where the stance foot ended, below the ground by the RK4 drift of
+    # the pinned foot (~1e-6 m): the robot is lifted by it so that the plant starts clear
+    q0 = gait.q[0].copy()
+    feet = [robot.frame_position(q0, leg[2])[2] for leg in gait.legs]
+    q0[1] += max(0.0, -min(feet))
 
     def numbers(values: Vector) -> str:
         return "[" + ", ".join(repr(float(x)) for x in values) + "]"
@@ -180,7 +186,7 @@ def hzd_scene_text(
     return f"""# {name}: a walking step of {robot.name} designed by optimal control (casadi,
 # IPOPT) and tracked by the hybrid-zero-dynamics controller, its virtual constraints the Bézier
 # fit of the designed step (degree {fit.degree}, rms error {fit.rms_error:.2e} rad). Written by
-# `ucontrol design` / experiments/biped_gait_design.py (docs/legged.md, "Designing a gait"):
+# `ucontrol design` / experiments/biped_gait_ocp.py (docs/legged.md, "Designing a gait"):
 # step length {gait.step_length:.4g} m, step time {gait.step_time:.6g} s,
 # speed {gait.speed:.4g} m/s.
 # Released at the designed step's start, just after a heel strike of {gait.stance}.
@@ -191,7 +197,7 @@ duration = {duration!r}
 urdf = "{urdf}"
 passive = {list(robot.joint_names[:3])!r}
 planar_axis = [0.0, 1.0, 0.0]
-q0 = {numbers(gait.q[0])}
+q0 = {numbers(q0)}
 v0 = {numbers(gait.v[0])}
 gravity = {numbers(robot.gravity)}
 
