@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import tomllib
 from pathlib import Path
@@ -10,17 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import load_experiment
+from test_design_command import _parse
 
-from ucontrol.design.command import add_design_parser, run_design
+from ucontrol.design.command import run_design
 from ucontrol.exceptions import InvalidParameterError
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
-
-
-def _parse(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="ucontrol")
-    add_design_parser(parser.add_subparsers(dest="command", required=True))
-    return parser.parse_args(argv)
 
 
 def _write_task(path: Path, **changes: object) -> Path:

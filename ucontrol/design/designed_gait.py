@@ -98,16 +98,16 @@ class DesignedGait:
             friction: Coulomb coefficient the step was designed with.
 
         Returns:
-            ``pinned_foot`` (largest distance of the stance foot from its start at the grid
-            points [m]), ``stance_start`` (|stance foot at t = 0| [m]), ``impact_momentum``
-            (:math:`|M(v^+ - v^-) - J_w^T\Lambda|_\infty` [N s]), ``impact_velocity``
-            (:math:`|J_w v^+|_\infty` [m/s]), ``liftoff_velocity`` (the old stance foot's
-            normal velocity after the strike [m/s], >= 0 expected), ``periodic_q``,
-            ``periodic_v`` (:math:`|R q^- - q_0 - L e_x|_\infty`, :math:`|R v^+ - v_0|_\infty`),
-            ``landing`` (|swing foot at the strike - (L, 0)| [m]), ``friction_margin``
-            (largest :math:`|\lambda_t| - \mu\lambda_n` over the grid and the impulse, <= 0
-            expected [N]), ``min_normal_force`` [N], ``min_swing_height`` (over the inner grid
-            points [m]).
+            ``pinned_foot``: largest distance of the stance foot from its start at the grid
+            points [m]; ``stance_start``: its distance from the origin at t = 0 [m];
+            ``impact_momentum``: :math:`|M(v^+ - v^-) - J_w^T\Lambda|_\infty` [N s];
+            ``impact_velocity``: :math:`|J_w v^+|_\infty` [m/s]; ``liftoff_velocity``: the old
+            stance foot's normal velocity after the strike [m/s], >= 0 expected;
+            ``periodic_q``, ``periodic_v``: :math:`|R q^- - q_0 - L e_x|_\infty`,
+            :math:`|R v^+ - v_0|_\infty`; ``landing``: distance of the swing foot at the strike
+            from (L, 0) [m]; ``friction_margin``: largest :math:`|\lambda_t| - \mu\lambda_n`
+            over the grid and the impulse, <= 0 expected [N]; ``min_normal_force`` [N];
+            ``min_swing_height``: over the inner grid points [m].
         """
         robot = self.robot
         stance = robot.frame_path(self.q, self.stance)[:, [0, 2]]

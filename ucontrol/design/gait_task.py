@@ -26,8 +26,10 @@ Format (``kind = "gait"`` tells ``ucontrol design`` that the file is a gait task
 
     [limits]
     torque = 150.0                           # [N m] on every actuated joint
-    knee_min = 0.0                           # [rad] knees bend one way only (no hyperextension)
+    knee = [0.0, 2.5]                        # [rad] knee bounds (bent one way, no hyperextension)
+    hip = [-1.5, 1.5]                        # [rad] hip bounds
     pitch = [-0.5, 0.5]                      # [rad] torso angle bounds
+    hip_height = 0.0                         # [m] smallest height of the hips above the ground
     impact_impulse = 50.0                    # [N s] largest normal heel-strike impulse
 
     [grid]
@@ -72,25 +74,19 @@ from ucontrol.model.robot_model import RobotModel
 
 Vector = NDArray[np.float64]
 
-_TOP_KEYS = {
-    "kind",
-    "urdf",
-    "passive",
-    "legs",
+#: Top-level keys passed to :class:`GaitTask` as they are.
+_PLAIN_KEYS = (
     "stance",
-    "step_length",
     "speed",
     "step_time_min",
     "step_time_max",
     "friction",
     "clearance",
     "force_min",
-    "limits",
-    "grid",
-    "fit",
-    "solver",
-}
-_LIMIT_KEYS = {"torque", "knee_min", "pitch", "impact_impulse"}
+)
+_TOP_KEYS = {"kind", "urdf", "passive", "legs", "step_length", "limits", "grid", "fit", "solver"}
+_TOP_KEYS |= set(_PLAIN_KEYS)
+_LIMIT_KEYS = {"torque", "knee", "hip", "pitch", "hip_height", "impact_impulse"}
 _GRID_KEYS = {"intervals", "substeps"}
 _FIT_KEYS = {"degree", "weight", "kp", "kd"}
 _SOLVER_KEYS = {"max_iter", "tol", "print_level"}
@@ -115,8 +111,10 @@ class GaitTask:
             least ``clearance * 4 s (1 - s)``, s in [0, 1] the fraction of the step time.
         force_min: Smallest normal force on the stance foot in [N], >= 0.
         torque_limit: Largest absolute torque of the actuated joints in [N m], > 0.
-        knee_min: Smallest knee angle in [rad] (None: free).
+        knee_bounds: Knee angle bounds (lower, upper) in [rad].
+        hip_bounds: Hip angle bounds (lower, upper) in [rad].
         pitch_bounds: Torso angle bounds (lower, upper) in [rad].
+        hip_height_min: Smallest height of the hips above the ground in [m].
         impact_impulse: Largest normal heel-strike impulse in [N s].
         intervals: Control intervals of the step (piecewise-constant torques).
         substeps: RK4 steps per control interval.
@@ -143,8 +141,10 @@ class GaitTask:
     clearance: float = 0.05
     force_min: float = 0.0
     torque_limit: float = 150.0
-    knee_min: float | None = 0.0
+    knee_bounds: tuple[float, float] = (0.0, 2.5)
+    hip_bounds: tuple[float, float] = (-1.5, 1.5)
     pitch_bounds: tuple[float, float] = (-0.5, 0.5)
+    hip_height_min: float = 0.0
     impact_impulse: float = 50.0
     intervals: int = 30
     substeps: int = 2
@@ -194,12 +194,13 @@ class GaitTask:
             object.__setattr__(self, name, as_non_negative(name, getattr(self, name)))
         for name in ("torque_limit", "impact_impulse", "kp", "kd", "tol"):
             object.__setattr__(self, name, as_positive(name, getattr(self, name)))
-        if self.knee_min is not None:
-            object.__setattr__(self, "knee_min", as_float("knee_min", self.knee_min))
-        pitch = as_vector("pitch", self.pitch_bounds, 2)
-        if not pitch[0] < pitch[1]:
-            raise InvalidParameterError("pitch", self.pitch_bounds, "[lower, upper], lower < upper")
-        object.__setattr__(self, "pitch_bounds", (float(pitch[0]), float(pitch[1])))
+        for key, name in (
+            ("knee", "knee_bounds"),
+            ("hip", "hip_bounds"),
+            ("pitch", "pitch_bounds"),
+        ):
+            object.__setattr__(self, name, _bounds(key, getattr(self, name)))
+        object.__setattr__(self, "hip_height_min", as_float("hip_height", self.hip_height_min))
         object.__setattr__(self, "intervals", as_int("intervals", self.intervals, 4))
         object.__setattr__(self, "substeps", as_int("substeps", self.substeps, 1))
         object.__setattr__(self, "max_iter", as_int("max_iter", self.max_iter, 1))
@@ -267,26 +268,16 @@ class GaitTask:
         except TypeError as error:
             expected = "two [hip, knee, foot] triples"
             raise InvalidParameterError("legs", legs_raw, expected) from error
-        kwargs: dict[str, Any] = {
-            key: data[key]
-            for key in (
-                "stance",
-                "speed",
-                "step_time_min",
-                "step_time_max",
-                "friction",
-                "clearance",
-                "force_min",
-            )
-            if key in data
-        }
+        kwargs: dict[str, Any] = {key: data[key] for key in _PLAIN_KEYS if key in data}
         kwargs.setdefault("stance", legs[0][2] if legs and len(legs[0]) == 3 else "")
         limits = data.get("limits", {})
         check_keys("limits", limits, _LIMIT_KEYS)
         for key, name in (
             ("torque", "torque_limit"),
-            ("knee_min", "knee_min"),
+            ("knee", "knee_bounds"),
+            ("hip", "hip_bounds"),
             ("pitch", "pitch_bounds"),
+            ("hip_height", "hip_height_min"),
             ("impact_impulse", "impact_impulse"),
         ):
             if key in limits:
@@ -304,3 +295,11 @@ class GaitTask:
             source=source,
             **kwargs,
         )
+
+
+def _bounds(name: str, value: Any) -> tuple[float, float]:
+    """``value`` as finite bounds (lower, upper) with lower < upper, or a typed error."""
+    bounds = as_vector(name, value, 2)
+    if not bounds[0] < bounds[1]:
+        raise InvalidParameterError(name, value, "[lower, upper] with lower < upper")
+    return float(bounds[0]), float(bounds[1])

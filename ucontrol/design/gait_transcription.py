@@ -107,6 +107,7 @@ class GaitTranscription:
         f["interval"] = _rk4_interval(rate, f["force"], task.substeps, nv, nu)
         p_hip = model.frame_position(task.stance_leg[0])(q)[[0, 2]]
         theta = ca.atan2(p_hip[0] - p_s[0], p_hip[1] - p_s[1])  # phase θ [rad]
+        f["hip_height"] = ca.Function("hip_z", [q], [p_hip[1]])
         f["theta"] = ca.Function("theta", [q], [theta])
         f["theta_rate"] = ca.Function("theta_dot", [q, v], [ca.jacobian(theta, q) @ v])
         self.functions = f
@@ -127,6 +128,8 @@ class GaitTranscription:
         for k in range(N):
             x_next, forces = f["interval"](X[:, k], U[:, k], dt)  # forces (2, S)
             opti.subject_to(X[:, k + 1] == x_next)
+            if k == N - 1:  # and at the step's end, with the last interval's torques
+                forces = ca.horzcat(forces, f["force"](X[:, N], U[:, k]))
             opti.subject_to(forces[1, :] >= task.force_min)
             opti.subject_to(forces[0, :] - mu * forces[1, :] <= 0)
             opti.subject_to(-forces[0, :] - mu * forces[1, :] <= 0)
@@ -136,13 +139,15 @@ class GaitTranscription:
                 opti.subject_to(f["swing"](X[:nv, k])[1] >= task.clearance * 4 * s * (1 - s))
         opti.subject_to(ca.vec(U) <= task.torque_limit)
         opti.subject_to(ca.vec(U) >= -task.torque_limit)
-        pitch = task.robot.joint_names.index("pitch") if "pitch" in task.robot.joint_names else 2
-        opti.subject_to(X[pitch, :] >= task.pitch_bounds[0])
-        opti.subject_to(X[pitch, :] <= task.pitch_bounds[1])
-        if task.knee_min is not None:
-            for leg in task.legs:
-                knee = task.robot.model.joints[task.robot.joint_id(leg[1])].idx_v
-                opti.subject_to(X[knee, :] >= task.knee_min)
+        # the base's third coordinate is the torso's pitch (GaitTask checks the base)
+        bounded = [(2, task.pitch_bounds)]
+        for leg in task.legs:
+            for joint, bounds in zip(leg[:2], (task.hip_bounds, task.knee_bounds), strict=True):
+                bounded.append((task.robot.model.joints[task.robot.joint_id(joint)].idx_v, bounds))
+        for index, (lower, upper) in bounded:
+            opti.subject_to(opti.bounded(lower, X[index, :], upper))
+        hip_z = ca.horzcat(*[f["hip_height"](X[:nv, k]) for k in range(N + 1)])
+        opti.subject_to(hip_z >= task.hip_height_min)
         q0, v0 = X[:nv, 0], X[nv:, 0]
         q_minus, v_minus = X[:nv, N], X[nv:, N]
         opti.subject_to(f["stance"](q0) == 0)
@@ -271,10 +276,13 @@ class GaitTranscription:
             },
         )
         start = time.process_time()
-        solution = opti.solve_limited()  # a failed solve is reported below, not raised
+        value: Any
+        try:
+            solution = opti.solve_limited()  # a failed solve is reported below, not raised
+            value, stats = solution.value, solution.stats()
+        except RuntimeError:  # casadi raises on some failures anyway (infeasible, restoration)
+            value, stats = opti.debug.value, opti.debug.stats()
         cpu = time.process_time() - start
-        stats = solution.stats()
-        value = solution.value
         N, S = task.intervals, task.substeps
         X = np.asarray(value(handles["X"]), dtype=float).reshape(2 * nv, N + 1)
         U = np.asarray(value(handles["U"]), dtype=float).reshape(task.robot.nu, N)
