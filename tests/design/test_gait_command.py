@@ -11,6 +11,7 @@ import pytest
 from conftest import load_experiment
 from test_design_command import _parse
 
+from ucontrol.cli import main
 from ucontrol.design.command import run_design
 from ucontrol.exceptions import InvalidParameterError
 
@@ -44,11 +45,15 @@ def test_design_writes_the_step_the_scene_and_the_figure(tmp_path: Path, capsys)
     assert (out / "gait.png").is_file() and (out / "gait.npz").is_file()
 
 
-def test_bad_gait_task_is_a_typed_error_before_the_solve(tmp_path: Path) -> None:
+def test_bad_gait_task_is_a_typed_error_before_the_solve(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     task = _write_task(tmp_path / "t.toml", step_length=-0.4)
     with pytest.raises(InvalidParameterError, match="step_length"):
         run_design(_parse(["design", str(task), "--out", str(tmp_path / "out")]))
     assert not (tmp_path / "out").exists()
+    # the command line: one line naming the key, exit status 2
+    assert main(["design", str(task), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "step_length" in error and "-0.4" in error and len(error.splitlines()) == 1
 
 
 @pytest.mark.slow

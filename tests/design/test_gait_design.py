@@ -78,6 +78,7 @@ def test_ipopt_solves_the_step(gait: DesignedGait, task: GaitTask) -> None:
     assert gait.success, gait.status
     assert gait.status == "Solve_Succeeded"
     assert gait.max_violation < _EQUALITY_TOL
+    assert gait.stationarity < 1e-6  # KKT: the Lagrangian's gradient, IPOPT's multipliers
     assert gait.step_time == pytest.approx(task.step_length / task.speed, rel=1e-9)
     assert gait.cost > 0.0
 

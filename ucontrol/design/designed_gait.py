@@ -23,7 +23,7 @@ Legs = tuple[tuple[str, str, str], tuple[str, str, str]]
 
 @dataclass(frozen=True, kw_only=True)
 class DesignedGait:
-    """One designed step of a planar biped, from just after a heel strike to the next one.
+    r"""One designed step of a planar biped, from just after a heel strike to the next one.
 
     Attributes:
         robot: The biped (planar base x, z, pitch first).
@@ -46,6 +46,8 @@ class DesignedGait:
         iterations: IPOPT iterations.
         cpu_time: Processor time of the solve in [s].
         max_violation: Largest constraint violation of the program at the solution.
+        stationarity: :math:`\|\nabla f + J_g^T\lambda\|_\infty` of the scaled program at the
+            solution, from casadi's Jacobians and IPOPT's multipliers (KKT stationarity).
     """
 
     robot: RobotModel
@@ -66,6 +68,7 @@ class DesignedGait:
     iterations: int
     cpu_time: float
     max_violation: float
+    stationarity: float
 
     @property
     def step_time(self) -> float:
@@ -155,6 +158,7 @@ class DesignedGait:
             "speed_m_s": self.speed,
             "impulse_N_s": self.impulse.tolist(),
             "max_violation": self.max_violation,
+            "stationarity": self.stationarity,
             "residuals": self.residuals(friction),
         }
 

@@ -297,6 +297,9 @@ class GaitTranscription:
         lbg = np.atleast_1d(np.asarray(value(opti.lbg), dtype=float).ravel())
         ubg = np.atleast_1d(np.asarray(value(opti.ubg), dtype=float).ravel())
         violation = float(np.max(np.maximum(lbg - g, g - ubg), initial=0.0))
+        # KKT stationarity of the scaled program from casadi's Jacobians and IPOPT's multipliers
+        gradient = ca.gradient(opti.f, opti.x) + ca.jacobian(opti.g, opti.x).T @ opti.lam_g
+        stationarity = float(np.max(np.abs(np.asarray(value(gradient), dtype=float))))
         gait = DesignedGait(
             robot=task.robot,
             legs=task.legs,
@@ -316,6 +319,7 @@ class GaitTranscription:
             iterations=int(stats.get("iter_count", 0)),
             cpu_time=cpu,
             max_violation=violation,
+            stationarity=stationarity,
         )
         if not gait.success:
             binding = [(f"the step (IPOPT: {gait.status})", violation)]
