@@ -44,6 +44,7 @@ from scipy.optimize import minimize
 
 from ucontrol.analysis.stance_flow import StanceFlow
 from ucontrol.control.hzd_controller import HZDController, HZDSettings, Leg, bezier
+from ucontrol.model.robot_model import RobotModel
 from ucontrol.scene import load_scene
 
 #: The degree of the Bézier polynomials.
@@ -56,6 +57,18 @@ FRICTION = 0.6
 CLEARANCE = 0.04
 #: (q index, v index) of hip, knee of the left and right legs in robots/rabbit.urdf.
 LEFT, RIGHT = (3, 4), (5, 6)
+FEET = ("foot_left", "foot_right")
+
+
+def momentum(robot: RobotModel, q: np.ndarray, v: np.ndarray, foot: str) -> float:
+    """Angular momentum of the robot about a foot frame, about the y axis [kg m²/s]."""
+    model = robot.model
+    data = pin.Data(model)
+    pin.computeCentroidalMomentum(model, data, q, v)
+    com = pin.centerOfMass(model, data, q, v)
+    r = com - robot.frame_position(q, foot)
+    p = pin.computeTotalMass(model) * data.vcom[0]  # linear momentum [kg m/s]
+    return float(data.hg.angular[1] + r[2] * p[0] - r[0] * p[2])
 
 
 @dataclass
@@ -106,13 +119,8 @@ class Design:
         return q
 
     def momentum(self, q: np.ndarray, v: np.ndarray, foot: int) -> float:
-        """Angular momentum about the foot, y component [kg m²/s]."""
-        pin.computeCentroidalMomentum(self.model, self.data, q, v)
-        pin.framesForwardKinematics(self.model, self.data, q)
-        com = pin.centerOfMass(self.model, self.data, q, v)
-        r = com - self.data.oMf[self.foot[foot]].translation
-        linear = self.mass * self.data.vcom[0]
-        return float(self.data.hg.angular[1] + r[2] * linear[0] - r[0] * linear[2])
+        """Angular momentum about foot 0 (left) or 1 (right), y component [kg m²/s]."""
+        return momentum(self.robot, q, v, FEET[foot])
 
     def step(self, alpha: np.ndarray, tp: float, tm: float) -> Step:
         """The zero dynamics of the gait (α, θ⁺, θ⁻) on a grid of θ, and its heel strike."""
@@ -304,7 +312,7 @@ def first_guess(theta_minus: float = 0.2, pitch: float = 0.1, knee: float = 0.2)
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--speed", type=float, default=0.6, help="mean speed [m/s]")
-    parser.add_argument("--iterations", type=int, default=150)
+    parser.add_argument("--iterations", type=int, default=150, help="SLSQP iterations at most")
     args = parser.parse_args(argv)
     problem = Problem(Design(), args.speed)
     x0 = first_guess()

@@ -187,3 +187,16 @@ def test_momentum_observer_runs(capsys: pytest.CaptureFixture[str]) -> None:
     assert len(rows) == 8 and rows[0].startswith("| two_link_one_constraint | oracle |")
     assert "0 false" in rows[1]  # the default observer flags no impact the plant did not make
     assert "| run |" in capsys.readouterr().out
+
+
+def test_biped_walk_runs(tmp_path: Path) -> None:
+    flags = ["--steps", "2", "--robustness-duration", "0.3", "--out", str(tmp_path)]
+    result = _load("biped_walk").main(flags)
+    assert result["gait"].stable
+    assert result["walked"]["swaps"].size >= 2
+    assert (tmp_path / "biped_walk.png").is_file() and (tmp_path / "biped_walk.md").is_file()
+
+
+def test_biped_gait_design_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    _load("biped_gait_design").main(["--iterations", "2"])
+    assert "bezier = [" in capsys.readouterr().out

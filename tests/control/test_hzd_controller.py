@@ -10,8 +10,9 @@ import pytest
 
 from ucontrol.analysis.stance_flow import StanceFlow
 from ucontrol.control.controller import ContactState
-from ucontrol.control.hzd_controller import HZDController, HZDSettings, bezier
+from ucontrol.control.hzd_controller import HZDController, HZDSettings, Leg, bezier
 from ucontrol.exceptions import (
+    FrameNotFoundError,
     InvalidParameterError,
     JointNotFoundError,
     NonFiniteValueError,
@@ -67,11 +68,12 @@ def _scene(**controller: Any) -> Scene:
 
 
 def _contacts(gap: list[float], normal_velocity: list[float]) -> ContactState:
+    """A contact state with NaN impulses: the law must not read them."""
     return ContactState(
         ["foot_left", "foot_right"],
         np.array(gap),
         np.array(normal_velocity),
-        np.zeros(2),
+        np.full(2, np.nan),
         np.zeros(2, dtype=bool),
         1e-3,
     )
@@ -161,16 +163,18 @@ def test_outputs_relabel_at_the_leg_swap() -> None:
     v = np.zeros(7)
     assert law.settings.phase(law.phase_variable(q, 0)[0]) > 0.5
     assert law.stance == 0
-    law(0.0, q, v, _contacts([0.0, 0.01], [0.0, -0.3]))  # swing foot 1 cm up: no swap
+    law(0.0, q, v, _contacts([0.0, 0.01], [0.0, 0.0]))  # swing foot 1 cm up: no swap
     assert law.stance == 0
     law(0.0, q, v, _contacts([0.0, 5e-4], [0.0, 0.3]))  # close but rising: no swap
     assert law.stance == 0
-    u = law(0.0, q, v, _contacts([0.0, 5e-4], [0.0, -0.3]))  # touching down: swap
+    law(0.0, q, v, _contacts([0.0, 5e-4], [0.0, -0.3]))  # approaching, not yet struck
+    assert law.stance == 0
+    u = law(0.0, q, v, _contacts([0.0, -2e-4], [0.0, 1e-3]))  # stopped by the impact: swap
     assert law.stance == 1
+    assert np.all(np.isfinite(u))  # the NaN impulses were not read
     np.testing.assert_allclose(u, law.torque(q, v, 1), atol=1e-12)
-    y_right = (
-        law.outputs(q, v, 1)[0] + bezier(ALPHA, law.settings.phase(law.phase_variable(q, 1)[0]))[0]
-    )
+    s_right = law.settings.phase(law.phase_variable(q, 1)[0])
+    y_right = law.outputs(q, v, 1)[0] + bezier(ALPHA, s_right)[0]
     np.testing.assert_allclose(y_right, q[[5, 6, 3, 4]], atol=1e-14)
 
 
@@ -181,7 +185,7 @@ def test_no_swap_early_in_the_step() -> None:
     assert isinstance(law, HZDController)
     q = np.array([0.0, 0.0, 0.05, -0.35, 0.2, 0.2, 0.6])
     assert law.settings.phase(law.phase_variable(q, 0)[0]) < 0.5
-    law(0.0, q, np.zeros(7), _contacts([0.0, 0.0], [0.0, -0.1]))
+    law(0.0, q, np.zeros(7), _contacts([0.0, 0.0], [0.0, 0.0]))
     assert law.stance == 0
 
 
@@ -262,6 +266,17 @@ def test_other_actuated_joints_are_refused() -> None:
     table["robot"]["passive"] = ["x", "z"]
     with pytest.raises(InvalidParameterError, match="hips and two knees"):
         Scene.from_dict(table, base_dir=ROBOTS).build_controller()
+
+
+def test_bad_legs_are_refused() -> None:
+    scene = _scene()
+    settings = HZDSettings(bezier=ALPHA, **SETTINGS)
+    left = Leg("hip_left", "knee_left", "foot_left", 0)
+    with pytest.raises(InvalidParameterError, match="legs"):
+        HZDController(scene.robot, legs=[left], stance="foot_left", settings=settings)
+    ghost = Leg("hip_right", "knee_right", "toe", 1)
+    with pytest.raises(FrameNotFoundError, match="toe"):
+        HZDController(scene.robot, legs=[left, ghost], stance="foot_left", settings=settings)
 
 
 def test_unknown_contact_is_refused() -> None:

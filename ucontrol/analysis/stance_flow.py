@@ -230,7 +230,7 @@ class StanceFlow:
 
         def pinned(y: Vector) -> tuple[Vector, Vector]:
             q, v = y[:nv], y[nv:]
-            return self.acceleration(q, v, stance, self._input(q, v, stance))
+            return self.acceleration(q, v, stance, self.law_input(q, v, stance))
 
         def rate(_: float, y: Vector) -> Vector:
             return np.concatenate((y[nv:], pinned(y)[0]))
@@ -298,7 +298,7 @@ class StanceFlow:
             raise StrideError(float(solution.t[-1]), f"solve_ivp failed: {solution.message}")
         return solution
 
-    def _input(self, q: Vector, v: Vector, stance: int) -> Vector | None:
+    def law_input(self, q: Vector, v: Vector, stance: int) -> Vector | None:
         """The law's generalized force (nv,) with the foot ``stance`` down, or None."""
         if self.law is None:
             return None
