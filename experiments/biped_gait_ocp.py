@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
             gait,
             fit,
             urdf=urdf,
-            friction=task.friction,
+            friction=task.written_friction,
             kp=task.kp,
             kd=task.kd,
             duration=duration,

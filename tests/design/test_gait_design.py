@@ -198,6 +198,7 @@ def test_scene_text_has_the_hzd_interface(gait: DesignedGait, task: GaitTask) ->
         ({"limits": {"torque": 0.0}}, InvalidParameterError, "torque_limit"),
         ({"limits": {"elbow": 1.0}}, UnknownKeyError, "elbow"),
         ({"limits": {"hip": [1.0, -1.0]}}, InvalidParameterError, "hip"),
+        ({"scene_friction": 0.0}, InvalidParameterError, "scene_friction"),
         ({"fit": {"degree": 8}}, InvalidParameterError, "degree"),
         ({"step_time_min": 0.9, "step_time_max": 0.5}, InvalidParameterError, "step_time_max"),
         ({"legs": [["hip_left", "knee_left", "foot_left"]]}, InvalidParameterError, "legs"),

@@ -41,7 +41,13 @@ def run_gait_design(args: argparse.Namespace) -> int:
     # a task file always names its URDF: the scene names it relative to itself
     urdf = os.path.relpath(str(task.robot.urdf_path), Path(out).resolve())
     scene = hzd_scene_text(
-        gait, fit, urdf=urdf, friction=task.friction, kp=task.kp, kd=task.kd, name="walk_designed"
+        gait,
+        fit,
+        urdf=urdf,
+        friction=task.written_friction,
+        kp=task.kp,
+        kd=task.kd,
+        name="walk_designed",
     )
     (Path(out) / "scene.toml").write_text(scene)
     if args.figures:

@@ -20,7 +20,9 @@ Format (``kind = "gait"`` tells ``ucontrol design`` that the file is a gait task
     # speed = 1.0                            # [m/s] fixes the step time to step_length/speed
     step_time_min = 0.25                     # [s] bounds of a free step time
     step_time_max = 0.8
-    friction = 0.7                           # Coulomb coefficient of the feet on the ground
+    friction = 0.7                           # Coulomb coefficient of the design's feet
+    scene_friction = 0.8                     # the written scene's (default: friction); above
+                                             # friction, a margin for the tracking controller
     clearance = 0.05                         # [m] swing foot height >= clearance 4 s (1 - s)
     force_min = 0.0                          # [N] smallest normal force on the stance foot
 
@@ -81,6 +83,7 @@ _PLAIN_KEYS = (
     "step_time_min",
     "step_time_max",
     "friction",
+    "scene_friction",
     "clearance",
     "force_min",
 )
@@ -106,7 +109,9 @@ class GaitTask:
         speed: Walking speed in [m/s] fixing the step time, or None (step time free).
         step_time_min: Shortest step in [s], > 0.
         step_time_max: Longest step in [s].
-        friction: Coulomb friction coefficient of the feet, > 0.
+        friction: Coulomb friction coefficient of the feet in the design, > 0.
+        scene_friction: Coefficient of the feet in the written scene, > 0, or None (the
+            design's): above ``friction``, a margin for the controller's own torques.
         clearance: Swing foot height in [m] at mid-step: along the step its height is at
             least ``clearance * 4 s (1 - s)``, s in [0, 1] the fraction of the step time.
         force_min: Smallest normal force on the stance foot in [N], >= 0.
@@ -138,6 +143,7 @@ class GaitTask:
     step_time_min: float = 0.25
     step_time_max: float = 0.8
     friction: float = 0.7
+    scene_friction: float | None = None
     clearance: float = 0.05
     force_min: float = 0.0
     torque_limit: float = 150.0
@@ -190,6 +196,10 @@ class GaitTask:
                 "step_time_max", self.step_time_max, f">= step_time_min = {self.step_time_min}"
             )
         object.__setattr__(self, "friction", as_positive("friction", self.friction))
+        if self.scene_friction is not None:
+            object.__setattr__(
+                self, "scene_friction", as_positive("scene_friction", self.scene_friction)
+            )
         for name in ("clearance", "force_min", "fit_weight"):
             object.__setattr__(self, name, as_non_negative(name, getattr(self, name)))
         for name in ("torque_limit", "impact_impulse", "kp", "kd", "tol"):
@@ -207,6 +217,11 @@ class GaitTask:
         object.__setattr__(self, "print_level", as_int("print_level", self.print_level, 0))
         if self.degree not in DEGREES:
             raise InvalidParameterError("degree", self.degree, f"one of {list(DEGREES)}")
+
+    @property
+    def written_friction(self) -> float:
+        """Coulomb coefficient of the feet in the written scene."""
+        return self.friction if self.scene_friction is None else self.scene_friction
 
     @property
     def swing(self) -> str:
