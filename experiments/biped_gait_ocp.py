@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +24,7 @@ import numpy as np
 from ucontrol.design.gait_figures import save_gait_figure
 from ucontrol.design.gait_task import GaitTask
 from ucontrol.design.gait_transcription import design_gait
-from ucontrol.design.hzd_fit import fit_bezier, hzd_scene_text
+from ucontrol.design.hzd_fit import fit_bezier, write_hzd_scene
 from ucontrol.scene import load_scene
 from ucontrol.simulate import simulate
 
@@ -73,20 +72,8 @@ def main(argv: list[str] | None = None) -> dict[str, object]:
         task = dataclasses.replace(task, intervals=args.intervals)
     gait = design_gait(task)
     fit = fit_bezier(gait, task.degree)
-    urdf = os.path.relpath(task.robot.urdf_path, args.scene.resolve().parent)
     duration = round(args.steps * gait.step_time + 0.5 * gait.step_time, 3)
-    args.scene.parent.mkdir(parents=True, exist_ok=True)
-    args.scene.write_text(
-        hzd_scene_text(
-            gait,
-            fit,
-            urdf=urdf,
-            friction=task.written_friction,
-            kp=task.kp,
-            kd=task.kd,
-            duration=duration,
-        )
-    )
+    write_hzd_scene(args.scene, task, gait, fit, duration=duration)
     steps = closed_loop_steps(args.scene, duration) if args.steps > 0 else {}
     result: dict[str, object] = {
         "design": gait.summary(task.friction),

@@ -7,7 +7,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -24,7 +23,7 @@ def run_gait_design(args: argparse.Namespace) -> int:
     """
     from ucontrol.design.gait_task import GaitTask
     from ucontrol.design.gait_transcription import design_gait
-    from ucontrol.design.hzd_fit import fit_bezier, hzd_scene_text
+    from ucontrol.design.hzd_fit import fit_bezier, write_hzd_scene
 
     task = GaitTask.from_toml(args.task)
     out = args.out if args.out is not None else Path("runs") / f"design_{Path(args.task).stem}"
@@ -38,18 +37,7 @@ def run_gait_design(args: argparse.Namespace) -> int:
         return 1
     gait.save(out, task.friction)
     fit = fit_bezier(gait, task.degree)
-    # a task file always names its URDF: the scene names it relative to itself
-    urdf = os.path.relpath(str(task.robot.urdf_path), Path(out).resolve())
-    scene = hzd_scene_text(
-        gait,
-        fit,
-        urdf=urdf,
-        friction=task.written_friction,
-        kp=task.kp,
-        kd=task.kd,
-        name="walk_designed",
-    )
-    (Path(out) / "scene.toml").write_text(scene)
+    write_hzd_scene(Path(out) / "scene.toml", task, gait, fit, name="walk_designed")
     if args.figures:
         from ucontrol.design.gait_figures import save_gait_figure
 

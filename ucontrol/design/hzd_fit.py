@@ -21,12 +21,15 @@ impact maps the fitted curve's end onto its start, positions and slopes.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.design.designed_gait import DesignedGait
+from ucontrol.design.gait_task import GaitTask
 from ucontrol.exceptions import DesignError
 
 Vector = NDArray[np.float64]
@@ -222,3 +225,38 @@ kd = {kd!r}
 legs = [{legs}]
 stance = "{gait.stance}"
 """.replace("passive = ['x', 'z', 'pitch']", 'passive = ["x", "z", "pitch"]')
+
+
+def write_hzd_scene(
+    path: str | Path,
+    task: GaitTask,
+    gait: DesignedGait,
+    fit: BezierGait,
+    *,
+    duration: float = 5.0,
+    name: str = "rabbit_walk_designed",
+) -> Path:
+    """Write :func:`hzd_scene_text` of a task's designed step to ``path`` (a TOML file).
+
+    The scene names the task's URDF relative to itself and takes the task's scene friction
+    and controller gains.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # a task file always names its URDF
+    urdf = os.path.relpath(str(task.robot.urdf_path), path.resolve().parent)
+    text = hzd_scene_text(
+        gait,
+        fit,
+        urdf=urdf,
+        friction=task.written_friction,
+        kp=task.kp,
+        kd=task.kd,
+        duration=duration,
+        name=name,
+    )
+    path.write_text(text)
+    return path
