@@ -50,6 +50,10 @@ def run_design(args: argparse.Namespace) -> int:
     from ucontrol.design.design_task import DesignTask
     from ucontrol.design.open_loop_replay import replay_open_loop
 
+    if _is_gait_task(args.task):
+        from ucontrol.design.gait_command import run_gait_design
+
+        return run_gait_design(args)
     task = DesignTask.from_toml(args.task)
     out = args.out if args.out is not None else Path("runs") / f"design_{Path(args.task).stem}"
     check_output_dir("--out", out)  # before the solve
@@ -104,6 +108,19 @@ def run_design(args: argparse.Namespace) -> int:
         f"written to {out}"
     )
     return 0
+
+
+def _is_gait_task(path: Path) -> bool:
+    """The task file says ``kind = "gait"`` (a walking step, :mod:`ucontrol.design.gait_task`).
+
+    An unreadable file is not a gait task: the cycle task's reader then names the problem.
+    """
+    import tomllib
+
+    try:
+        return bool(tomllib.loads(Path(path).read_text()).get("kind") == "gait")
+    except (OSError, tomllib.TOMLDecodeError):
+        return False
 
 
 def _timed(errors: NDArray[np.float64]) -> list[float | None]:
