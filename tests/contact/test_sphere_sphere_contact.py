@@ -159,3 +159,35 @@ def test_bad_contacts_raise() -> None:
         )
     with pytest.raises(InvalidParameterError, match="`planar_axis` must be a non-zero"):
         ConstraintSet(robot, planar_axis=np.zeros(3))
+
+
+def test_tangent_bases_of_many_normals_are_each_normals_basis() -> None:
+    """One call on normals (k, 3) gives every normal's own right-handed orthonormal basis."""
+    rng = np.random.default_rng(7)
+    normals = rng.normal(size=(9, 3))
+    normals[0] = [0.95, 0.1, 0.0]  # near x: the other helper axis
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    for axis in (None, np.array([0.0, 1.0, 0.0])):
+        bases = tangent_basis(normals, axis)
+        assert bases.shape == (9, 2 if axis is None else 1, 3)
+        for normal, basis in zip(normals, bases, strict=True):
+            assert np.array_equal(basis, tangent_basis(normal, axis))
+            assert np.allclose(basis @ basis.T, np.eye(basis.shape[0]), atol=1e-15)
+            assert np.allclose(basis @ normal, 0.0, atol=1e-15)
+        spatial = tangent_basis(normals)
+        assert np.allclose(np.cross(spatial[:, 0], spatial[:, 1]), normals, atol=1e-15)
+
+
+def test_rows_of_many_constraints_follow_their_order() -> None:
+    """Rows of several contacts in one call, in any order, equal the rows of each alone."""
+    robot, constraints = _spheres()
+    q, v = _state(robot, 3)
+    data = _kinematics(robot, q, v)
+    for indices in ([0, 1], [1, 0], [1]):
+        rows, directions = constraints.tangent_rows(data, indices)
+        normal_rows = constraints.jacobian(data, indices)
+        for j, i in enumerate(indices):
+            alone, alone_directions = constraints.tangent_rows(data, [i])
+            assert np.array_equal(rows[2 * j : 2 * j + 2], alone)
+            assert np.array_equal(directions[2 * j : 2 * j + 2], alone_directions)
+            assert np.array_equal(normal_rows[j], constraints.jacobian(data, [i])[0])

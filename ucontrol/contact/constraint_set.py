@@ -153,6 +153,7 @@ class ConstraintSet:
             for c in pairs
         ]
         self._pair_radii = [(c.radius, c.other_radius) for c in pairs]
+        self._pair_frames = np.array([terms[:2] for terms in self._pair_terms], dtype=np.intp)
         all_contacts: tuple[PointContact | SphereSphereContact, ...] = (*self.contacts, *pairs)
         names = [contact.name for contact in all_contacts]
         restitution = [contact.restitution for contact in all_contacts]
@@ -287,6 +288,7 @@ class ConstraintSet:
         rows = np.zeros((len(indices), self.robot.nv))
         k = self.n_contacts
         shapes: list[int] = []  # positions in indices of the collision rows
+        pairs: list[int] = []  # positions in indices of the sphere-pair rows
         for row, i in enumerate(_index_list(indices)):  # Python ints: cheaper comparisons
             if self._pairs_end <= i < k:
                 shapes.append(row)
@@ -294,17 +296,21 @@ class ConstraintSet:
                 frame_id, normal, _ = self._contact_terms[i]
                 rows[row] = normal.dot(pin.getFrameJacobian(model, data, frame_id, _LWA)[:3])
             elif i < k:
-                first, second, _ = self._pair_terms[i - self._n_point]
-                normal = self._pair_normal(data, first, second)
-                rows[row] = normal.dot(
-                    pin.getFrameJacobian(model, data, first, _LWA)[:3]
-                    - pin.getFrameJacobian(model, data, second, _LWA)[:3]
-                )
+                pairs.append(row)
             elif i < self._stops_end:
                 rows[row, self._stop_v[i - k]] = self._stop_sign[i - k]
             else:
                 play = self._play[i - self._stops_end]
                 rows[row, play.v_xy] = -play.gap_normal(data)[1]
+        if pairs:
+            pair_ids = [int(indices[row]) - self._n_point for row in pairs]
+            normals = self._pair_normals(data, pair_ids)
+            for row, pair, normal in zip(pairs, pair_ids, normals, strict=True):
+                first, second, _ = self._pair_terms[pair]
+                rows[row] = normal.dot(
+                    pin.getFrameJacobian(model, data, first, _LWA)[:3]
+                    - pin.getFrameJacobian(model, data, second, _LWA)[:3]
+                )
         if shapes and self.collision is not None:
             rows[shapes] = self.collision.jacobian(
                 data, [int(indices[row]) - self._pairs_end for row in shapes]
@@ -326,16 +332,41 @@ class ConstraintSet:
             shape (k, 3).
         """
         model = self.robot.model
-        counts = self.tangent_count[np.asarray(indices, dtype=np.intp)]
-        rows = np.empty((int(counts.sum()), self.robot.nv))
+        indices = _index_list(indices)
+        counts = self.tangent_count[indices].tolist()
+        rows = np.empty((sum(counts), self.robot.nv))
         directions = np.empty((rows.shape[0], 3))
+        first_pair, pairs_end = self._n_point, self._pairs_end
+        pair_ids = [
+            i - first_pair
+            for i, count in zip(indices, counts, strict=True)
+            if count and first_pair <= i < pairs_end
+        ]
+        if pair_ids:  # the geometry of all sphere pairs at once
+            normals = self._pair_normals(data, pair_ids)
+            pair_tangents = tangent_basis(normals, self.planar_axis)  # (k, c, 3)
+            # Points p1 - r1 n and p2 + r2 n: t·(v1 - v2) + (t × n)·(r1 ω1 + r2 ω2).
+            pair_levers = cross(pair_tangents, normals[:, None, :])
+            pair_terms = iter(zip(pair_ids, pair_tangents, pair_levers, strict=True))
         start = 0
-        for i, count in zip(indices, counts.tolist(), strict=True):
+        for i, count in zip(indices, counts, strict=True):
             if count == 0:
                 continue
             end = start + count
+            if first_pair <= i < pairs_end:
+                k, tangents, lever = next(pair_terms)
+                first, second, _ = self._pair_terms[k]
+                radius, other_radius = self._pair_radii[k]
+                J1 = pin.getFrameJacobian(model, data, first, _LWA)
+                J2 = pin.getFrameJacobian(model, data, second, _LWA)
+                rows[start:end] = tangents @ (J1[:3] - J2[:3]) + lever @ (
+                    radius * J1[3:] + other_radius * J2[3:]
+                )
+                directions[start:end] = tangents
+                start = end
+                continue
             if i >= self._stops_end:
-                play = self._play[int(i) - self._stops_end]
+                play = self._play[i - self._stops_end]
                 rows[start:end] = 0.0
                 normal = play.gap_normal(data)[1]
                 tangent = np.array([-normal[1], normal[0]])  # a × n in the play plane
@@ -345,26 +376,14 @@ class ConstraintSet:
                 start = end
                 continue
             if self._pairs_end <= i < self.n_contacts and self.collision is not None:
-                row = int(i) - self._pairs_end
+                row = i - self._pairs_end
                 normal = self.collision.normals(data, [row])[0]
                 tangents = tangent_basis(normal, self.planar_axis)
                 rows[start:end] = self.collision.tangent_rows(data, [row], [tangents])
-            elif i < self._n_point:
+            else:  # a point contact
                 tangents = self._plane_tangents[i]
                 J = pin.getFrameJacobian(model, data, self._frame_ids[i], _LWA)
                 rows[start:end] = tangents @ J[:3] + self._plane_levers[i] @ J[3:]
-            else:
-                first, second, _ = self._pair_terms[i - self._n_point]
-                radius, other_radius = self._pair_radii[i - self._n_point]
-                normal = self._pair_normal(data, first, second)
-                tangents = tangent_basis(normal, self.planar_axis)
-                J1 = pin.getFrameJacobian(model, data, first, _LWA)
-                J2 = pin.getFrameJacobian(model, data, second, _LWA)
-                # Points p1 - r1 n and p2 + r2 n: t·(v1 - v2) + (t × n)·(r1 ω1 + r2 ω2).
-                lever = cross(tangents, normal)
-                rows[start:end] = tangents @ (J1[:3] - J2[:3]) + lever @ (
-                    radius * J1[3:] + other_radius * J2[3:]
-                )
             directions[start:end] = tangents
             start = end
         return rows, directions
@@ -556,11 +575,13 @@ class ConstraintSet:
             gap[i] = play.gap_normal(data)[0]
         return gap
 
-    @staticmethod
-    def _pair_normal(data: pin.Data, first: int, second: int) -> Vector:
-        """Unit normal from the centre of frame ``second`` to that of ``first``, shape (3,)."""
-        delta = data.oMf[first].translation - data.oMf[second].translation
-        return delta / np.sqrt(delta.dot(delta))
+    def _pair_normals(self, data: pin.Data, pairs: list[int]) -> Vector:
+        """Unit normals (k, 3) of the sphere contacts ``pairs``, from sphere 2 to sphere 1."""
+        placements = data.oMf
+        frames = self._pair_frames[pairs]
+        centres = np.array([placements[f].translation for f in frames.ravel().tolist()])
+        delta = centres[0::2] - centres[1::2]
+        return delta / np.sqrt(np.einsum("ij,ij->i", delta, delta))[:, None]
 
 
 class _PlayTerms:

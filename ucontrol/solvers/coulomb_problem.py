@@ -135,14 +135,16 @@ class CoulombProblem:
         )
         if self.m == 0:
             return bilateral
-        sigma = self.normal_scale
-        u_t = self.tangential(u)
-        z_n = sigma * P[: self.m] - (u[: self.m] + self.mu * tangential_norms(u_t))
-        sigma_P_t = sigma[:, None] * self.tangential(P)
+        m, padded, sigma = self.m, self._padded, self.normal_scale  # padded[-1] stays 0
+        padded[: self.size] = u
+        u_t = padded[self.tangent_rows]
+        sigma_P_n = sigma * P[:m]
+        z_n = sigma_P_n - (u[:m] + self.mu * tangential_norms(u_t))
+        padded[: self.size] = P
+        sigma_P_t = sigma[:, None] * padded[self.tangent_rows]
         pi_n, pi_t = project_on_cones(z_n, sigma_P_t - u_t, self.mu)
-        r_n = np.abs(sigma * P[: self.m] - pi_n)
-        r_t = np.abs(sigma_P_t - pi_t)
-        return float(max(r_n.max(), r_t.max(), bilateral))
+        r_n = np.abs(sigma_P_n - pi_n).max()
+        return float(max(r_n, np.abs(sigma_P_t - pi_t).max(), bilateral))
 
 
 class _Layout(NamedTuple):
@@ -211,10 +213,9 @@ def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vect
         The projected normal (m,) and tangential (m, 2) components.
     """
     t = tangential_norms(z_t)
+    # On the polar cone (mu t <= -z_n) the boundary's normal component is <= 0: clipped to
+    # the apex, 0.
+    boundary_n = np.maximum((z_n + mu * t) / (1.0 + mu * mu), 0.0)
     inside = (t <= mu * z_n) & (z_n >= 0.0)  # z_n >= 0 matters for mu = 0
-    polar = mu * t <= -z_n  # the polar cone projects on the apex
-    boundary_n = (z_n + mu * t) / (1.0 + mu * mu)
     ratio = np.divide(mu * boundary_n, t, out=np.zeros_like(t), where=t > 0.0)
-    p_n = np.where(inside, z_n, np.where(polar, 0.0, boundary_n))
-    p_t = np.where(inside[:, None], z_t, np.where(polar[:, None], 0.0, ratio[:, None] * z_t))
-    return p_n, p_t
+    return np.where(inside, z_n, boundary_n), np.where(inside, 1.0, ratio)[:, None] * z_t
