@@ -191,3 +191,58 @@ def test_rows_of_many_constraints_follow_their_order() -> None:
             assert np.array_equal(rows[2 * j : 2 * j + 2], alone)
             assert np.array_equal(directions[2 * j : 2 * j + 2], alone_directions)
             assert np.array_equal(normal_rows[j], constraints.jacobian(data, [i])[0])
+
+
+_CHAIN = """<?xml version="1.0"?>
+<robot name="chain">
+  <link name="base"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="l1"><inertial><mass value="1.0"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.5 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="l2"><inertial><mass value="1.0"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+  <joint name="j3" type="prismatic"><parent link="l2"/><child link="l3"/>
+    <origin xyz="0.4 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="l3"><inertial><mass value="1.0"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+  <joint name="k1" type="revolute"><parent link="base"/><child link="m1"/>
+    <origin xyz="0 1 0"/><axis xyz="1 0 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="m1"><inertial><mass value="1.0"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+</robot>
+"""
+
+
+def test_pair_rows_where_both_spheres_share_joints() -> None:
+    """Spheres on one chain (shared Jacobian columns) and on two: rows from whole Jacobians."""
+    robot = RobotModel(pin.buildModelFromXML(_CHAIN))
+    pairs = [
+        SphereSphereContact(frame=a, other_frame=b, radius=0.1, other_radius=0.2, friction=0.5)
+        for a, b in (("l3", "l1"), ("l2", "m1"), ("m1", "l3"))
+    ]
+    constraints = ConstraintSet(robot, [], sphere_contacts=pairs)
+    rng = np.random.default_rng(4)
+    q, v = rng.uniform(-1.0, 1.0, robot.nq), rng.uniform(-1.0, 1.0, robot.nv)
+    data = _kinematics(robot, q, v)
+    normal_rows = constraints.jacobian(data, [2, 0, 1])
+    rows, directions = constraints.tangent_rows(data, [2, 0, 1])
+    for j, pair in enumerate((pairs[2], pairs[0], pairs[1])):
+        first, second = robot.frame_id(pair.frame), robot.frame_id(pair.other_frame)
+        J1, J2 = (
+            pin.getFrameJacobian(robot.model, data, f, pin.LOCAL_WORLD_ALIGNED)
+            for f in (first, second)
+        )
+        delta = data.oMf[first].translation - data.oMf[second].translation
+        normal = delta / np.linalg.norm(delta)
+        assert np.allclose(normal_rows[j], normal @ (J1[:3] - J2[:3]), rtol=0.0, atol=1e-14)
+        tangents = tangent_basis(normal)
+        lever = np.cross(tangents, normal)
+        expected = tangents @ (J1[:3] - J2[:3]) + lever @ (0.1 * J1[3:] + 0.2 * J2[3:])
+        assert np.allclose(rows[2 * j : 2 * j + 2], expected, rtol=0.0, atol=1e-14)
+        assert np.allclose(directions[2 * j : 2 * j + 2], tangents, rtol=0.0, atol=1e-15)
