@@ -187,3 +187,14 @@ def test_momentum_observer_runs(capsys: pytest.CaptureFixture[str]) -> None:
     assert len(rows) == 8 and rows[0].startswith("| two_link_one_constraint | oracle |")
     assert "0 false" in rows[1]  # the default observer flags no impact the plant did not make
     assert "| run |" in capsys.readouterr().out
+
+
+def test_bench_alternating_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    bench = _load("bench_alternating")
+    flags = "--scenes block_incline --beads 2 --duration 0.01 --steps 2 --runs 2 --rounds 2"
+    rows = bench.main(flags.split())
+    assert [row["item"] for row in rows] == ["scene:block_incline", "beads:2"]
+    for row in rows:
+        smallest, median = row["after"]
+        assert 0.0 < smallest <= median  # two rounds of two runs each
+    assert "| beads:2 |" in capsys.readouterr().out
