@@ -193,30 +193,29 @@ def test_rows_of_many_constraints_follow_their_order() -> None:
             assert np.array_equal(normal_rows[j], constraints.jacobian(data, [i])[0])
 
 
-_CHAIN = """<?xml version="1.0"?>
-<robot name="chain">
-  <link name="base"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <link name="l1"><inertial><mass value="1.0"/>
-    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0.5 0 0"/><axis xyz="0 1 0"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <link name="l2"><inertial><mass value="1.0"/>
-    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-  <joint name="j3" type="prismatic"><parent link="l2"/><child link="l3"/>
-    <origin xyz="0.4 0 0"/><axis xyz="1 0 0"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <link name="l3"><inertial><mass value="1.0"/>
-    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-  <joint name="k1" type="revolute"><parent link="base"/><child link="m1"/>
-    <origin xyz="0 1 0"/><axis xyz="1 0 0"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <link name="m1"><inertial><mass value="1.0"/>
-    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-</robot>
-"""
+_INERTIAL = (
+    '<inertial><mass value="1.0"/>'
+    '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>'
+)
+_LIMIT = '<limit lower="-3" upper="3" effort="1" velocity="1"/>'
+#: A chain l1 - l2 - l3 (revolute, revolute, prismatic) and a link m1 on its own joint.
+_CHAIN = "".join(
+    [
+        '<?xml version="1.0"?><robot name="chain"><link name="base"/>',
+        *(
+            f'<joint name="{joint}" type="{kind}"><parent link="{parent}"/>'
+            f'<child link="{child}"/><origin xyz="{origin}"/><axis xyz="{axis}"/>{_LIMIT}'
+            f'</joint><link name="{child}">{_INERTIAL}</link>'
+            for joint, kind, parent, child, origin, axis in (
+                ("j1", "revolute", "base", "l1", "0 0 0", "0 0 1"),
+                ("j2", "revolute", "l1", "l2", "0.5 0 0", "0 1 0"),
+                ("j3", "prismatic", "l2", "l3", "0.4 0 0", "1 0 0"),
+                ("k1", "revolute", "base", "m1", "0 1 0", "1 0 0"),
+            )
+        ),
+        "</robot>",
+    ]
+)
 
 
 def test_pair_rows_where_both_spheres_share_joints() -> None:
