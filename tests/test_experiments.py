@@ -200,3 +200,14 @@ def test_biped_walk_runs(tmp_path: Path) -> None:
 def test_biped_gait_design_runs(capsys: pytest.CaptureFixture[str]) -> None:
     _load("biped_gait_design").main(["--iterations", "2"])
     assert "bezier = [" in capsys.readouterr().out
+
+
+def test_bench_alternating_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    bench = _load("bench_alternating")
+    flags = "--scenes block_incline --beads 2 --duration 0.01 --steps 2 --runs 2 --rounds 2"
+    rows = bench.main(flags.split())
+    assert [row["item"] for row in rows] == ["scene:block_incline", "beads:2"]
+    for row in rows:
+        smallest, median = row["after"]
+        assert 0.0 < smallest <= median  # two rounds of two runs each
+    assert "| beads:2 |" in capsys.readouterr().out

@@ -159,3 +159,89 @@ def test_bad_contacts_raise() -> None:
         )
     with pytest.raises(InvalidParameterError, match="`planar_axis` must be a non-zero"):
         ConstraintSet(robot, planar_axis=np.zeros(3))
+
+
+def test_tangent_bases_of_many_normals_are_each_normals_basis() -> None:
+    """One call on normals (k, 3) gives every normal's own right-handed orthonormal basis."""
+    rng = np.random.default_rng(7)
+    normals = rng.normal(size=(9, 3))
+    normals[0] = [0.95, 0.1, 0.0]  # near x: the other helper axis
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    for axis in (None, np.array([0.0, 1.0, 0.0])):
+        bases = tangent_basis(normals, axis)
+        assert bases.shape == (9, 2 if axis is None else 1, 3)
+        for normal, basis in zip(normals, bases, strict=True):
+            assert np.array_equal(basis, tangent_basis(normal, axis))
+            assert np.allclose(basis @ basis.T, np.eye(basis.shape[0]), atol=1e-15)
+            assert np.allclose(basis @ normal, 0.0, atol=1e-15)
+        spatial = tangent_basis(normals)
+        assert np.allclose(np.cross(spatial[:, 0], spatial[:, 1]), normals, atol=1e-15)
+
+
+def test_rows_of_many_constraints_follow_their_order() -> None:
+    """Rows of several contacts in one call, in any order, equal the rows of each alone."""
+    robot, constraints = _spheres()
+    q, v = _state(robot, 3)
+    data = _kinematics(robot, q, v)
+    for indices in ([0, 1], [1, 0], [1]):
+        rows, directions = constraints.tangent_rows(data, indices)
+        normal_rows = constraints.jacobian(data, indices)
+        for j, i in enumerate(indices):
+            alone, alone_directions = constraints.tangent_rows(data, [i])
+            assert np.array_equal(rows[2 * j : 2 * j + 2], alone)
+            assert np.array_equal(directions[2 * j : 2 * j + 2], alone_directions)
+            assert np.array_equal(normal_rows[j], constraints.jacobian(data, [i])[0])
+
+
+_INERTIAL = (
+    '<inertial><mass value="1.0"/>'
+    '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>'
+)
+_LIMIT = '<limit lower="-3" upper="3" effort="1" velocity="1"/>'
+#: A chain l1 - l2 - l3 (revolute, revolute, prismatic) and a link m1 on its own joint.
+_CHAIN = "".join(
+    [
+        '<?xml version="1.0"?><robot name="chain"><link name="base"/>',
+        *(
+            f'<joint name="{joint}" type="{kind}"><parent link="{parent}"/>'
+            f'<child link="{child}"/><origin xyz="{origin}"/><axis xyz="{axis}"/>{_LIMIT}'
+            f'</joint><link name="{child}">{_INERTIAL}</link>'
+            for joint, kind, parent, child, origin, axis in (
+                ("j1", "revolute", "base", "l1", "0 0 0", "0 0 1"),
+                ("j2", "revolute", "l1", "l2", "0.5 0 0", "0 1 0"),
+                ("j3", "prismatic", "l2", "l3", "0.4 0 0", "1 0 0"),
+                ("k1", "revolute", "base", "m1", "0 1 0", "1 0 0"),
+            )
+        ),
+        "</robot>",
+    ]
+)
+
+
+def test_pair_rows_where_both_spheres_share_joints() -> None:
+    """Spheres on one chain (shared Jacobian columns) and on two: rows from whole Jacobians."""
+    robot = RobotModel(pin.buildModelFromXML(_CHAIN))
+    pairs = [
+        SphereSphereContact(frame=a, other_frame=b, radius=0.1, other_radius=0.2, friction=0.5)
+        for a, b in (("l3", "l1"), ("l2", "m1"), ("m1", "l3"))
+    ]
+    constraints = ConstraintSet(robot, [], sphere_contacts=pairs)
+    rng = np.random.default_rng(4)
+    q, v = rng.uniform(-1.0, 1.0, robot.nq), rng.uniform(-1.0, 1.0, robot.nv)
+    data = _kinematics(robot, q, v)
+    normal_rows = constraints.jacobian(data, [2, 0, 1])
+    rows, directions = constraints.tangent_rows(data, [2, 0, 1])
+    for j, pair in enumerate((pairs[2], pairs[0], pairs[1])):
+        first, second = robot.frame_id(pair.frame), robot.frame_id(pair.other_frame)
+        J1, J2 = (
+            pin.getFrameJacobian(robot.model, data, f, pin.LOCAL_WORLD_ALIGNED)
+            for f in (first, second)
+        )
+        delta = data.oMf[first].translation - data.oMf[second].translation
+        normal = delta / np.linalg.norm(delta)
+        assert np.allclose(normal_rows[j], normal @ (J1[:3] - J2[:3]), rtol=0.0, atol=1e-14)
+        tangents = tangent_basis(normal)
+        lever = np.cross(tangents, normal)
+        expected = tangents @ (J1[:3] - J2[:3]) + lever @ (0.1 * J1[3:] + 0.2 * J2[3:])
+        assert np.allclose(rows[2 * j : 2 * j + 2], expected, rtol=0.0, atol=1e-14)
+        assert np.allclose(directions[2 * j : 2 * j + 2], tangents, rtol=0.0, atol=1e-15)

@@ -86,6 +86,21 @@ def test_layout_and_gathers() -> None:
     assert problem.tangential(np.arange(6.0)).tolist() == [[3.0, 4.0], [0.0, 0.0], [5.0, 0.0]]
 
 
+def test_layouts_are_shared_read_only_and_mu_is_the_problems_own() -> None:
+    """Problems of one layout share its arrays: no problem can change another's layout."""
+    tangents = np.array([2, 1])
+    mu = np.array([0.5, 0.2])
+    first = CoulombProblem(np.eye(5), np.zeros(5), mu, tangents)
+    second = CoulombProblem(2.0 * np.eye(5), np.ones(5), np.array([0.1, 0.3]), tangents.copy())
+    assert second.tangent_rows is first.tangent_rows
+    for array in (first.tangent_rows, first.tangents, first.equality_rows):
+        with pytest.raises(ValueError, match="read-only"):
+            array[...] = 0
+    mu[:] = 9.0  # the caller's array: each problem keeps its own coefficients
+    assert first.mu.tolist() == [0.5, 0.2] and second.mu.tolist() == [0.1, 0.3]
+    assert second.normal_scale.tolist() == [2.0, 2.0]
+
+
 def test_bad_problems_raise() -> None:
     with pytest.raises(ShapeError, match="`b` must have shape"):
         CoulombProblem(np.eye(3), np.zeros(2), np.array([0.5]), np.array([2]))

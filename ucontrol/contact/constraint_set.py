@@ -153,6 +153,9 @@ class ConstraintSet:
             for c in pairs
         ]
         self._pair_radii = [(c.radius, c.other_radius) for c in pairs]
+        self._pair_frames = np.array([terms[:2] for terms in self._pair_terms], dtype=np.intp)
+        self._pair_radius = np.array(self._pair_radii, dtype=float).reshape(-1, 2)
+        self._pair_jacobians = _PairJacobians(robot.model, self._pair_frames) if pairs else None
         all_contacts: tuple[PointContact | SphereSphereContact, ...] = (*self.contacts, *pairs)
         names = [contact.name for contact in all_contacts]
         restitution = [contact.restitution for contact in all_contacts]
@@ -287,6 +290,7 @@ class ConstraintSet:
         rows = np.zeros((len(indices), self.robot.nv))
         k = self.n_contacts
         shapes: list[int] = []  # positions in indices of the collision rows
+        pairs: list[int] = []  # positions in indices of the sphere-pair rows
         for row, i in enumerate(_index_list(indices)):  # Python ints: cheaper comparisons
             if self._pairs_end <= i < k:
                 shapes.append(row)
@@ -294,17 +298,16 @@ class ConstraintSet:
                 frame_id, normal, _ = self._contact_terms[i]
                 rows[row] = normal.dot(pin.getFrameJacobian(model, data, frame_id, _LWA)[:3])
             elif i < k:
-                first, second, _ = self._pair_terms[i - self._n_point]
-                normal = self._pair_normal(data, first, second)
-                rows[row] = normal.dot(
-                    pin.getFrameJacobian(model, data, first, _LWA)[:3]
-                    - pin.getFrameJacobian(model, data, second, _LWA)[:3]
-                )
+                pairs.append(row)
             elif i < self._stops_end:
                 rows[row, self._stop_v[i - k]] = self._stop_sign[i - k]
             else:
                 play = self._play[i - self._stops_end]
                 rows[row, play.v_xy] = -play.gap_normal(data)[1]
+        if pairs:
+            pair_ids = [int(indices[row]) - self._n_point for row in pairs]
+            normals = self._pair_normals(data, pair_ids)
+            rows[pairs] = self._pair_rows(data, pair_ids, normals[:, None, :])[:, 0]
         if shapes and self.collision is not None:
             rows[shapes] = self.collision.jacobian(
                 data, [int(indices[row]) - self._pairs_end for row in shapes]
@@ -326,16 +329,40 @@ class ConstraintSet:
             shape (k, 3).
         """
         model = self.robot.model
-        counts = self.tangent_count[np.asarray(indices, dtype=np.intp)]
-        rows = np.empty((int(counts.sum()), self.robot.nv))
+        indices = _index_list(indices)
+        counts = self.tangent_count[indices].tolist()
+        rows = np.empty((sum(counts), self.robot.nv))
         directions = np.empty((rows.shape[0], 3))
+        first_pair, pairs_end = self._n_point, self._pairs_end
+        pair_ids = [
+            i - first_pair
+            for i, count in zip(indices, counts, strict=True)
+            if count and first_pair <= i < pairs_end
+        ]
+        if pair_ids:  # all sphere pairs at once
+            normals = self._pair_normals(data, pair_ids)
+            pair_tangents = tangent_basis(normals, self.planar_axis)  # (k, c, 3)
+            # Points p1 - r1 n and p2 + r2 n: t·(v1 - v2) + (t × n)·(r1 ω1 + r2 ω2).
+            levers = cross(pair_tangents, normals[:, None, :])
+            starts = np.cumsum(counts) - counts  # first row of each constraint
+            pair_starts = [
+                start
+                for i, count, start in zip(indices, counts, starts.tolist(), strict=True)
+                if count and first_pair <= i < pairs_end
+            ]
+            targets = np.array(pair_starts)[:, None] + np.arange(pair_tangents.shape[1])
+            rows[targets] = self._pair_rows(data, pair_ids, pair_tangents, levers)
+            directions[targets] = pair_tangents
         start = 0
-        for i, count in zip(indices, counts.tolist(), strict=True):
+        for i, count in zip(indices, counts, strict=True):
             if count == 0:
                 continue
             end = start + count
+            if first_pair <= i < pairs_end:  # above
+                start = end
+                continue
             if i >= self._stops_end:
-                play = self._play[int(i) - self._stops_end]
+                play = self._play[i - self._stops_end]
                 rows[start:end] = 0.0
                 normal = play.gap_normal(data)[1]
                 tangent = np.array([-normal[1], normal[0]])  # a × n in the play plane
@@ -345,26 +372,14 @@ class ConstraintSet:
                 start = end
                 continue
             if self._pairs_end <= i < self.n_contacts and self.collision is not None:
-                row = int(i) - self._pairs_end
+                row = i - self._pairs_end
                 normal = self.collision.normals(data, [row])[0]
                 tangents = tangent_basis(normal, self.planar_axis)
                 rows[start:end] = self.collision.tangent_rows(data, [row], [tangents])
-            elif i < self._n_point:
+            else:  # a point contact
                 tangents = self._plane_tangents[i]
                 J = pin.getFrameJacobian(model, data, self._frame_ids[i], _LWA)
                 rows[start:end] = tangents @ J[:3] + self._plane_levers[i] @ J[3:]
-            else:
-                first, second, _ = self._pair_terms[i - self._n_point]
-                radius, other_radius = self._pair_radii[i - self._n_point]
-                normal = self._pair_normal(data, first, second)
-                tangents = tangent_basis(normal, self.planar_axis)
-                J1 = pin.getFrameJacobian(model, data, first, _LWA)
-                J2 = pin.getFrameJacobian(model, data, second, _LWA)
-                # Points p1 - r1 n and p2 + r2 n: t·(v1 - v2) + (t × n)·(r1 ω1 + r2 ω2).
-                lever = cross(tangents, normal)
-                rows[start:end] = tangents @ (J1[:3] - J2[:3]) + lever @ (
-                    radius * J1[3:] + other_radius * J2[3:]
-                )
             directions[start:end] = tangents
             start = end
         return rows, directions
@@ -602,11 +617,100 @@ class ConstraintSet:
             gap[i] = play.gap_normal(data)[0]
         return gap
 
-    @staticmethod
-    def _pair_normal(data: pin.Data, first: int, second: int) -> Vector:
-        """Unit normal from the centre of frame ``second`` to that of ``first``, shape (3,)."""
-        delta = data.oMf[first].translation - data.oMf[second].translation
-        return delta / np.sqrt(delta.dot(delta))
+    def _pair_rows(
+        self, data: pin.Data, pairs: list[int], directions: Vector, levers: Vector | None = None
+    ) -> Vector:
+        r"""Rows :math:`d \cdot (v_1 - v_2) + l \cdot (r_1 \omega_1 + r_2 \omega_2)` of ``pairs``.
+
+        Args:
+            data: As for :meth:`jacobian`.
+            pairs: Sphere contacts (their positions among the sphere contacts), k of them.
+            directions: Directions d of each pair's rows, shape (k, c, 3).
+            levers: Levers l of each pair's rows, shape (k, c, 3), or None (none).
+
+        Returns:
+            The rows, shape (k, c, nv).
+        """
+        assert self._pair_jacobians is not None
+        first, second = self._pair_jacobians.index[pairs].T
+        J = self._pair_jacobians.compact(self.robot.model, data, first, second)
+        parts = [
+            np.einsum("kcj,kjw->kcw", directions, J[first, :3]),
+            -np.einsum("kcj,kjw->kcw", directions, J[second, :3]),
+        ]
+        if levers is not None:
+            radius = self._pair_radius[pairs]
+            parts[0] += radius[:, 0, None, None] * np.einsum("kcj,kjw->kcw", levers, J[first, 3:])
+            parts[1] += radius[:, 1, None, None] * np.einsum("kcj,kjw->kcw", levers, J[second, 3:])
+        k, c = directions.shape[:2]
+        nv = self.robot.nv
+        rows = np.zeros((k, c, nv + 1))  # last column: sink of the padding
+        at_rows = np.arange(k)[:, None, None], np.arange(c)[None, :, None]
+        for frames, part in zip((first, second), parts, strict=True):
+            np.add.at(rows, (*at_rows, self._pair_jacobians.columns[frames][:, None, :]), part)
+        return rows[..., :nv]
+
+    def _pair_normals(self, data: pin.Data, pairs: list[int]) -> Vector:
+        """Unit normals (k, 3) of the sphere contacts ``pairs``, from sphere 2 to sphere 1."""
+        placements = data.oMf
+        frames = self._pair_frames[pairs].ravel().tolist()
+        centres = np.empty((len(frames), 3))
+        for row, frame in enumerate(frames):  # each translation dropped at once: fewer live objects
+            centres[row] = placements[frame].translation
+        delta = centres[0::2] - centres[1::2]
+        return delta / np.sqrt(np.einsum("ij,ij->i", delta, delta))[:, None]
+
+
+class _PairJacobians:
+    """The frames of the sphere pairs, and the velocity columns each one's Jacobian can fill.
+
+    A frame's Jacobian is zero outside the columns of the joints that support it (its
+    kinematic chain to the root); only those are read, once per frame however many pairs
+    share it (a column of beads: every bead but the ends is in two, and each moves on its own
+    two joints of the robot's 2n).
+
+    Attributes:
+        frames: Frame ids, shape (f,).
+        index: The two frames of each pair (positions in ``frames``), shape (pairs, 2).
+        columns: Each frame's support columns, padded with nv (a sink), shape (f, w).
+    """
+
+    def __init__(self, model: pin.Model, frame_pairs: NDArray[np.intp]) -> None:
+        frames, index = np.unique(frame_pairs, return_inverse=True)
+        self.frames = frames.tolist()
+        self.index = index.reshape(-1, 2)
+        supports = []
+        for frame in self.frames:
+            joint = model.frames[frame].parentJoint
+            supports.append(
+                [
+                    column
+                    for j in model.supports[joint]
+                    if j > 0
+                    for column in range(
+                        model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv
+                    )
+                ]
+            )
+        width = max(1, *(len(columns) for columns in supports))
+        self.columns = np.full((len(self.frames), width), model.nv, dtype=np.intp)
+        for row, columns in zip(self.columns, supports, strict=True):
+            row[: len(columns)] = columns
+        self._supports = [np.array(columns, dtype=np.intp) for columns in supports]
+
+    def compact(
+        self, model: pin.Model, data: pin.Data, first: NDArray[np.intp], second: NDArray[np.intp]
+    ) -> Vector:
+        """Support columns of the Jacobians of the frames ``first`` and ``second``, (f, 6, w).
+
+        Rows of other frames are zero.
+        """
+        compact = np.zeros((len(self.frames), 6, self.columns.shape[1]))
+        for i in np.union1d(first, second).tolist():
+            columns = self._supports[i]
+            jacobian = pin.getFrameJacobian(model, data, self.frames[i], _LWA)
+            compact[i, :, : columns.size] = jacobian[:, columns]
+        return compact
 
 
 class _PlayTerms:

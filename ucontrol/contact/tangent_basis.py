@@ -19,30 +19,32 @@ _Y = np.array([0.0, 1.0, 0.0])
 
 
 def tangent_basis(normal: Vector, planar_axis: Vector | None = None) -> Vector:
-    """Unit tangents of a contact with unit ``normal`` (3,), shape (2, 3), or (1, 3) if planar.
+    """Unit tangents of contacts with unit ``normal`` (..., 3), shape (..., 2, 3), or (..., 1, 3).
 
     Args:
-        normal: Unit contact normal in world coordinates, shape (3,).
+        normal: Unit contact normal in world coordinates, shape (3,), or one per contact
+            (k, 3).
         planar_axis: Unit normal of the plane of motion, shape (3,), or None (spatial).
     """
     if planar_axis is not None:
         t = cross(planar_axis, normal)
-        return (t / np.sqrt(t.dot(t)))[None, :]
-    helper = _X if abs(normal[0]) < 0.9 else _Y
+        return (t / np.sqrt(np.einsum("...i,...i->...", t, t))[..., None])[..., None, :]
+    helper = np.where((np.abs(normal[..., 0]) < 0.9)[..., None], _X, _Y)
     t1 = cross(helper, normal)
-    t1 /= np.sqrt(t1.dot(t1))
-    return np.vstack((t1, cross(normal, t1)))
+    t1 /= np.sqrt(np.einsum("...i,...i->...", t1, t1))[..., None]
+    return np.stack((t1, cross(normal, t1)), axis=-2)
 
 
 def cross(a: Vector, b: Vector) -> Vector:
-    """Cross product of ``a`` (..., 3) and ``b`` (3,), shape (..., 3).
+    """Cross product of ``a`` (..., 3) and ``b`` (..., 3), broadcast, shape (..., 3).
 
     ``numpy.cross`` spends most of a call of this size in its argument handling (broadcast,
     axis moves); this is the contact hot path.
     """
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    product = np.empty(a.shape)
-    product[..., 0] = a1 * b[2] - a2 * b[1]
-    product[..., 1] = a2 * b[0] - a0 * b[2]
-    product[..., 2] = a0 * b[1] - a1 * b[0]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    product = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    product[..., 0] = a1 * b2 - a2 * b1
+    product[..., 1] = a2 * b0 - a0 * b2
+    product[..., 2] = a0 * b1 - a1 * b0
     return product

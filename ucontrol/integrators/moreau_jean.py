@@ -1014,9 +1014,11 @@ def _add_friction_impulses(
         directions: World direction of each tangential row, shape (sum(tangents), 3).
         solution: The step's contact solution (normal rows, then the tangential ones).
     """
-    owners = np.repeat(indices, tangents)
-    tangential = solution.impulses[indices.size : indices.size + owners.size, None]
-    np.add.at(friction_impulse, owners, tangential * directions)
+    frictional = tangents > 0
+    first_rows = np.cumsum(tangents[frictional]) - tangents[frictional]  # of each owner
+    rows = solution.impulses[indices.size : indices.size + directions.shape[0], None]
+    # Each constraint's impulse along its tangents, summed over them in order.
+    friction_impulse[indices[frictional]] = np.add.reduceat(rows * directions, first_rows)
 
 
 def _read_only(array: Vector) -> Vector:

@@ -153,8 +153,9 @@ def _jacobian_pattern(problem: CoulombProblem) -> Pattern | None:
     group[:m] = np.arange(m)
     group[m : size - problem.equalities] = np.repeat(np.arange(m), problem.tangents)
     group[size - problem.equalities :] = m + np.arange(problem.equalities)
-    touched = np.zeros((m + problem.equalities, size), dtype=bool)
-    np.logical_or.at(touched, group, problem.D != 0.0)
+    order = np.argsort(group, kind="stable")  # each group's rows together, groups in order
+    starts = np.searchsorted(group[order], np.arange(m + problem.equalities))
+    touched = np.logical_or.reduceat((problem.D != 0.0)[order], starts, axis=0)
     own = group[:, None] == group[None, :]  # a contact's own block
     return sparsity(touched[group] | own)
 

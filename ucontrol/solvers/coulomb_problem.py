@@ -32,12 +32,18 @@ the larger of it and the contacts' natural-map residual.
 
 from __future__ import annotations
 
+import functools
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.exceptions import InvalidParameterError, ShapeError
 
 Vector = NDArray[np.float64]
+
+#: Row layouts (tangent counts and bilateral rows) kept derived, least recently used dropped.
+LAYOUTS = 64
 
 
 class CoulombProblem:
@@ -76,37 +82,31 @@ class CoulombProblem:
     ) -> None:
         tangents = np.asarray(tangents, dtype=np.intp)
         mu = np.asarray(mu, dtype=float)
-        m = tangents.size
         if int(equalities) != equalities or equalities < 0:
             raise InvalidParameterError("equalities", equalities, "an integer >= 0")
-        equalities = int(equalities)
-        size = m + int(tangents.sum()) + equalities
+        layout = _layout(tangents.tobytes(), int(equalities))
+        m, size = layout.m, layout.size
         if b.shape != (size,):
             raise ShapeError("b", (size,), b.shape)
         if D.shape != (size, size):
             raise ShapeError("D", (size, size), D.shape)
         if mu.shape != (m,):
             raise ShapeError("mu", (m,), mu.shape)
-        if np.any(mu < 0.0):
+        if (mu < 0.0).any():
             raise InvalidParameterError("mu", mu.tolist(), ">= 0 for every contact")
-        if np.any((tangents < 0) | (tangents > 2)):
-            raise InvalidParameterError("tangents", tangents.tolist(), "0, 1 or 2 per contact")
         self.D = D
         self.b = b
-        self.tangents = tangents
-        self.mu = np.where(tangents > 0, mu, 0.0)
+        self.tangents = layout.tangents
+        self.mu = mu.copy() if layout.all_frictional else np.where(layout.frictional, mu, 0.0)
         self.m = m
-        self.equalities = equalities
+        self.equalities = layout.equalities
         self.size = size
-        first = m + np.concatenate(([0], np.cumsum(tangents)[:-1])).astype(np.intp)
-        self.tangent_rows = np.column_stack(
-            (np.where(tangents > 0, first, size), np.where(tangents > 1, first + 1, size))
-        )
-        self.spatial = bool(np.any(tangents == 2))
+        self.tangent_rows = layout.tangent_rows
+        self.spatial = layout.spatial
         scale = D.diagonal()[:m].copy()
         scale[scale <= 0.0] = 1.0
         self.normal_scale = scale
-        self.equality_rows = np.arange(size - equalities, size)
+        self.equality_rows = layout.equality_rows
         self._padded = np.zeros(size + 1)
 
     def velocity(self, P: Vector) -> Vector:
@@ -135,14 +135,65 @@ class CoulombProblem:
         )
         if self.m == 0:
             return bilateral
-        sigma = self.normal_scale
-        u_t = self.tangential(u)
-        z_n = sigma * P[: self.m] - (u[: self.m] + self.mu * tangential_norms(u_t))
-        sigma_P_t = sigma[:, None] * self.tangential(P)
+        m, padded, sigma = self.m, self._padded, self.normal_scale  # padded[-1] stays 0
+        padded[: self.size] = u
+        u_t = padded[self.tangent_rows]
+        sigma_P_n = sigma * P[:m]
+        z_n = sigma_P_n - (u[:m] + self.mu * tangential_norms(u_t))
+        padded[: self.size] = P
+        sigma_P_t = sigma[:, None] * padded[self.tangent_rows]
         pi_n, pi_t = project_on_cones(z_n, sigma_P_t - u_t, self.mu)
-        r_n = np.abs(sigma * P[: self.m] - pi_n)
-        r_t = np.abs(sigma_P_t - pi_t)
-        return float(max(r_n.max(), r_t.max(), bilateral))
+        r_n = np.abs(sigma_P_n - pi_n).max()
+        return float(max(r_n, np.abs(sigma_P_t - pi_t).max(), bilateral))
+
+
+class _Layout(NamedTuple):
+    """What a :class:`CoulombProblem` derives from its tangent counts alone (read-only arrays)."""
+
+    tangents: NDArray[np.intp]
+    m: int
+    equalities: int
+    size: int
+    tangent_rows: NDArray[np.intp]
+    spatial: bool
+    equality_rows: NDArray[np.intp]
+    frictional: NDArray[np.bool_]
+    all_frictional: bool
+
+
+@functools.lru_cache(maxsize=LAYOUTS)
+def _layout(tangents: bytes, equalities: int) -> _Layout:
+    """The row layout of ``tangents`` (the bytes of an intp array) and ``equalities``.
+
+    Derived once per layout: the successive problems of a time-stepping run share a few.
+
+    Raises:
+        InvalidParameterError: A tangent count is not 0, 1 or 2.
+    """
+    counts = np.frombuffer(tangents, dtype=np.intp)
+    if np.any((counts < 0) | (counts > 2)):
+        raise InvalidParameterError("tangents", counts.tolist(), "0, 1 or 2 per contact")
+    m = counts.size
+    size = m + int(counts.sum()) + equalities
+    first = m + np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.intp)
+    tangent_rows = np.column_stack(
+        (np.where(counts > 0, first, size), np.where(counts > 1, first + 1, size))
+    )
+    equality_rows = np.arange(size - equalities, size)
+    frictional = counts > 0
+    for array in (tangent_rows, equality_rows, frictional):
+        array.flags.writeable = False
+    return _Layout(
+        counts,
+        m,
+        equalities,
+        size,
+        tangent_rows,
+        bool(np.any(counts == 2)),
+        equality_rows,
+        frictional,
+        bool(frictional.all()),
+    )
 
 
 def tangential_norms(x_t: Vector) -> Vector:
@@ -162,10 +213,9 @@ def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vect
         The projected normal (m,) and tangential (m, 2) components.
     """
     t = tangential_norms(z_t)
+    # On the polar cone (mu t <= -z_n) the boundary's normal component is <= 0: clipped to
+    # the apex, 0.
+    boundary_n = np.maximum((z_n + mu * t) / (1.0 + mu * mu), 0.0)
     inside = (t <= mu * z_n) & (z_n >= 0.0)  # z_n >= 0 matters for mu = 0
-    polar = mu * t <= -z_n  # the polar cone projects on the apex
-    boundary_n = (z_n + mu * t) / (1.0 + mu * mu)
     ratio = np.divide(mu * boundary_n, t, out=np.zeros_like(t), where=t > 0.0)
-    p_n = np.where(inside, z_n, np.where(polar, 0.0, boundary_n))
-    p_t = np.where(inside[:, None], z_t, np.where(polar[:, None], 0.0, ratio[:, None] * z_t))
-    return p_n, p_t
+    return np.where(inside, z_n, boundary_n), np.where(inside, 1.0, ratio)[:, None] * z_t
