@@ -133,6 +133,7 @@ _INTEGRATOR_KEYS = {
     "on_unsolved",
     "midpoint",
     "persistence_tolerance",
+    "persistence_speed",
     "penetration_tolerance",
     "newton_law",
     "impact_law",
