@@ -14,9 +14,10 @@ def impact_mask(log: Log) -> np.ndarray:
     """Boolean array (N, n): constraint i had an impact in the step starting at row k.
 
     The rule of Moreau–Jean's :attr:`~ucontrol.plant.StepOutcome.impacts`
-    (:func:`~ucontrol.integrators.step_stages.is_impact`) on the log: an impulse in the step,
-    none in the step before (the constraint was not held), and a closing speed above
-    :data:`IMPACT_VELOCITY_THRESHOLD` at the step's start.
+    (:func:`~ucontrol.integrators.step_stages.is_impact`) on the log: an impulse in the step
+    and a closing speed at its start above :data:`IMPACT_VELOCITY_THRESHOLD`, or above
+    :data:`~ucontrol.integrators.step_stages.HELD_IMPACT_VELOCITY` when the step before had an
+    impulse (the constraint was held).
     """
     impulse = log.impulse
     held = np.zeros_like(impulse)

@@ -37,12 +37,19 @@ for 8 strikes. The band holds it while that normal velocity, :math:`O(h)`, is be
 free motion that would cross the surface within the step, and a contact that separates gets
 no impulse and leaves the memory at once.
 
-**Impacts.** A step's :attr:`StepOutcome.impacts` are the constraints that get an impulse, were
-not held by the previous step and close faster than
-:data:`~ucontrol.integrators.step_stages.IMPACT_VELOCITY_THRESHOLD` at its start
+**Impacts.** A step's :attr:`StepOutcome.impacts` are the constraints that get an impulse and
+close at its start faster than
+:data:`~ucontrol.integrators.step_stages.IMPACT_VELOCITY_THRESHOLD`, or faster than
+:data:`~ucontrol.integrators.step_stages.HELD_IMPACT_VELOCITY` when held by the previous step
 (:func:`~ucontrol.integrators.step_stages.is_impact`), the rule by which
-:func:`~ucontrol.analysis.impacts.impact_mask` reads a log (a held contact pressed again is
+:func:`~ucontrol.analysis.impacts.impact_mask` reads a log (a held contact closing its drift is
 not an impact).
+
+**Contacts that may not close.** A point contact with a scuffing rule (``closes_ahead_of``:
+a walker's swing foot passes through the ground until its hip is past the stance foot) is left
+out of the active set while :meth:`~ucontrol.contact.ConstraintSet.closure_barred` bars it,
+unless the last step held it (:meth:`MoreauJean._barred`): one forward kinematics pass a step,
+in the scenes that declare such a rule only.
 
 **Contacts closed at the start.** A run starts with no memory, so a contact placed on its
 surface with a gap that rounds to a tiny positive value (:math:`+10^{-18}` m from the trigonometry
@@ -430,6 +437,7 @@ class MoreauJean:
             nv = robot.nv
             implicit[nv:, nv:] += np.diag(flexible.motor_inertia)  # + B on the motors
             self._implicit_forces = implicit  # W without the links' M(q)
+        self._closure_rules = constraints.has_closure_rules
         self._free_step = self._compiled_free_step()
         if self._free_step is not None and self._rigid_rows is not None:
             self._free_step.read_rows_of(self._rigid_rows)  # no copies of q, v and the rows
@@ -573,6 +581,8 @@ class MoreauJean:
             v_free, inverse_inertia = self._free_velocity(state, tau)
             # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
             predicted = predicted_gaps(state.gap, state.normal_velocity, self.gamma * self.dt)
+        if self._closure_rules:  # contacts that may not close here (a scuffing swing foot)
+            predicted = self._barred(state, predicted, memory)
         active, activation = active_set(memory, state.gap, predicted, self._release)
         count = np.count_nonzero(active)
         rows = count + self._problem_rows
@@ -588,6 +598,20 @@ class MoreauJean:
                 return self._single_row_outcome(free_step, active, int(active.argmax()), state)
         indices = active.nonzero()[0]
         return self._contact_outcome(state, v_free, inverse_inertia, active, indices, activation)
+
+    def _barred(self, state: PlantEvaluation, predicted: Vector, memory: StepMemory) -> Vector:
+        """``predicted`` with the contacts barred from closing at q_k (not held) left out.
+
+        :meth:`~ucontrol.contact.ConstraintSet.closure_barred`: their predicted gaps become
+        infinite, so that the active set leaves them out.
+        """
+        q = state.q if self.flexible is None else state.q[: self.flexible.nq]
+        barred = [i for i in self.constraints.closure_barred(q) if memory.activation[i] <= 0.0]
+        if not barred:
+            return predicted
+        predicted = predicted.copy()
+        predicted[barred] = np.inf
+        return predicted
 
     def _single_row_outcome(
         self,

@@ -15,9 +15,10 @@ release gap :math:`\varepsilon_p + h u_p` (:func:`release_gap`) for a constraint
 an impulse in the last step (:func:`next_memory`). At the first step of a run, a constraint
 closed at the start (gap at most :data:`START_GAP_TOLERANCE`) counts as held.
 
-**Impacts** (:func:`is_impact`). A constraint has an impact in a step when it gets an impulse,
-was not held by the last step, and closes faster than :data:`IMPACT_VELOCITY_THRESHOLD` at its
-start: the step's :attr:`~ucontrol.plant.StepOutcome.impacts` and the logs'
+**Impacts** (:func:`is_impact`). A constraint has an impact in a step when it gets an impulse
+and closes at the step's start faster than :data:`IMPACT_VELOCITY_THRESHOLD`, or faster than
+:data:`HELD_IMPACT_VELOCITY` when the last step held it: the step's
+:attr:`~ucontrol.plant.StepOutcome.impacts` and the logs'
 :func:`~ucontrol.analysis.impacts.impact_mask` apply this one rule.
 
 **Impact law** (:func:`newton_offsets`). Newton's restitution :math:`e_a u_a^-` on the closing
@@ -47,9 +48,13 @@ ENERGY_GAIN_TOLERANCE = 1e-12
 #: Gap in [m] (or [rad]) up to which a constraint counts as closed at the first step of a run.
 START_GAP_TOLERANCE = 1e-9
 #: A constraint closing faster than this at the start of a step, with an impulse in the step and
-#: none in the last, has an impact, in [m/s] (or [rad/s] for stops); slower ones, and those
-#: held by the last step, are persistent contact.
+#: none in the last, has an impact, in [m/s] (or [rad/s] for stops); slower ones are persistent
+#: contact.
 IMPACT_VELOCITY_THRESHOLD = 1e-6
+#: A constraint held by the last step has an impact only when it closes faster than this, in
+#: [m/s] (or [rad/s]): a pressed foot pushed into the ground. A held contact otherwise closes
+#: only its drift, at O(h) speeds (mm/s).
+HELD_IMPACT_VELOCITY = 0.1
 
 
 class StepMemory(NamedTuple):
@@ -135,9 +140,11 @@ def is_impact(impulse: Any, activation: Any, u_minus: Any) -> Any:
         u_minus: Its normal velocity at the start of the step in [m/s] (or [rad/s]).
 
     Returns:
-        :math:`P_a > 0`, not held, and :math:`u_a^- < -`:data:`IMPACT_VELOCITY_THRESHOLD`.
+        :math:`P_a > 0` and :math:`u_a^- < -`:data:`IMPACT_VELOCITY_THRESHOLD` (not held) or
+        :math:`u_a^- < -`:data:`HELD_IMPACT_VELOCITY` (held).
     """
-    return (impulse > 0.0) & (activation <= 0.0) & (u_minus < -IMPACT_VELOCITY_THRESHOLD)
+    closing = (activation <= 0.0) & (u_minus < -IMPACT_VELOCITY_THRESHOLD)
+    return (impulse > 0.0) & (closing | (u_minus < -HELD_IMPACT_VELOCITY))
 
 
 def active_set(

@@ -89,7 +89,17 @@ _MOTION_KEYS = {
     "ramp": {"type", "velocity"},
     "python": {"type", "function"},
 }
-_CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
+_CONTACT_KEYS = {
+    "frame",
+    "surface",
+    "radius",
+    "restitution",
+    "friction",
+    "name",
+    "closes_ahead_of",
+    "direction_of_travel",
+    "ahead_frame",
+}
 _SPHERE_CONTACT_KEYS = {
     "frame",
     "other_frame",
@@ -419,6 +429,9 @@ def _contact(
         restitution=spec.get("restitution", 0.0),
         friction=spec.get("friction", 0.0),
         name=str(spec.get("name", "")),
+        closes_ahead_of=str(spec.get("closes_ahead_of", "")),
+        direction_of_travel=spec.get("direction_of_travel"),
+        ahead_frame=str(spec.get("ahead_frame", "")),
     )
 
 
