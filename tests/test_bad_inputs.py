@@ -110,6 +110,7 @@ SCENE_CASES: list[tuple[str, str, Any, str | None]] = [
     ("ball", "integrator.midpoint", "false", None),
     ("ball", "integrator.midpoint", 1, None),
     ("ball", "integrator.persistence_tolerance", -1.0, None),
+    ("ball", "integrator.persistence_speed", -1.0, None),
     ("ball", "integrator.penetration_tolerance", 0.0, None),
     ("ball", "integrator.penetration_tolerance", -1.0, None),
     ("ball", "integrator.on_unsolved", "ignore", None),

@@ -8,12 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ball_scene
+from conftest import ROBOTS, ball_scene
 
 from ucontrol.analysis import impact_mask
 from ucontrol.exceptions import LogFileError, NotFoundError
 from ucontrol.integrators.contact_laws import damping_ratio
 from ucontrol.log import Log
+from ucontrol.scene import Scene
+from ucontrol.scene.push import Push
 from ucontrol.simulate import simulate
 
 GRAVITY, HEIGHT, MASS = 9.81, 1.0, 1.0  # the ball of robots/ball.toml: [m/s²], [m], [kg]
@@ -118,3 +120,34 @@ def test_impact_times_of_an_unknown_constraint_names_the_known_ones() -> None:
     log = Log(1, nq=1, nv=1, nu=1, constraint_names=[CONTACT])
     with pytest.raises(NotFoundError, match=CONTACT):
         log.impact_times_of("ball/wall")
+
+
+@pytest.mark.slow
+def test_moreau_jean_impacts_are_the_landings_after_flights_not_the_held_contact() -> None:
+    # The Panda's tool bounces on the table (e = 0.5) from t = 2 s and is then pressed on it.
+    # Before the release band and the shared rule the summary counted 35 "impacts" in these
+    # 3 s (every pressed step that closed faster than 1e-6 m/s) and the steps 4.
+    result = simulate(Scene.from_toml(ROBOTS / "panda_table_impedance.toml"), duration=3.0)
+    log = result.log
+    contact = log.constraint_names.index("panda_hand_tcp/table")
+    pressed = log.impulse[:-1, contact] > 0.0
+    landings = np.flatnonzero(pressed & ~np.concatenate(([False], pressed[:-1])))
+    # Each pressed run starts after a flight (the tool above the table in the step before).
+    assert np.all(log.gap[landings - 1, contact] > 0.0)
+    np.testing.assert_array_equal(log.impacts.t, log.t[landings])
+    assert landings.size == 4 and pressed[landings[-1] :].all()  # held from the last on
+    assert result.summary["n_impacts"] == log.impacts.t.size
+    np.testing.assert_array_equal(np.flatnonzero(impact_mask(log)[:, contact]), landings)
+
+
+def test_a_held_contact_pushed_into_the_ground_has_an_impact() -> None:
+    # A plastic ball lands at t_0 = sqrt(2 h / g) = 0.4515 s and rests, held step after step;
+    # pushed down at 0.5 m/s it has an impact although held (faster than 0.1 m/s), pushed at
+    # 0.05 m/s its contact only closes again (below that speed, as a held contact's drift).
+    pushes = (Push(time=1.0, velocity=np.array([-0.5])), Push(time=1.5, velocity=np.array([-0.05])))
+    result = simulate(ball_scene(0.0, pushes=pushes), duration=2.0, progress=False)
+    log = result.log
+    np.testing.assert_allclose(log.impacts.t, [math.sqrt(2.0 / GRAVITY), 1.0], atol=1e-3)
+    assert result.summary["n_impacts"] == 2
+    np.testing.assert_array_equal(log.t[np.flatnonzero(impact_mask(log)[:, 0])], log.impacts.t)
+    assert np.all(log.impulse[460:-1, 0] > 0.0)  # held from the landing on

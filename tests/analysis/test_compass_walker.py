@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -11,10 +12,17 @@ import pytest
 from conftest import ROBOTS
 from scipy.integrate import solve_ivp
 
+from ucontrol import simulate
 from ucontrol.analysis.gait import Gait, find_gait
 from ucontrol.analysis.simplest_walker import SimplestWalker
 from ucontrol.analysis.stance_flow import StanceFlow
-from ucontrol.exceptions import ShapeError
+from ucontrol.contact import PointContact
+from ucontrol.exceptions import (
+    InvalidParameterError,
+    NotFoundError,
+    PenetrationWarning,
+    ShapeError,
+)
 from ucontrol.scene import Scene
 
 #: The scene's gravity [m/s²]; time unit of the simplest walker sqrt(l/g), l = 1 m.
@@ -53,14 +61,18 @@ def _chart(flow: StanceFlow) -> tuple[Any, Any]:
         return q, RATE_SCALE * np.array([*hip, -dtheta, dphi - dtheta])
 
     def from_state(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        stance = flow.stance_of(q, v)
-        swing = 1 - stance
-        rate_stance, rate_swing = v[2 + stance], v[2 + swing]
-        return np.array(
-            [-q[2 + stance], -rate_stance / RATE_SCALE, (rate_swing - rate_stance) / RATE_SCALE]
-        )
+        return _section(q, v, flow.stance_of(q, v))
 
     return to_state, from_state
+
+
+def _section(q: np.ndarray, v: np.ndarray, stance: int) -> np.ndarray:
+    """The chart's z = (θ, θ̇, φ̇) of a state whose stance foot is ``stance`` (0: a, 1: b)."""
+    swing = 1 - stance
+    rate_stance, rate_swing = v[2 + stance], v[2 + swing]
+    return np.array(
+        [-q[2 + stance], -rate_stance / RATE_SCALE, (rate_swing - rate_stance) / RATE_SCALE]
+    )
 
 
 @pytest.fixture(scope="module")
@@ -128,3 +140,73 @@ def test_the_scuff_is_ignored_and_the_swing_foot_strikes_ahead(
 def test_a_direction_of_travel_of_the_wrong_shape_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ShapeError, match="ahead"):
         StanceFlow(_scene(tmp_path, 1e-2).constraints, ahead=np.array([1.0, 0.0]))
+
+
+@pytest.mark.slow
+def test_moreau_jean_walks_the_gait_and_its_strides_converge_at_order_one() -> None:
+    # The shipped scene (beta = 1e-2) released on its own gait: the event-driven strides
+    # (StanceFlow) repeat the fixed point z* every period T. Moreau-Jean applies the scene's
+    # scuffing rule (a foot closes only once the hip is past the other foot) and walks; its
+    # post-strike states and strike times approach z* and k T at order one in h. Measured,
+    # largest over the first four strides, h = 2, 1, 0.5 ms: |z - z*| 1.9e-2, 7.2e-3, 3.9e-3;
+    # |t - kT| 6.6e-2, 2.7e-2, 1.5e-2 s (the first stride alone: 3.3e-3, 1.6e-3, 8.4e-4).
+    scene = Scene.from_toml(ROBOTS / "compass_walker.toml")
+    flow = StanceFlow(scene.constraints, ahead=DOWNHILL)
+    to_state, from_state = _chart(flow)
+    gait = find_gait(flow, to_state, from_state, np.array([0.2, -0.2, -0.016]), step=1e-6)
+    q0, v0 = to_state(gait.z)
+    strides = 4
+    steps = np.array([2e-3, 1e-3, 5e-4])  # [s]
+    errors, time_errors = [], []
+    for h in steps:
+        run = dataclasses.replace(scene, q0=q0, v0=v0)
+        log = simulate(run, duration=strides * gait.period + 0.1, dt=float(h)).log
+        impacts = log.impacts
+        assert list(impacts.constraint) == ["foot_b/ground", "foot_a/ground"] * (strides // 2)
+        assert log.q[:, 1].min() > 0.97  # the hip [m]: walking, never falling
+        rows = np.rint(impacts.t / h).astype(int) + 1  # the states after the strikes
+        z = [_section(log.q[k], log.v[k], 1 - i % 2) for i, k in enumerate(rows)]
+        errors.append(np.max(np.abs(np.array(z) - gait.z)))
+        time_errors.append(np.max(np.abs(impacts.t - gait.period * np.arange(1, strides + 1))))
+    for measured in (errors, time_errors):
+        order = np.polyfit(np.log(steps), np.log(measured), 1)[0]
+        assert 0.75 <= order <= 1.4, (measured, order)
+    assert errors[-1] <= 0.03 * abs(gait.z[0])
+
+
+@pytest.mark.slow
+def test_without_the_scuffing_rule_moreau_jean_catches_the_scuff_and_the_walker_falls() -> None:
+    scene = Scene.from_toml(ROBOTS / "compass_walker.toml")
+    contacts = tuple(
+        dataclasses.replace(c, closes_ahead_of="", direction_of_travel=None, ahead_frame="")
+        for c in scene.contacts
+    )
+    with pytest.warns(PenetrationWarning):  # the fallen walker's foot, 11 mm deep
+        log = simulate(dataclasses.replace(scene, contacts=contacts), duration=3.0).log
+    # The swing foot closes at the scuff (t = 0.58 s, before the strike at 1.30 s) ...
+    assert log.impacts.t[0] < 1.0 and log.impacts.constraint[0] == "foot_b/ground"
+    assert log.q[-1, 1] < 0.9  # ... and the hip has fallen [m]
+
+
+def test_a_bad_scuffing_rule_is_refused(tmp_path: Path) -> None:
+    ground = Scene.from_toml(ROBOTS / "compass_walker.toml").contacts[0].surface
+    with pytest.raises(InvalidParameterError, match="direction_of_travel"):
+        PointContact(frame="foot_a", surface=ground, closes_ahead_of="foot_b")
+    with pytest.raises(InvalidParameterError, match=r"direction_of_travel.*non-zero"):
+        PointContact(
+            frame="foot_a",
+            surface=ground,
+            closes_ahead_of="foot_b",
+            direction_of_travel=(0.0, 0.0, 0.0),
+        )
+    with pytest.raises(InvalidParameterError, match="closes_ahead_of"):
+        PointContact(frame="foot_a", surface=ground, direction_of_travel=(1.0, 0.0, 0.0))
+    toml = (ROBOTS / "compass_walker.toml").read_text()
+    path = tmp_path / "knee.toml"
+    path.write_text(
+        toml.replace('closes_ahead_of = "foot_b"', 'closes_ahead_of = "knee"').replace(
+            '"compass_walker.urdf"', f'"{ROBOTS / "compass_walker.urdf"}"'
+        )
+    )
+    with pytest.raises(NotFoundError, match=r"closes_ahead_of of 'foot_a/ground' 'knee'"):
+        Scene.from_toml(path).constraints  # built on first use

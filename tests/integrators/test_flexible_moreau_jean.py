@@ -284,3 +284,7 @@ def test_bad_integrator_settings_raise() -> None:
     scene = _arm(2000.0)
     with pytest.raises(InvalidParameterError, match="`persistence_tolerance`"):
         MoreauJean(scene.robot, scene.constraints, dt=1e-3, persistence_tolerance=-1.0)
+    with pytest.raises(InvalidParameterError, match=r"`persistence_speed`.*nan"):
+        IntegratorSettings(persistence_speed=float("nan"))
+    with pytest.raises(InvalidParameterError, match=r"`persistence_speed`.*-0\.1"):
+        MoreauJean(scene.robot, scene.constraints, dt=1e-3, persistence_speed=-0.1)

@@ -4,13 +4,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from ucontrol.integrators.step_stages import IMPACT_VELOCITY_THRESHOLD, is_impact
 from ucontrol.log import Log
 
-#: A constraint closing faster than this at the start of a step with a positive impulse is an
-#: impact, in [m/s] (or [rad/s] for stops); slower ones are persistent contact.
-IMPACT_VELOCITY_THRESHOLD = 1e-6
+__all__ = ["IMPACT_VELOCITY_THRESHOLD", "impact_mask"]
 
 
 def impact_mask(log: Log) -> np.ndarray:
-    """Boolean array (N, n): constraint i had an impact in the step starting at row k."""
-    return (log.impulse > 0.0) & (log.normal_velocity < -IMPACT_VELOCITY_THRESHOLD)
+    """Boolean array (N, n): constraint i had an impact in the step starting at row k.
+
+    The rule of Moreau–Jean's :attr:`~ucontrol.plant.StepOutcome.impacts`
+    (:func:`~ucontrol.integrators.step_stages.is_impact`) on the log: an impulse in the step
+    and a closing speed at its start above :data:`IMPACT_VELOCITY_THRESHOLD`, or above
+    :data:`~ucontrol.integrators.step_stages.HELD_IMPACT_VELOCITY` when the step before had an
+    impulse (the constraint was held).
+    """
+    impulse = log.impulse
+    held = np.zeros_like(impulse)
+    held[1:] = impulse[:-1]
+    return np.asarray(is_impact(impulse, held, log.normal_velocity), dtype=bool)

@@ -16,7 +16,7 @@ from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
 from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
 from ucontrol.contact.tangent_basis import cross, tangent_basis
-from ucontrol.exceptions import InvalidParameterError
+from ucontrol.exceptions import InvalidParameterError, NotFoundError
 from ucontrol.model.robot_model import RobotModel
 
 Vector = NDArray[np.float64]
@@ -224,6 +224,11 @@ class ConstraintSet:
             contact.radius * cross(tangents, contact.surface.normal)
             for contact, tangents in zip(self.contacts, self._plane_tangents, strict=True)
         ]
+        self._closure_rules = self._ahead_rules(robot)
+        #: Whether some contact closes only ahead of another (:meth:`closure_barred`).
+        self.has_closure_rules = bool(self._closure_rules)
+        # Frame placements of the rules, on a buffer of their own (built only with rules).
+        self._rule_data = pin.Data(robot.model) if self._closure_rules else None
         if self.planar_axis is not None:
             for contact in self.contacts:
                 if abs(contact.surface.normal @ self.planar_axis) > _PLANAR_TOLERANCE:
@@ -279,6 +284,50 @@ class ConstraintSet:
             gap[i], normal = play.gap_normal(data)
             velocity[i] = -normal.dot(v[play.v_xy])
         return gap, velocity
+
+    def _ahead_rules(self, robot: RobotModel) -> list[tuple[int, int, int, Vector]]:
+        """(constraint, ahead frame, other frame, direction) of each ``closes_ahead_of``."""
+        frames = {contact.frame for contact in self.contacts}
+        rules = []
+        for i, contact in enumerate(self.contacts):
+            if not contact.closes_ahead_of:
+                continue
+            other = contact.closes_ahead_of
+            if other not in frames - {contact.frame}:
+                raise NotFoundError(
+                    f"closes_ahead_of of {contact.name!r}", other, sorted(frames - {contact.frame})
+                )
+            direction = np.array(contact.direction_of_travel)
+            ahead = robot.frame_id(contact.ahead_frame) if contact.ahead_frame else None
+            frame = self._frame_ids[i] if ahead is None else ahead
+            rules.append((i, frame, robot.frame_id(other), direction))
+        return rules
+
+    def closure_barred(self, q: Vector) -> list[int]:
+        r"""The contacts that may not close at q: behind the frame their rule names.
+
+        Contact i with ``closes_ahead_of`` (:class:`PointContact`) is barred while
+        :math:`a \cdot (p_i - p_j) < 0`, :math:`a` its direction of travel, :math:`p_i` the
+        position of its ``ahead_frame`` (its own frame by default) and :math:`p_j` the
+        other frame's. The integrator applies the bar to constraints its last step
+        did not hold (a held stance foot stays, wherever the swing foot is).
+
+        Args:
+            q: Configuration of the robot, shape (nq,).
+
+        Returns:
+            The barred constraints' indices (empty without rules).
+        """
+        data = self._rule_data
+        if data is None:
+            return []
+        pin.framesForwardKinematics(self.robot.model, data, q)
+        placements = data.oMf
+        return [
+            i
+            for i, frame, other, direction in self._closure_rules
+            if direction.dot(placements[frame].translation - placements[other].translation) < 0.0
+        ]
 
     def jacobian(self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]) -> Vector:
         """Normal Jacobian rows of the constraints ``indices``, shape (len(indices), nv).

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ucontrol._validation import as_float, as_in_interval
+import numpy as np
+
+from ucontrol._validation import as_float, as_in_interval, as_vector
 from ucontrol.contact.plane import Plane
 from ucontrol.exceptions import InvalidParameterError
 
@@ -23,6 +25,15 @@ class PointContact:
         restitution: Newton's coefficient of restitution in [0, 1].
         friction: Coulomb coefficient, >= 0 (0: frictionless).
         name: Label used in logs; default ``"<frame>/<surface>"``.
+        closes_ahead_of: Frame of another point contact, or ``""``: this contact, unless held
+            by the last step, closes only while frame ``ahead_frame`` is ahead of that one
+            along ``direction_of_travel`` (a walker's swing foot passes through the ground
+            until its hip is past the stance foot, mid-stance: the scuffing rule of the
+            walking models, docs/legged.md).
+        direction_of_travel: Unit direction in which "ahead" is measured, shape (3,) (given
+            any non-zero length); required with ``closes_ahead_of``.
+        ahead_frame: Frame whose position is measured against ``closes_ahead_of``'s; ``""``:
+            the contact's own.
     """
 
     frame: str
@@ -31,6 +42,9 @@ class PointContact:
     restitution: float = 0.0
     friction: float = 0.0
     name: str = ""
+    closes_ahead_of: str = ""
+    direction_of_travel: tuple[float, float, float] | None = None
+    ahead_frame: str = ""
 
     def __post_init__(self) -> None:
         radius = as_float("radius", self.radius)
@@ -44,5 +58,27 @@ class PointContact:
         object.__setattr__(
             self, "restitution", as_in_interval("restitution", self.restitution, 0.0, 1.0)
         )
+        if self.closes_ahead_of:
+            if self.direction_of_travel is None:
+                raise InvalidParameterError(
+                    "direction_of_travel",
+                    None,
+                    f"a direction with closes_ahead_of = {self.closes_ahead_of!r}",
+                )
+            direction = as_vector("direction_of_travel", self.direction_of_travel, 3)
+            norm = float(np.linalg.norm(direction))
+            if not norm > 0.0:
+                raise InvalidParameterError(
+                    "direction_of_travel", self.direction_of_travel, "a non-zero vector"
+                )
+            object.__setattr__(
+                self, "direction_of_travel", tuple(float(x) for x in direction / norm)
+            )
+        elif self.direction_of_travel is not None or self.ahead_frame:
+            raise InvalidParameterError(
+                "closes_ahead_of",
+                "",
+                "the frame of another contact with direction_of_travel or ahead_frame",
+            )
         if not self.name:
             object.__setattr__(self, "name", f"{self.frame}/{self.surface.name}")

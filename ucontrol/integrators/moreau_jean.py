@@ -4,8 +4,8 @@ One step from :math:`(q_k, v_k)` with step :math:`h` and :math:`\theta \in [1/2,
 
 1. free velocity :math:`v_\text{free} = v_k + h M^{-1}(\tau - h(q_k, v_k))`;
 2. active set by prediction: :math:`a \in I` iff :math:`g_a + \gamma h u_a \le 0`
-   (:math:`\gamma = 1/2`), or :math:`\le \varepsilon_p` for a constraint that carried an
-   impulse in the previous step (persistence, below);
+   (:math:`\gamma = 1/2`), or :math:`\le \varepsilon_p + h u_p` for a constraint that carried
+   an impulse in the previous step (persistence, below);
 3. Signorini–Newton at velocity level on :math:`I`:
    :math:`0 \le u_a(v_{k+1}) + e_a u_a(v_k) \perp P_a \ge 0`, solved as a QP in the impulses,
    :math:`v_{k+1} = v_\text{free} + M^{-1} J_I^T P`;
@@ -19,11 +19,37 @@ its surface by O(h²) per step: the velocity is constrained with :math:`J(q_k)`,
 advanced with :math:`\theta`-averaged velocities. With the rule of step 2 alone the contact
 then leaves the active set every other step, and its impulse alternates between 0 and twice
 the force it carries. A constraint with an impulse in the previous step therefore stays active
-while its predicted gap is at most :math:`\varepsilon_p` (``persistence_tolerance``, 1 µm by
-default), and with a positive gap :math:`g_a` its condition is
-:math:`0 \le u_a^+ + g_a/h \perp P_a`: it may approach its surface at the speed that closes
-the gap in one step, not faster, and never adheres. The integrator keeps that memory between
-steps (:meth:`MoreauJean.reset` forgets it).
+while its predicted gap is at most the release gap :math:`\varepsilon_p + h u_p`
+(``persistence_tolerance``, 1 µm by default, and ``persistence_speed``, 0.1 m/s), and with a
+positive gap :math:`g_a` its condition is :math:`0 \le u_a^+ + g_a/h \perp P_a`: it may
+approach its surface at the speed that closes the gap in one step, not faster, and never
+adheres. The integrator keeps that memory between steps (:meth:`MoreauJean.reset` forgets it).
+
+The band :math:`h u_p` scales with the drift. A contact held on a curved path (a spoke
+pivoting on its foot, a foot on a turning body) has its velocity constrained with
+:math:`J(q_k)`, so at :math:`q_{k+1}` its normal velocity is :math:`O(h)` away from the surface
+(:math:`h\,\dot q^T \nabla^2 g\,\dot q`, the centripetal term :math:`\omega^2 l h`) and its
+gap grows by :math:`O(h^2)` a step: 1.7 µm at h = 1 ms on the rimless wheel's stance spoke.
+With :math:`\varepsilon_p` alone such a contact was released whenever its gap passed 1 µm,
+fell back within a step, and its re-closure was an impact: 223 "impacts" in 6 s of the wheel
+for 8 strikes. The band holds it while that normal velocity, :math:`O(h)`, is below
+:math:`u_p`. Keeping a held row costs nothing physically: its condition above only acts on a
+free motion that would cross the surface within the step, and a contact that separates gets
+no impulse and leaves the memory at once.
+
+**Impacts.** A step's :attr:`StepOutcome.impacts` are the constraints that get an impulse and
+close at its start faster than
+:data:`~ucontrol.integrators.step_stages.IMPACT_VELOCITY_THRESHOLD`, or faster than
+:data:`~ucontrol.integrators.step_stages.HELD_IMPACT_VELOCITY` when held by the previous step
+(:func:`~ucontrol.integrators.step_stages.is_impact`), the rule by which
+:func:`~ucontrol.analysis.impacts.impact_mask` reads a log (a held contact closing its drift is
+not an impact).
+
+**Contacts that may not close.** A point contact with a scuffing rule (``closes_ahead_of``:
+a walker's swing foot passes through the ground until its hip is past the stance foot) is left
+out of the active set while :meth:`~ucontrol.contact.ConstraintSet.closure_barred` bars it,
+unless the last step held it (:meth:`MoreauJean._barred`): one forward kinematics pass a step,
+in the scenes that declare such a rule only.
 
 **Contacts closed at the start.** A run starts with no memory, so a contact placed on its
 surface with a gap that rounds to a tiny positive value (:math:`+10^{-18}` m from the trigonometry
@@ -203,9 +229,11 @@ from ucontrol.integrators.step_stages import (
     fresh_memory,
     gains_energy,
     impulse_energy_gain,
+    is_impact,
     newton_offsets,
     next_memory,
     predicted_gaps,
+    release_gap,
     theta_displacement,
 )
 from ucontrol.model.flexible_joints import FlexibleJoints
@@ -224,6 +252,8 @@ Vector = NDArray[np.float64]
 
 #: Default predicted gap up to which a held constraint stays active, in [m] (or [rad]).
 PERSISTENCE_TOLERANCE = 1e-6
+#: Default speed in [m/s] (or [rad/s]) of the release band h u_p added to it (module docstring).
+PERSISTENCE_SPEED = 0.1
 #: Residual in [m] or [rad] at which the projection stops.
 BILATERAL_PROJECTION_TOLERANCE = 1e-12
 #: Gauss–Newton iterations of the projection at most.
@@ -260,8 +290,11 @@ class MoreauJean:
         midpoint: Evaluate the inertia, gravity and Coriolis forces at the midpoint (module
             docstring): second order between impacts, at about three more RNEA per step.
         persistence_tolerance: Predicted gap in [m] (or [rad]) up to which a constraint that
-            carried an impulse in the previous step stays in the active set (module
-            docstring); 0 turns persistence off.
+            carried an impulse in the previous step stays in the active set, with the band
+            ``dt * persistence_speed`` added (module docstring); both 0 turn persistence off.
+        persistence_speed: Speed :math:`u_p` in [m/s] (or [rad/s]) of the release band
+            :math:`h u_p`: a held contact whose drift over a step changes its normal velocity
+            by less stays active.
         newton_law: ``"closing"`` (default: restitution on closing constraints, energy guard)
             or ``"siconos"`` (restitution on every active constraint, no guard: Siconos'
             convention; with ``persistence_tolerance = 0`` it reproduces Siconos' runs).
@@ -294,6 +327,7 @@ class MoreauJean:
         flexible: FlexibleJoints | None = None,
         midpoint: bool = False,
         persistence_tolerance: float = PERSISTENCE_TOLERANCE,
+        persistence_speed: float = PERSISTENCE_SPEED,
         newton_law: str = "closing",
         joint_friction: JointFriction | None = None,
         compiled: bool = True,
@@ -371,6 +405,11 @@ class MoreauJean:
         self.persistence_tolerance = as_float("persistence_tolerance", persistence_tolerance)
         if self.persistence_tolerance < 0.0:
             raise InvalidParameterError("persistence_tolerance", persistence_tolerance, ">= 0")
+        self.persistence_speed = as_float("persistence_speed", persistence_speed)
+        if self.persistence_speed < 0.0:
+            raise InvalidParameterError("persistence_speed", persistence_speed, ">= 0")
+        # Predicted gap up to which a held constraint stays active [m] (or [rad]).
+        self._release = release_gap(self.persistence_tolerance, self.persistence_speed, self.dt)
         #: What the last step left to the next (:class:`StepMemory`); :meth:`reset` renews it.
         self.memory = fresh_memory(constraints.size)
         # The memory after a step without impulses, and that step's outcome: shared, read-only.
@@ -379,7 +418,7 @@ class MoreauJean:
         self._row_memories = tuple(
             StepMemory(_read_only(memory.activation), False)
             for memory in (
-                next_memory(row, (i,), self.persistence_tolerance)
+                next_memory(row, (i,), self._release)
                 for i, row in enumerate(np.eye(constraints.size))
             )
         )
@@ -398,6 +437,7 @@ class MoreauJean:
             nv = robot.nv
             implicit[nv:, nv:] += np.diag(flexible.motor_inertia)  # + B on the motors
             self._implicit_forces = implicit  # W without the links' M(q)
+        self._closure_rules = constraints.has_closure_rules
         self._free_step = self._compiled_free_step()
         if self._free_step is not None and self._rigid_rows is not None:
             self._free_step.read_rows_of(self._rigid_rows)  # no copies of q, v and the rows
@@ -541,7 +581,9 @@ class MoreauJean:
             v_free, inverse_inertia = self._free_velocity(state, tau)
             # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
             predicted = predicted_gaps(state.gap, state.normal_velocity, self.gamma * self.dt)
-        active, activation = active_set(memory, state.gap, predicted, self.persistence_tolerance)
+        if self._closure_rules:  # contacts that may not close here (a scuffing swing foot)
+            predicted = self._barred(state, predicted, memory)
+        active, activation = active_set(memory, state.gap, predicted, self._release)
         count = np.count_nonzero(active)
         rows = count + self._problem_rows
         if not rows:  # no contact problem: nothing held next
@@ -553,14 +595,32 @@ class MoreauJean:
             )  # fmt: skip
         if count == rows == 1 and free_step is not None and free_step.single_rows:
             if not memory.first:
-                return self._single_row_outcome(free_step, active, int(active.argmax()), state.t)
+                return self._single_row_outcome(free_step, active, int(active.argmax()), state)
         indices = active.nonzero()[0]
         return self._contact_outcome(state, v_free, inverse_inertia, active, indices, activation)
 
+    def _barred(self, state: PlantEvaluation, predicted: Vector, memory: StepMemory) -> Vector:
+        """``predicted`` with the contacts barred from closing at q_k (not held) left out.
+
+        :meth:`~ucontrol.contact.ConstraintSet.closure_barred`: their predicted gaps become
+        infinite, so that the active set leaves them out.
+        """
+        q = state.q if self.flexible is None else state.q[: self.flexible.nq]
+        barred = [i for i in self.constraints.closure_barred(q) if memory.activation[i] <= 0.0]
+        if not barred:
+            return predicted
+        predicted = predicted.copy()
+        predicted[barred] = np.inf
+        return predicted
+
     def _single_row_outcome(
-        self, free_step: CompiledFreeStep, active: NDArray[np.bool_], i: int, t: float | None
+        self,
+        free_step: CompiledFreeStep,
+        active: NDArray[np.bool_],
+        i: int,
+        state: PlantEvaluation,
     ) -> StepOutcome:
-        """The outcome of a step at time ``t`` [s] with constraint ``i`` alone active.
+        """The outcome of a step from ``state`` with constraint ``i`` alone active.
 
         From the compiled call.
 
@@ -574,7 +634,7 @@ class MoreauJean:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
         impulse[i] = P.item()
-        impacts = _closing_impacts(impulse, self.memory.activation, (i,), t)
+        impacts = _closing_impacts(impulse, self.memory.activation, (i,), state)
         # next_memory(impulse, (i,), ...), built once
         self.memory = self._row_memories[i] if impulse[i] > 0.0 else self._free_memory
         return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
@@ -674,7 +734,8 @@ class MoreauJean:
                 (J[:m][impulse[indices] > 0.0, : self.robot.nv], constraints.play_rows(q_next))
             )
             q_next = self._project(q_next, held if held.size else None)
-        self.memory = next_memory(impulse, rows, self.persistence_tolerance)
+        impacts = _closing_impacts(impulse, self.memory.activation, rows, state)
+        self.memory = next_memory(impulse, rows, self._release)
         return StepOutcome(
             q_next,
             v_next,
@@ -683,7 +744,7 @@ class MoreauJean:
             solution,
             plastic=plastic,
             friction_impulse=friction_impulse,
-            impacts=_closing_impacts(impulse, activation, rows, state.t),
+            impacts=impacts,
         )
 
     def _advance_theta(self, state: PlantEvaluation, v_next: Vector) -> Vector:
@@ -1028,16 +1089,18 @@ def _read_only(array: Vector) -> Vector:
 
 
 def _closing_impacts(
-    impulse: Vector, activation: Vector, rows: Any, t: float | None
+    impulse: Vector, activation: Vector, rows: Any, state: PlantEvaluation
 ) -> tuple[tuple[int, float], ...]:
-    """(constraint, t_k in [s]) of the ``rows`` the step closes (t_k = ``t``, 0 when None).
+    """(constraint, t_k in [s]) of the impacts among ``rows`` in the step from ``state``.
 
-    A row closes when it gets an impulse without being held by the last step (its
-    ``activation`` is 0): time-stepping locates no impact, so its time is the step's start.
+    :func:`~ucontrol.integrators.step_stages.is_impact` with the last step's ``activation``
+    (t_k = ``state.t``, 0 when None): time-stepping locates no impact, so its time is the
+    step's start.
     """
     impacts: tuple[tuple[int, float], ...] = ()
+    u_minus, t = state.normal_velocity, state.t
     for i in rows:
-        if impulse[i] > 0.0 and activation[i] <= 0.0:
+        if is_impact(impulse[i], activation[i], u_minus[i]):
             impacts += ((int(i), 0.0 if t is None else float(t)),)
     return impacts
 

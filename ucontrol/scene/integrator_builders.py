@@ -117,6 +117,7 @@ def _moreau_jean(scene: SceneData, dt: float, compiled: bool = True) -> Integrat
         flexible=scene.flexible,
         midpoint=settings.midpoint,
         persistence_tolerance=settings.persistence_tolerance,
+        persistence_speed=settings.persistence_speed,
         newton_law=settings.newton_law,
         joint_friction=scene.joint_friction,
         compiled=compiled,

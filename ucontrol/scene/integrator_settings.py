@@ -15,7 +15,12 @@ from ucontrol.integrators.methods import (
     IVP_METHODS,
     RESTITUTION_LAWS,
 )
-from ucontrol.integrators.moreau_jean import NEWTON_LAWS, ON_UNSOLVED, PERSISTENCE_TOLERANCE
+from ucontrol.integrators.moreau_jean import (
+    NEWTON_LAWS,
+    ON_UNSOLVED,
+    PERSISTENCE_SPEED,
+    PERSISTENCE_TOLERANCE,
+)
 from ucontrol.solvers.contact_solver_choice import check_contact_solver
 
 #: Largest contact or friction tolerance accepted, in [m/s]: looser is no contact solve.
@@ -57,7 +62,10 @@ class IntegratorSettings:
         midpoint: Moreau–Jean evaluates inertia, gravity and Coriolis forces at the step's
             midpoint: second order between impacts (see :class:`MoreauJean`).
         persistence_tolerance: Predicted gap in [m] up to which Moreau–Jean keeps a constraint
-            that carried an impulse in the previous step active; 0 turns it off.
+            that carried an impulse in the previous step active, with the band
+            ``dt * persistence_speed`` added; both 0 turn persistence off.
+        persistence_speed: Speed in [m/s] of Moreau–Jean's release band (see
+            :class:`MoreauJean`).
         newton_law: Whom Moreau–Jean's Newton law applies to: ``"closing"`` constraints (with
             the energy guard) or, ``"siconos"``, every active one (Siconos' convention).
         impact_law: Impact law of event_driven, ``"newton"`` (generalized Newton law),
@@ -104,6 +112,7 @@ class IntegratorSettings:
     on_unsolved: str = "raise"
     midpoint: bool = False
     persistence_tolerance: float = PERSISTENCE_TOLERANCE
+    persistence_speed: float = PERSISTENCE_SPEED
     penetration_tolerance: float = 0.01
     newton_law: str = "closing"
     impact_law: str | list[str] = "newton"
@@ -121,6 +130,10 @@ class IntegratorSettings:
         if not tolerance >= 0.0:  # also rejects NaN
             raise InvalidParameterError("persistence_tolerance", tolerance, "a length >= 0 in [m]")
         object.__setattr__(self, "persistence_tolerance", tolerance)
+        speed = as_float("persistence_speed", self.persistence_speed)
+        if not speed >= 0.0:  # also rejects NaN
+            raise InvalidParameterError("persistence_speed", speed, "a speed >= 0 in [m/s]")
+        object.__setattr__(self, "persistence_speed", speed)
         friction_tolerance = as_positive("friction_tolerance", self.friction_tolerance)
         if friction_tolerance > MAX_TOLERANCE:
             raise InvalidParameterError(

@@ -89,7 +89,17 @@ _MOTION_KEYS = {
     "ramp": {"type", "velocity"},
     "python": {"type", "function"},
 }
-_CONTACT_KEYS = {"frame", "surface", "radius", "restitution", "friction", "name"}
+_CONTACT_KEYS = {
+    "frame",
+    "surface",
+    "radius",
+    "restitution",
+    "friction",
+    "name",
+    "closes_ahead_of",
+    "direction_of_travel",
+    "ahead_frame",
+}
 _SPHERE_CONTACT_KEYS = {
     "frame",
     "other_frame",
@@ -133,6 +143,7 @@ _INTEGRATOR_KEYS = {
     "on_unsolved",
     "midpoint",
     "persistence_tolerance",
+    "persistence_speed",
     "penetration_tolerance",
     "newton_law",
     "impact_law",
@@ -418,6 +429,9 @@ def _contact(
         restitution=spec.get("restitution", 0.0),
         friction=spec.get("friction", 0.0),
         name=str(spec.get("name", "")),
+        closes_ahead_of=str(spec.get("closes_ahead_of", "")),
+        direction_of_travel=spec.get("direction_of_travel"),
+        ahead_frame=str(spec.get("ahead_frame", "")),
     )
 
 
