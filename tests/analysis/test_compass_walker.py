@@ -210,3 +210,14 @@ def test_a_bad_scuffing_rule_is_refused(tmp_path: Path) -> None:
     )
     with pytest.raises(NotFoundError, match=r"closes_ahead_of of 'foot_a/ground' 'knee'"):
         Scene.from_toml(path).constraints  # built on first use
+
+
+def test_only_moreau_jean_takes_a_scuffing_rule() -> None:
+    """event_driven does not apply ``closes_ahead_of``: refused, not ignored.
+
+    (compliant refuses the walker's friction first.)
+    """
+    scene = Scene.from_toml(ROBOTS / "compass_walker.toml")
+    settings = dataclasses.replace(scene.integrator, name="event_driven")
+    with pytest.raises(InvalidParameterError, match=r"closes_ahead_of.*foot_a/ground"):
+        dataclasses.replace(scene, integrator=settings).build_integrator()

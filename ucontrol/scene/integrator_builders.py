@@ -34,7 +34,8 @@ def build_integrator(
             frictionless) or event_driven against moving surfaces, a ``qpsolvers:`` contact
             solver was asked for a scene with friction, the compliant integrator for a
             scene with moving surfaces, bilateral constraints or clearance joints, or Coulomb
-            joint friction with an integrator other than ``moreau_jean``.
+            joint friction or a contact's ``closes_ahead_of`` rule with an integrator other
+            than ``moreau_jean``.
     """
     name = scene.integrator.name
     laws = _impact_laws(scene)
@@ -72,6 +73,14 @@ def build_integrator(
             name,
             "'moreau_jean' or 'event_driven' for contacts against moving surfaces (a surface "
             f"`motion`; {name} does not handle time-dependent constraints)",
+        )
+    barred = [c.name for c in scene.contacts if c.closes_ahead_of]
+    if barred and name != "moreau_jean":
+        raise InvalidParameterError(
+            "[integrator] name",
+            name,
+            f"'moreau_jean' for contacts with a `closes_ahead_of` rule ({barred}; only "
+            "Moreau–Jean applies it, docs/moreau_jean.md)",
         )
     if _joint_coulomb(scene) and name != "moreau_jean":
         raise InvalidParameterError(
