@@ -122,7 +122,6 @@ class CycleTranscription:
             else ca.SX(1, nv)
         )
         drift = ca.jacobian(J_n @ v, q) @ v  # J̇_n v [m/s²]
-        self.inline = nv <= INLINE_JOINTS
         M, h = model.mass_matrix(q), model.nonlinear_effects(q, v)
         D, LT, perm = ca.ldl(M)
 
@@ -734,7 +733,8 @@ def _rk_interval(
     """
     A, b = _tableau(scheme)
     # small models: the stages inlined (SX, fastest); larger ones: the rate Function called
-    # (MX), whose inlined stages and their Hessian outgrow memory (the 9-joint Panda: > 9 GB)
+    # (MX): inlined, the 7-joint Panda's exact Hessian takes 6.8 s to build and its iterations
+    # did not pay it back (docs/benchmarks.md)
     sym: Any = ca.SX if nv <= INLINE_JOINTS else ca.MX
     x0 = sym.sym("x0", 2 * nv)
     tau = sym.sym("tau", nv)
