@@ -88,6 +88,14 @@ def test_locked_joints_reduce_the_design_model() -> None:
         DesignTask.from_dict(table, base_dir=ROBOTS)
 
 
+def test_warm_start_must_be_a_boolean() -> None:
+    table = _table()
+    table["solver"]["warm_start"] = "yes"
+    with pytest.raises(InvalidParameterError, match="warm_start") as error:
+        DesignTask.from_dict(table, base_dir=ROBOTS)
+    assert error.value.value == "yes"
+
+
 def test_unknown_hessian_is_named() -> None:
     table = _table()
     table["solver"]["hessian"] = "bfgs"

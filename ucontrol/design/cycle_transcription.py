@@ -108,36 +108,45 @@ class CycleTranscription:
         tangent = None
         if self.friction > 0.0 or (phase.landing is not None and phase.takeoff is not None):
             tangent = self._sliding_tangent(contact.surface.normal)
-        # everything as SX: kinematics, M and h by the recursive Newton–Euler algorithm (where
-        # SymbolicModel's C v has ~1e5 nodes for the Panda), the solves with M by its LDLᵀ
-        # factors (M is symmetric positive definite): the Panda's a_free in 4e3 instructions
-        q, v, tau = ca.SX.sym("q", nv), ca.SX.sym("v", nv), ca.SX.sym("tau", nv)
-        p_contact = model.frame_position(contact.frame)(q)
+        # kinematics and M, h as SX; the solves inlined (SX) for a small model, called as
+        # linear solves (MX) for a larger one, whose symbolic solves outgrow memory
+        qs, vs = ca.SX.sym("q", nv), ca.SX.sym("v", nv)
+        p_s = model.frame_position(contact.frame)(qs)
         normal = ca.DM(contact.surface.normal)
-        gap = ca.dot(normal, p_contact - ca.DM(contact.surface.point)) - contact.radius
-        J_n = ca.jacobian(gap, q)  # (1, nv)
-        J_t = (
-            ca.jacobian(ca.dot(ca.DM(tangent), p_contact), q)
-            if tangent is not None
-            else ca.SX(1, nv)
+        gap_s = ca.dot(normal, p_s - ca.DM(contact.surface.point)) - contact.radius
+        J_n_s = ca.jacobian(gap_s, qs)  # (1, nv)
+        J_t_s = (
+            ca.jacobian(ca.dot(ca.DM(tangent), p_s), qs) if tangent is not None else ca.SX(1, nv)
         )
-        drift = ca.jacobian(J_n @ v, q) @ v  # J̇_n v [m/s²]
-        M, h = model.mass_matrix(q), model.nonlinear_effects(q, v)
-        D, LT, perm = ca.ldl(M)
-
-        def solve(rhs: Any) -> Any:
-            return ca.ldl_solve(rhs, D, LT, perm)  # M⁻¹ rhs
-
+        drift_s = ca.jacobian(J_n_s @ vs, qs) @ vs  # J̇_n v [m/s²]
+        self.inline = nv <= INLINE_JOINTS
+        sym: Any = ca.SX if self.inline else ca.MX
+        q: Any
+        v: Any
+        tau: Any
+        # M and h by the recursive Newton–Euler algorithm (~1e3 nodes for the Panda, where
+        # SymbolicModel's C v has ~1e5)
+        if self.inline:
+            q, v, tau = qs, vs, ca.SX.sym("tau", nv)
+            M, h = model.mass_matrix(qs), model.nonlinear_effects(qs, vs)
+            gap, J_n, J_t, drift = gap_s, J_n_s, J_t_s, drift_s
+        else:
+            q, v, tau = ca.MX.sym("q", nv), ca.MX.sym("v", nv), ca.MX.sym("tau", nv)
+            kinematics = ca.Function("kinematics", [qs], [gap_s, J_n_s, J_t_s])
+            dynamics = ca.Function("dynamics", [qs, vs], [drift_s, model.nonlinear_effects(qs, vs)])
+            gap, J_n, J_t = kinematics(q)
+            drift, h = dynamics(q, v)
+            M = model.mass_matrix(q)
         u_n = J_n @ v
-        a_free = solve(tau - h)
+        a_free = ca.solve(M, tau - h)
         W = J_n
         if self.friction > 0.0:
             W = J_n - self.friction * J_t
-        Minv_Wt = solve(W.T)
+        Minv_Wt = ca.solve(M, W.T)
         force = -(J_n @ a_free + drift) / (J_n @ Minv_Wt)  # λ [N]
         a_contact = a_free + Minv_Wt @ force
-        P = ca.SX.sym("P")
-        v_plus = v + solve(J_n.T) * P
+        P = sym.sym("P")
+        v_plus = v + ca.solve(M, J_n.T) * P
         position = model.frame_position(task.frame)(q)
         x = ca.vertcat(q, v)
         f = {}
@@ -532,9 +541,7 @@ class CycleTranscription:
                 "print_level": task.solver.print_level,
                 "sb": "yes",
                 "mu_strategy": "adaptive",
-                # the initial guess is a cycle, not a point to push into the interior: taken
-                # as it is, the two-link task converges in 22 iterations against 44
-                "warm_start_init_point": "yes" if warm_start else "no",
+                "warm_start_init_point": "yes" if warm_start and task.solver.warm_start else "no",
                 "hessian_approximation": task.solver.hessian,
             },
         )
@@ -733,8 +740,7 @@ def _rk_interval(
     """
     A, b = _tableau(scheme)
     # small models: the stages inlined (SX, fastest); larger ones: the rate Function called
-    # (MX): inlined, the 7-joint Panda's exact Hessian takes 6.8 s to build and its iterations
-    # did not pay it back (docs/benchmarks.md)
+    # (MX), whose inlined stages and their Hessian outgrow memory (the 9-joint Panda: > 9 GB)
     sym: Any = ca.SX if nv <= INLINE_JOINTS else ca.MX
     x0 = sym.sym("x0", 2 * nv)
     tau = sym.sym("tau", nv)
