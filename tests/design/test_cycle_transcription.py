@@ -1,4 +1,4 @@
-"""The transcription's model Functions against Pinocchio: its LDLᵀ solves with M."""
+"""The transcription's model Functions against Pinocchio's dynamics, small and large robots."""
 
 from __future__ import annotations
 
