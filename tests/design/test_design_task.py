@@ -88,9 +88,10 @@ def test_locked_joints_reduce_the_design_model() -> None:
         DesignTask.from_dict(table, base_dir=ROBOTS)
 
 
-def test_unknown_hessian_is_named() -> None:
+@pytest.mark.parametrize(("key", "value"), [("hessian", "bfgs"), ("warm_start", "yes")])
+def test_bad_solver_setting_is_named(key: str, value: str) -> None:
     table = _table()
-    table["solver"]["hessian"] = "bfgs"
-    with pytest.raises(InvalidParameterError, match="hessian") as error:
+    table["solver"][key] = value
+    with pytest.raises(InvalidParameterError, match=key) as error:
         DesignTask.from_dict(table, base_dir=ROBOTS)
-    assert error.value.value == "bfgs"
+    assert error.value.value == value

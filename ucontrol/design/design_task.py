@@ -62,6 +62,7 @@ Format (every key but ``scene`` and one ``[[contact_phases]]`` entry is optional
     print_level = 0
     progress_every = 10                      # iterations between two progress lines
     hessian = "exact"                        # or "limited-memory" (L-BFGS: large models)
+    warm_start = false                       # true: IPOPT starts from the warm start as given
 """
 
 from __future__ import annotations
@@ -131,7 +132,7 @@ _GRID_KEYS = {
 }
 #: Explicit Runge–Kutta schemes of the shooting intervals and their orders.
 SCHEMES = {"rk4": 4, "rk8": 8}
-_SOLVER_KEYS = {"max_iter", "tol", "print_level", "progress_every", "hessian"}
+_SOLVER_KEYS = {"max_iter", "tol", "print_level", "progress_every", "hessian", "warm_start"}
 #: IPOPT's Hessian of the Lagrangian: exact (casadi's second derivatives) or L-BFGS.
 HESSIANS = ("exact", "limited-memory")
 
@@ -290,6 +291,9 @@ class SolverSpec:
         progress_every: Iterations between two progress lines.
         hessian: ``"exact"`` (casadi's second derivatives) or ``"limited-memory"`` (IPOPT's
             L-BFGS: more iterations, each much cheaper for a many-joint robot).
+        warm_start: IPOPT starts from the warm start as given (``warm_start_init_point``)
+            instead of pushing it into the interior of the bounds: half the iterations on the
+            two-link task, but the Panda's, far from feasible, wanders (docs/benchmarks.md).
     """
 
     max_iter: int = 1000
@@ -297,8 +301,11 @@ class SolverSpec:
     print_level: int = 0
     progress_every: int = 10
     hessian: str = "exact"
+    warm_start: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.warm_start, bool):
+            raise InvalidParameterError("warm_start", self.warm_start, "true or false")
         object.__setattr__(self, "max_iter", _count("max_iter", self.max_iter, 1))
         object.__setattr__(self, "tol", as_positive("tol", self.tol))
         object.__setattr__(self, "print_level", _count("print_level", self.print_level, 0))
