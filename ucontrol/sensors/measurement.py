@@ -31,11 +31,11 @@ by the rigid joints' inputs and the transmission torque at the measured link and
 states); the gaps and normal velocities it reports are those of the measured state against
 the surfaces of the controller's model (``[controller.model.surfaces]``,
 :meth:`~ucontrol.scene.scene.Scene.believed_constraints`), never the plant's; the constraints
-whose measured gap is at most ``contact_gap`` are candidates, their normal rows :math:`J_c` share the residual by least squares
-(:math:`J_c^T \hat\lambda = r`), and a candidate with :math:`\hat\lambda_i` above
-``force_threshold`` is active with the impulse :math:`\hat\lambda_i T`; every other
-constraint carries none. Nothing of the
-plant's impulses reaches the controller then.
+whose measured gap is at most ``contact_gap`` are candidates, their normal rows :math:`J_c`
+share the residual by least squares (:math:`J_c^T \hat\lambda = r`), and a candidate with
+:math:`\hat\lambda_i` above ``force_threshold`` is active with the impulse
+:math:`\hat\lambda_i T`; every other constraint carries none. Nothing of the plant's
+impulses reaches the controller then.
 
 Delay: the controller at period k receives the whole measurement (positions, velocity,
 contact information) of period :math:`k - d`; before :math:`d` periods have passed it receives
