@@ -15,7 +15,9 @@ and every run has noisy sensors (its own noise: ``sensors.seed`` drawn among
 :data:`NOISE_SEEDS`) and the measurement-only momentum observer (:data:`SENSORS`):
 joint-position noise σ = 1e-5 rad, the velocity from the measured positions (100 Hz
 low-pass, re-initialised at the impacts the observer flags), and the contact
-information the controller sees estimated from the measured positions and the torque sent.
+information the controller sees estimated from the measured positions and the torque sent:
+gaps on the surface the controller believes in (the nominal one), contact forces by the
+observer for the constraints within ``contact_gap`` = 6 mm of it (the surface's uncertainty).
 
 Per run, from the first landing (figures of :mod:`ucontrol.analysis.impact_metrics`,
 :math:`t_1` the plant's first impact of the contact): ``velocity_error_peak`` [m/s],
@@ -60,6 +62,8 @@ SENSORS: dict[str, Any] = {
     "velocity": "observer",  # difference of the measured positions, re-initialised at impacts
     "velocity_cutoff": 100.0,  # [Hz]
     "observer": "momentum",
+    # [m] the observer's contact candidates: within the ±5 mm the believed surface may be off
+    "contact_gap": 6e-3,
 }
 #: Time in [s] after the first impact from which the contact must be held ...
 SETTLE = 0.5

@@ -68,6 +68,28 @@ def test_controller_believes_its_surfaces_while_the_plant_keeps_the_scenes() -> 
     assert log.gap[landing + 1, 0] > -1e-3  # the plant's gap is measured from its own ground
 
 
+def test_believed_constraints_are_the_controllers_surfaces_with_the_plants_rows() -> None:
+    """The rows the measurement-only observer reports gaps on: the believed ground's."""
+    table = tomllib.loads((ROBOTS / "two_link_one_constraint.toml").read_text())
+    table["surfaces"]["ground"]["point"] = [0.0, 0.005, 0.0]
+    table["controller"]["model"] = {"surfaces": {"ground": {"point": [0.0, 0.0, 0.0]}}}
+    scene = Scene.from_dict(table, base_dir=ROBOTS)
+    believed = scene.believed_constraints()
+    assert believed.names == scene.constraints.names
+    q, v = np.array([0.4, -1.1]), np.array([0.3, -0.2])
+    data = pin.Data(scene.robot.model)
+    pin.forwardKinematics(scene.robot.model, data, q, v)
+    pin.updateFramePlacements(scene.robot.model, data)
+    seen_gap, seen_speed = believed.evaluate(data, q, v, 0.0)
+    true_gap, true_speed = scene.constraints.evaluate(data, q, v, 0.0)
+    frame = data.oMf[scene.robot.model.getFrameId(scene.contacts[0].frame)].translation
+    assert seen_gap[0] == pytest.approx(frame[1], abs=1e-14)  # height above y = 0 (normal +y)
+    assert true_gap[0] == pytest.approx(frame[1] - 0.005, abs=1e-14)
+    np.testing.assert_array_equal(seen_speed, true_speed)  # a translated plane: same normal
+    plain = load_scene("two_link_one_constraint")  # no [controller.model]: the plant's own
+    assert plain.believed_constraints() is plain.constraints
+
+
 def test_controller_model_table_errors() -> None:
     with pytest.raises(UnknownKeyError, match=r"'inertia' in \[controller.model\]"):
         _one_constraint(inertia=2.0).build_controller()

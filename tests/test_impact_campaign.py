@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from conftest import load_experiment
 
@@ -89,11 +90,20 @@ class _Recorder:
         self.inner.record(log)
 
 
-@pytest.mark.parametrize("law", ["Brogliato", "reference spreading"])
-def test_the_campaigns_controllers_see_nothing_of_the_plants_impulses(law: str) -> None:
-    """Replayed from q, v and the torque alone, with NaN impulses, the inputs are the same."""
+@pytest.mark.parametrize(
+    ("law", "shift"), [("Brogliato", 0.0), ("reference spreading", 0.0), ("Brogliato", 3e-3)]
+)
+def test_the_campaigns_controllers_see_nothing_of_the_plants_impulses(
+    law: str, shift: float
+) -> None:
+    """Replayed from q, v and the torque alone, with NaN impulses, the inputs are the same.
+
+    With the table ``shift`` [m] higher than the controller's model believes, the replay
+    computes the gaps on the believed table: the controller never sees the true one.
+    """
     campaign = load_experiment("impact_campaign")
     table = campaign.scene_table("panda", law)
+    table["surfaces"]["table"]["point"][2] += shift  # the plant's; the controller keeps its own
     scene = Scene.from_dict(table, base_dir=campaign.ROBOTS, default_name="panda_landing_rs")
     recorder = _Recorder(scene.build_controller())
     log = simulate(scene, recorder, duration=0.9, progress=False).log
@@ -102,7 +112,8 @@ def test_the_campaigns_controllers_see_nothing_of_the_plants_impulses(law: str) 
     assert len(recorder.inputs) == len(log) - 1  # one call per step (control period = step)
     assert scene.sensors is not None
     believed = recorder.robot if isinstance(recorder.robot, RobotModel) else None
-    sensors = Sensors(scene.sensors, scene.robot, scene.constraints, None, 1e-3, believed)
+    seen_geometry = scene.believed_constraints()  # the table where the controller believes it
+    sensors = Sensors(scene.sensors, scene.robot, seen_geometry, None, 1e-3, believed)
     n = scene.constraints.size
     nothing = np.full(n, np.nan)
     seen_contact = False
@@ -119,6 +130,12 @@ def test_the_campaigns_controllers_see_nothing_of_the_plants_impulses(law: str) 
             np.testing.assert_array_equal(getattr(replayed, field), getattr(contacts, field))
         seen_contact |= bool(contacts.impulse[contacts.names.index(contact)] > 0.0)
     assert seen_contact  # the controller did learn of the contact, from its measurements
+    if shift:  # the gaps it saw are the believed table's: the true ones are `shift` smaller
+        row = contacts.names.index(contact)
+        data = scene.robot.model.createData()
+        pin.framesForwardKinematics(scene.robot.model, data, q[: scene.robot.nq])
+        true_gap, _ = scene.constraints.evaluate(data, q, v, t)
+        assert true_gap[row] == pytest.approx(contacts.gap[row] - shift, abs=1e-12)
 
 
 def test_brogliato_reference_by_differences_is_the_targets_velocity() -> None:

@@ -250,7 +250,7 @@ class _ClosedLoop:
             self.sensors = Sensors(
                 scene.sensors,
                 robot,
-                integrator.constraints,
+                _measured_geometry(scene, integrator.constraints),
                 flexible,
                 period,
                 believed if isinstance(believed, RobotModel) else None,
@@ -689,3 +689,18 @@ class _CallableModule(types.ModuleType):
 
 
 sys.modules[__name__].__class__ = _CallableModule
+
+
+def _measured_geometry(scene: Scene, constraints: ConstraintSet) -> ConstraintSet:
+    """The constraints whose gaps the sensors report: the plant's, or the controller's belief.
+
+    With the measurement-only observer (``observer = "momentum"``) the gaps and normal
+    velocities come from the measured state and the surfaces of the controller's model
+    (:meth:`~ucontrol.scene.scene.Scene.believed_constraints`), so a controller never sees the
+    true surface; with the oracle, from the plant's own constraints.
+    """
+    assert scene.sensors is not None
+    if scene.sensors.observer != "momentum":
+        return constraints
+    believed = scene.believed_constraints()
+    return constraints if believed is scene.constraints else believed

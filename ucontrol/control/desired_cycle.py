@@ -127,7 +127,8 @@ class DesiredCycle:
             ``"time"`` (default), the profile of :meth:`desired_force` (plateau, then a
             smooth fall to 0 at :math:`t_d`); ``"state"``, designed from the state at each
             call so that the contact force the law produces is that profile (book §8.1.4,
-            the rigid law; docs/controller.md, "The desired contact force").
+            and the flexible-joint law on its link law; docs/controller.md, "The desired
+            contact force").
         reference_after_impact: What the rigid law builds :math:`\dot q_r` on from the first
             impact to :math:`t_f`: ``"virtual"`` (default), the virtual target, as
             :math:`\bar s`; ``"clipped"``, the target clipped at the surface, as the book does

@@ -104,6 +104,7 @@ from ucontrol.control.brogliato_controller import (
     BrogliatoController,
     BrogliatoGains,
     _reference_terms,
+    _state_force,
 )
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.desired_cycle import DesiredCycle
@@ -159,8 +160,7 @@ class FlexibleBrogliatoController(BrogliatoController):
     Raises:
         InvalidParameterError: The task is redundant, ``flexible`` belongs to another robot
             or has dampers, a joint is not revolute or prismatic, the robot is not fully
-            actuated, or the cycle's ``force_profile`` is not ``"time"`` or its
-            ``reference_after_impact`` not ``"virtual"``.
+            actuated, or the cycle's ``reference_after_impact`` is not ``"virtual"``.
         FrameNotFoundError: The task frame is not in the robot.
     """
 
@@ -190,12 +190,6 @@ class FlexibleBrogliatoController(BrogliatoController):
                 f"a square task of m = nv = {robot.nv} coordinates (the flexible law inverts "
                 "the task map; redundant tasks are not supported)",
             )
-        if cycle.force_profile != "time":
-            raise InvalidParameterError(
-                "force_profile",
-                cycle.force_profile,
-                '"time" for the flexible-joint law (the state-based λ_d is the rigid law\'s)',
-            )
         if cycle.reference_after_impact != "virtual":
             raise InvalidParameterError(
                 "reference_after_impact",
@@ -224,10 +218,18 @@ class FlexibleBrogliatoController(BrogliatoController):
             )
         )
         self._reference_derivatives = CompiledFunction(_reference_derivatives(q, X))
-        self._law = CompiledFunction(_law_function(model, flexible, self.machine.coordinates, X, q))
-        self._law.input_buffer(1)[:] = np.concatenate(  # parameters: constant per controller
-            [[gains.gamma1, gains.gamma2], flexible.stiffness, flexible.motor_inertia]
+        state_force = cycle.force_profile == "state"
+        self._law = CompiledFunction(
+            _law_function(model, flexible, self.machine.coordinates, X, q, state_force=state_force)
         )
+        parameters: list[Vector] = [
+            np.array([gains.gamma1, gains.gamma2]),
+            flexible.stiffness,
+            flexible.motor_inertia,
+        ]
+        if state_force:
+            parameters.append(np.array([gains.force_gain]))
+        self._law.input_buffer(1)[:] = np.concatenate(parameters)  # constant per controller
         # The inputs of the law and of Newton's step, written in place before each call: the
         # law's (see _law_function) as views of its parts; the derivatives of the reference
         # read (q1d, X_d', ..., X_d'''') in place from the law's input.
@@ -239,7 +241,11 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._state_input = (x[:nv], x[nv + nf : 2 * nv + nf], x[nv : nv + nf], x[size - nf : size])
         self._reference_input = x[size : size + 5 * nv]  # then q1d and its 4 derivatives
         self._target_input = tuple(x[size + k * nv : size + (k + 1) * nv] for k in range(1, 5))
-        self._model_force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
+        # The force term (3, n) and the model force (2, n); or, with the state-based λ_d
+        # (_state_force_input), held, active, λ_t and its 2 derivatives, measured, λ (each n).
+        self._model_force_input = x[size + 5 * nv :]
+        n = len(self.machine.contacts)
+        self._state_force_rows = self._model_force_input.reshape(7, n) if state_force else None
         self._reference_derivatives.bind_input(0, self._reference_input)
         # Views of the reference input: q1d, the targets' derivatives 1 to 4 (those of q1d
         # once solved), all 5 as rows; of Newton's input and output.
@@ -259,8 +265,9 @@ class FlexibleBrogliatoController(BrogliatoController):
         # The coefficients [s^k / k!] of Newton's start by step dt [s] (see _taylor_start).
         self._taylor: dict[float, Vector] = {}
         self._newton_out: tuple[Vector, Vector] | None = None  # (output buffer, its step)
-        # Outputs of the law: u (nu,), X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
+        # Outputs of the law: u (nu,), X (m,), V, V1, q2d, dq2d, ddq2d (nf,) (, λ_d (n,)).
         self._nf = nf
+        self._lambda_d_slice = slice(2 * nv + 2 + 3 * nf, None) if state_force else None
         self._V1_index = 2 * nv + 1
         self._X_slice, self._u_slice = slice(nv, 2 * nv), slice(0, nv)
         self._q2d_slice = slice(2 * nv + 2, 2 * nv + 2 + nf)
@@ -276,8 +283,12 @@ class FlexibleBrogliatoController(BrogliatoController):
         # Read-only force derivatives of a held call (kept alive, so that the same object is
         # the same values: the plateau), their force-term rows and the first of them.
         self._force_rates: tuple[tuple[Vector, ...], list[float], list[float]] | None = None
-        # The law's outputs of the last call (u, X, V, V1, q2d, dq2d, ddq2d).
-        self._outputs = np.zeros(2 * nv + 2 + 3 * nf)
+        # The law's outputs of the last call (u, X, V, V1, q2d, dq2d, ddq2d (, λ_d)).
+        state_force = self.cycle.force_profile == "state"
+        n = len(self.machine.contacts) if state_force else 0
+        self._outputs = np.zeros(2 * nv + 2 + 3 * nf + n)
+        if state_force:
+            self._lambda_d_output = np.zeros(self.task.m)
 
     @property
     def link_desired(self) -> tuple[Vector, ...]:
@@ -312,6 +323,9 @@ class FlexibleBrogliatoController(BrogliatoController):
         nv = self.robot.nv
         self.V, self.V1 = out.item(2 * nv), out.item(2 * nv + 1)
         self.X = out[self._X_slice]
+        if self._lambda_d_slice is not None:  # λ_d applied, on the task rows (m,)
+            assert self._lambda_d_output is not None
+            self._lambda_d_output[machine.coordinates] = out[self._lambda_d_slice]
         self._link_rows = self._reference_rows.copy()
         self._reference_time = t
         return out[self._u_slice]
@@ -358,7 +372,9 @@ class FlexibleBrogliatoController(BrogliatoController):
         derivatives = self._derivatives_output
         tail[...] = derivatives  # q1d derivatives 1 to 4
         held = self._held_contacts(desired.constrained)
-        if held:
+        if self._state_force_rows is not None:  # λ_d designed in the law from the state
+            self._write_flexible_state_force(desired, held)
+        elif held:
             # λ_d and its derivatives (3, n): 0 unless held; the force λ used and its
             # derivative (2, n): the measured value with the derivatives of λ_d, or λ_d where
             # there is no valid measurement. Force term -λ_d + K_f (λ - λ_d) (3, n), row by
@@ -383,6 +399,31 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._run_flexible_law()
         self._law_output = self._flexible_law_output
         return self._law_output.item(self._V1_index)
+
+    def _write_flexible_state_force(
+        self, desired: DesiredState, rows: list[tuple[int, int]]
+    ) -> None:
+        """The inputs of the state-based λ_d, per declared contact (see :func:`_law_function`).
+
+        Held and active contacts, the time profile λ_t and its first 2 derivatives on the held
+        ones, and the measured force where it is valid, as :class:`BrogliatoController` writes
+        them on its task rows.
+        """
+        state = self._state_force_rows
+        assert state is not None
+        if not rows and not self._force_written:
+            return
+        state.fill(0.0)
+        self._force_written = bool(rows)
+        held, active, lambda_t, lambda_1, lambda_2, measured, lambda_m = state
+        active[self._closed] = 1.0
+        rates = desired.force_derivatives
+        held_before = self.desired.constrained  # at the last call
+        for i, _ in rows:
+            held[i] = active[i] = 1.0
+            lambda_t[i], lambda_1[i], lambda_2[i] = desired.force[i], rates[0][i], rates[1][i]
+            if self._persistent[i] and held_before[i]:  # a force of this law
+                measured[i], lambda_m[i] = 1.0, self.contact_force[i]
 
     def _taylor_start(self, dt: float) -> None:
         r"""Newton's start: the last call's q1d expanded to ``dt`` [s] later, written in place.
@@ -470,6 +511,8 @@ def _law_function(
     coordinates: NDArray[np.int64],
     X: ca.SX,
     q: ca.SX,
+    *,
+    state_force: bool = False,
 ) -> ca.Function:
     r"""The law as one casadi Function of one input vector (see :meth:`_evaluate`).
 
@@ -481,11 +524,23 @@ def _law_function(
     γ1, γ2, K (nf,), B (nf,), so that one compiled library serves every gain and stiffness
     (sweeps do not recompile). Output, stacked: u (nu,), the task coordinates of the links
     X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
+
+    With ``state_force`` (``force_profile = "state"``) the law designs :math:`\lambda_d` from
+    the state (:func:`~ucontrol.control.brogliato_controller._state_force`, the rigid law's
+    design applied to the links under the desired link torque :math:`U_R`, i.e. with the
+    motors on their reference, e = 0): the force inputs are then, each (n,), the held and
+    active contacts, the time profile :math:`\lambda_t` and its 2 derivatives, the
+    measured-force flag and the measured force; the parameters end with :math:`K_f`; and the
+    output ends with :math:`\lambda_d` (n,). Its derivatives, which :math:`\dot U_R` and
+    :math:`\ddot U_R` need, are those of this expression of the state (by AD, with the
+    model's link acceleration and jerk), the measured force taking those of
+    :math:`\lambda_d` as before.
     """
     nv, nf, n = model.nv, flexible.nf, len(coordinates)
-    parameters = ca.SX.sym("parameters", 2 + 2 * nf)  # γ1, γ2, K (nf,), B (nf,)
+    # γ1, γ2, K (nf,), B (nf,) (, K_f)
+    parameters = ca.SX.sym("parameters", 2 + 2 * nf + int(state_force))
     gamma1, gamma2 = parameters[0], parameters[1]
-    K, B = parameters[2 : 2 + nf], parameters[2 + nf :]
+    K, B = parameters[2 : 2 + nf], parameters[2 + nf : 2 + 2 * nf]
     motors = [int(i) for i in flexible.v_index]
     rigid = [i for i in range(nv) if i not in motors]
     q1, dq1 = ca.SX.sym("q1", nv), ca.SX.sym("dq1", nv)
@@ -498,13 +553,34 @@ def _law_function(
     M, C, g = model.mass_matrix(q1), model.coriolis_matrix(q1, dq1), model.gravity(q1)
     q1_error, dq1_error, dq1_r, ddq1_r = _reference_terms(q1, dq1, (r[0], r[1], r[2]), gamma2)
     s1 = dq1_error + gamma2 * q1_error
-    U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ f[0]  # [N m]
     link_input = ca.SX.zeros(nv)
     link_input[motors] = K * (q2 - q1[motors])  # spring torque on the links
-    link_input[rigid] = U_R[rigid]
-    ddq1 = ca.solve(M, link_input - C @ dq1 - g + J_c.T @ lam[0])  # [rad/s²]
-    variables = [q1, dq1, q2, *r[:4], f[0], f[1], lam[0]]
-    rates = [dq1, ddq1, dq2, *r[1:], f[1], f[2], lam[1]]
+    if state_force:
+        names = ("held", "active", "lambda_t", "lambda_t_1", "lambda_t_2", "measured")
+        held, active, *lambda_t, measured, lambda_m = (
+            ca.SX.sym(name, n) for name in (*names, "lambda_measured")
+        )
+        drift = ca.jtimes(J_c @ dq1, q1, dq1)  # J̇_c q̇1 [m/s²]
+        closed_loop = (M, J_c, drift, ddq1_r, C @ s1 + gamma1 * s1)
+        force_inputs = {"held": held, "active": active, "lambda_time": lambda_t[0]}
+        force_inputs |= {"measured": measured, "lambda_measured": lambda_m}
+        force_term, lambda_d = _state_force(closed_loop, force_inputs, parameters[-1])
+        used = lambda_d + measured * (lambda_m - lambda_d)  # the model's force [N]
+        U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ force_term  # [N m]
+        link_input[rigid] = U_R[rigid]
+        ddq1 = ca.solve(M, link_input - C @ dq1 - g + J_c.T @ used)  # [rad/s²]
+        own = [q1, dq1, *r[:3], lambda_t[0]]
+        lambda_d_rate = _time_derivative(lambda_d, own, [dq1, ddq1, *r[1:4], lambda_t[1]])
+        variables = [q1, dq1, q2, *r[:4], lambda_t[0], lambda_t[1], lambda_m]
+        rates = [dq1, ddq1, dq2, *r[1:], lambda_t[1], lambda_t[2], lambda_d_rate]
+        force_symbols = [held, active, *lambda_t, measured, lambda_m]
+    else:
+        U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ f[0]  # [N m]
+        link_input[rigid] = U_R[rigid]
+        ddq1 = ca.solve(M, link_input - C @ dq1 - g + J_c.T @ lam[0])  # [rad/s²]
+        variables = [q1, dq1, q2, *r[:4], f[0], f[1], lam[0]]
+        rates = [dq1, ddq1, dq2, *r[1:], f[1], f[2], lam[1]]
+        force_symbols = [*f, *lam]
     dU_R = _time_derivative(U_R, variables, rates)
     ddU_R = _time_derivative(dU_R, variables, rates)
     q2d = r[0][motors] + U_R[motors] / K
@@ -523,6 +599,6 @@ def _law_function(
         + gamma1 * gamma2 * (ca.dot(q1_error, q1_error) + ca.dot(q2_error, q2_error))
         + 0.5 * ca.dot(deflection_error, K * deflection_error)
     )
-    inputs = ca.vertcat(q1, q2, dq1, dq2, *r, *f, *lam)
-    outputs = ca.vertcat(u, link_X, V, V1, q2d, dq2d, ddq2d)
+    inputs = ca.vertcat(q1, q2, dq1, dq2, *r, *force_symbols)
+    outputs = ca.vertcat(u, link_X, V, V1, q2d, dq2d, ddq2d, *([lambda_d] if state_force else []))
     return ca.Function("flexible_brogliato_law", [inputs, parameters], [outputs])

@@ -10,12 +10,13 @@ from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import toml_error_message
 from ucontrol.exceptions import SceneError
-from ucontrol.scene.controller_builders import build_controller
+from ucontrol.scene.controller_builders import build_controller, controller_view
 from ucontrol.scene.integrator_builders import build_integrator
 from ucontrol.scene.scene_data import SceneData
 from ucontrol.scene.scene_table import check_reference, scene_fields
 
 if TYPE_CHECKING:
+    from ucontrol.contact.constraint_set import ConstraintSet
     from ucontrol.control.controller import Controller
     from ucontrol.plant import Integrator
 
@@ -44,6 +45,20 @@ class Scene(SceneData):
     def build_controller(self) -> Controller:
         """The controller declared by the scene's ``[controller]`` table."""
         return build_controller(self)
+
+    def believed_constraints(self) -> ConstraintSet:
+        """The constraints as the controller believes them: its ``[controller.model]`` surfaces.
+
+        The same rows, names and order as :attr:`constraints`, on the surfaces of the
+        controller's model where ``[controller.model.surfaces]`` declares them (the scene's
+        elsewhere); :attr:`constraints` itself without a ``[controller.model]`` table. The
+        measurement-only observer (``[sensors] observer = "momentum"``) computes the gaps and
+        normal velocities the controller sees on these.
+        """
+        model = self.controller.get("model")
+        if model is None:
+            return self.constraints
+        return controller_view(self, model).constraints
 
     @classmethod
     def from_toml(cls, path: str | Path) -> Scene:

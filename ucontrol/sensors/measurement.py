@@ -28,12 +28,14 @@ active sets (with the force noise), which a real robot has no access to. With ``
 the measured position, the velocity estimate above and the torque applied over the period
 (after the actuators; with flexible joints the observer watches the links' momentum, driven
 by the rigid joints' inputs and the transmission torque at the measured link and motor
-states); the constraints whose measured gap is at most ``contact_gap`` are
-candidates, their normal rows :math:`J_c` share the residual by least squares
-(:math:`J_c^T \hat\lambda = r`), and a candidate with :math:`\hat\lambda_i` above
-``force_threshold`` is active with the impulse :math:`\hat\lambda_i T`; every other
-constraint carries none. Nothing of the
-plant's impulses reaches the controller then.
+states); the gaps and normal velocities it reports are those of the measured state against
+the surfaces of the controller's model (``[controller.model.surfaces]``,
+:meth:`~ucontrol.scene.scene.Scene.believed_constraints`), never the plant's; the constraints
+whose measured gap is at most ``contact_gap`` are candidates, their normal rows :math:`J_c`
+share the residual by least squares (:math:`J_c^T \hat\lambda = r`), and a candidate with
+:math:`\hat\lambda_i` above ``force_threshold`` is active with the impulse
+:math:`\hat\lambda_i T`; every other constraint carries none. Nothing of the plant's
+impulses reaches the controller then.
 
 Delay: the controller at period k receives the whole measurement (positions, velocity,
 contact information) of period :math:`k - d`; before :math:`d` periods have passed it receives
@@ -66,8 +68,9 @@ class Sensors:
     Args:
         settings: What is measured and how.
         robot: The robot (its joints tell which coordinates are quantised).
-        constraints: The constraints (the measured gaps and normal velocities are theirs at the
-            measured state).
+        constraints: The constraints whose gaps and normal velocities at the measured state
+            are reported: the plant's with the oracle, the controller's believed ones with
+            ``observer = "momentum"`` (as :func:`ucontrol.simulate` passes them).
         flexible: Flexible joints (their motor coordinates are measured too), or None.
         period: Control period T in [s].
         believed: The robot as the controller believes it (the momentum observer's model),
