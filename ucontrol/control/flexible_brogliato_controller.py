@@ -219,51 +219,73 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._newton_step = CompiledFunction(
             ca.Function(
                 "newton_step",
-                [ca.vertcat(q, X_d)],
-                [ca.vertcat(ca.solve(ca.jacobian(X, q), error), error)],
+                [q, X_d],
+                [ca.solve(ca.jacobian(X, q), error), error],
+                ["q", "X_d"],
+                ["step", "error"],
             )
         )
         self._reference_derivatives = CompiledFunction(_reference_derivatives(q, X))
-        self._law = CompiledFunction(_law_function(model, flexible, self.machine.coordinates, X, q))
-        self._law.input_buffer(1)[:] = np.concatenate(  # parameters: constant per controller
-            [[gains.gamma1, gains.gamma2], flexible.stiffness, flexible.motor_inertia]
+        law = self._law = CompiledFunction(
+            _law_function(model, flexible, self.machine.coordinates, X, q)
         )
-        # The inputs of the law and of Newton's step, written in place before each call: the
-        # law's (see _law_function) as views of its parts; the derivatives of the reference
-        # read (q1d, X_d', ..., X_d'''') in place from the law's input.
+        inputs = {name: law.input_view(law.function.index_in(name)) for name in _LAW_INPUTS}
+        # Parameters: constant per controller.
+        inputs["gamma1"][...], inputs["gamma2"][...] = gains.gamma1, gains.gamma2
+        inputs["stiffness"][...] = flexible.stiffness
+        inputs["motor_inertia"][...] = flexible.motor_inertia
+        # The inputs written in place before each call. The measured state q = (q1, q2) and
+        # v = (dq1, dq2), each (nv + nf,), as the plant orders them, and views of q1, dq1
+        # (nv,), q2, dq2 (nf,).
         nv, nf = robot.nv, flexible.nf
-        x = self._law.input_buffer(0)
-        size = 2 * nv + 2 * nf  # the plant's q = (q1, q2) and v = (dq1, dq2), each (nv + nf,)
-        self._q_input, self._v_input = x[: nv + nf], x[nv + nf : size]
-        # Views of q1, dq1 (nv,), q2, dq2 (nf,).
-        self._state_input = (x[:nv], x[nv + nf : 2 * nv + nf], x[nv : nv + nf], x[size - nf : size])
-        self._reference_input = x[size : size + 5 * nv]  # then q1d and its 4 derivatives
-        self._target_input = tuple(x[size + k * nv : size + (k + 1) * nv] for k in range(1, 5))
-        self._model_force_input = x[size + 5 * nv :]  # force term (3, n), model force (2, n)
-        self._reference_derivatives.bind_input(0, self._reference_input)
+        self._q_input, self._v_input = inputs["q"], inputs["v"]
+        self._state_input = (
+            self._q_input[:nv], self._v_input[:nv], self._q_input[nv:], self._v_input[nv:]
+        )  # fmt: skip
+        # The link reference: q1d and its 4 derivatives (nv, 5), first holding X_d's
+        # derivatives 1 to 4, which the derivatives of q1d then replace (Function
+        # reference_derivatives, whose input is bound to it).
+        self._reference_input = law.input_buffer(law.function.index_in("link_reference"))
+        self._target_input = tuple(inputs["link_reference"][:, 1:].T)
+        derivatives = self._reference_derivatives
+        derivatives.bind_input(derivatives.function.index_in("reference"), self._reference_input)
+        # The force term and its 2 derivatives (n, 3), then the model's contact force and its
+        # derivative (n, 2): both bound to one array, written at once.
+        n = len(self.machine.contacts)
+        self._model_force_input = np.zeros(5 * n)
+        if n:
+            law.bind_input(law.function.index_in("force"), self._model_force_input[: 3 * n])
+            law.bind_input(law.function.index_in("model_force"), self._model_force_input[3 * n :])
         # Views of the reference input: q1d, the targets' derivatives 1 to 4 (those of q1d
-        # once solved), all 5 as rows; of Newton's input and output.
+        # once solved), all 5 as rows.
         self._reference_q = self._reference_input[:nv]
         self._reference_tail = self._reference_input[nv:]
         self._reference_rows = self._reference_input.reshape(5, nv)
+        # The law's outputs bound, by name, to the parts of one array (copied at once per
+        # call), and a view of each part.
+        self._law_output = np.zeros(sum(law.function.nnz_out(name) for name in _LAW_OUTPUTS))
+        self._output_slices: dict[str, slice] = {}
+        start = 0
+        for name in _LAW_OUTPUTS:
+            end = start + law.function.nnz_out(name)
+            self._output_slices[name] = slice(start, end)
+            law.bind_output(law.function.index_out(name), self._law_output[start:end])
+            start = end
+        self._V1_output = self._law_output[self._output_slices["V1"]]
         # The three compiled calls on their inputs as written, and their output buffers.
         self._run_newton = self._newton_step.runner()
-        self._newton_output = self._newton_step.output_buffer(0)
-        self._run_derivatives = self._reference_derivatives.runner()
-        self._derivatives_output = self._reference_derivatives.output_buffer(0)
-        self._run_flexible_law = self._law.runner()
-        self._flexible_law_output = self._law.output_buffer(0)
-        self._newton_input = self._newton_step.input_buffer(0)
-        self._newton_q = self._newton_input[:nv]  # Newton's iterate, updated in place
-        self._newton_target = self._newton_input[nv:]
+        newton = self._newton_step.function
+        self._newton_output = self._newton_step.output_buffer(newton.index_out("step"))
+        self._newton_error = self._newton_step.output_buffer(newton.index_out("error"))
+        self._run_derivatives = derivatives.runner()
+        self._derivatives_output = derivatives.output_buffer(0)
+        self._run_flexible_law = law.runner()
+        # Newton's iterate (updated in place) and target.
+        self._newton_q = self._newton_step.input_buffer(newton.index_in("q"))
+        self._newton_target = self._newton_step.input_buffer(newton.index_in("X_d"))
         # The coefficients [s^k / k!] of Newton's start by step dt [s] (see _taylor_start).
         self._taylor: dict[float, Vector] = {}
-        self._newton_out: tuple[Vector, Vector] | None = None  # (output buffer, its step)
-        # Outputs of the law: u (nu,), X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
         self._nf = nf
-        self._V1_index = 2 * nv + 1
-        self._X_slice, self._u_slice = slice(nv, 2 * nv), slice(0, nv)
-        self._q2d_slice = slice(2 * nv + 2, 2 * nv + 2 + nf)
         self._split_shapes = ((robot.nq + nf,), (nv + nf,))
         self._flexible_log_fields: tuple[Log, tuple[NDArray[np.float64], ...]] | None = None
 
@@ -276,7 +298,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         # Read-only force derivatives of a held call (kept alive, so that the same object is
         # the same values: the plateau), their force-term rows and the first of them.
         self._force_rates: tuple[tuple[Vector, ...], list[float], list[float]] | None = None
-        # The law's outputs of the last call (u, X, V, V1, q2d, dq2d, ddq2d).
+        # The law's outputs of the last call (:data:`_LAW_OUTPUTS`, as ``_law_output``).
         self._outputs = np.zeros(2 * nv + 2 + 3 * nf)
 
     @property
@@ -287,8 +309,8 @@ class FlexibleBrogliatoController(BrogliatoController):
     @property
     def motor_desired(self) -> tuple[Vector, ...]:
         r""":math:`q_{2d}, \dot q_{2d}, \ddot q_{2d}` at the last call, each (nf,)."""
-        nv = self.robot.nv
-        return tuple(self._outputs[2 * nv + 2 :].reshape(3, self.flexible.nf).copy())
+        motor = self._outputs[self._output_slices["motor_reference"]]
+        return tuple(motor.reshape(3, self.flexible.nf).copy())
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Actuator torques, shape (nu,), in [N m] (or [N]): motor torques on flexible joints."""
@@ -309,12 +331,12 @@ class FlexibleBrogliatoController(BrogliatoController):
         self.desired = desired
         # The law's input and output hold the last evaluation (that after the phase update).
         out = self._outputs = self._law_output.copy()  # fresh: the torque returned is kept
-        nv = self.robot.nv
-        self.V, self.V1 = out.item(2 * nv), out.item(2 * nv + 1)
-        self.X = out[self._X_slice]
+        part = self._output_slices
+        self.V, self.V1 = out[part["V"]].item(), out[part["V1"]].item()
+        self.X = out[part["X"]]
         self._link_rows = self._reference_rows.copy()
         self._reference_time = t
-        return out[self._u_slice]
+        return out[part["u"]]
 
     def prepare_log(self, log: Log) -> None:
         """Declare the rigid controller's fields and :data:`FLEXIBLE_LOG_FIELDS`."""
@@ -335,7 +357,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             )
         motor_desired, link_desired = fields[1]  # in the order of FLEXIBLE_LOG_FIELDS
         k = log.size  # len(log)
-        motor_desired[k] = self._outputs[self._q2d_slice]
+        motor_desired[k] = self._outputs[self._output_slices["motor_reference"]][: self._nf]
         link_desired[k] = self._link_rows[0]
 
     def _evaluate(self, t: float, q1: Vector, desired: DesiredState) -> float:
@@ -381,8 +403,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             self._model_force_input.fill(0.0)
             self._force_written = False
         self._run_flexible_law()
-        self._law_output = self._flexible_law_output
-        return self._law_output.item(self._V1_index)
+        return self._V1_output.item()
 
     def _taylor_start(self, dt: float) -> None:
         r"""Newton's start: the last call's q1d expanded to ``dt`` [s] later, written in place.
@@ -415,15 +436,10 @@ class FlexibleBrogliatoController(BrogliatoController):
             q[...] = q1
         else:
             self._taylor_start(t - self._reference_time)
-        nv = q.size
         self._newton_target[...] = X_d
-        run_newton, out = self._run_newton, self._newton_output
+        run_newton, step = self._run_newton, self._newton_output
         for _ in range(NEWTON_ITERATIONS):
             run_newton()
-            views = self._newton_out
-            if views is None or views[0] is not out:  # the output buffer stays put
-                views = self._newton_out = (out, out[:nv])
-            step = views[1]
             values = step.tolist()
             if not all(map(math.isfinite, values)):  # singular task Jacobian
                 break
@@ -433,7 +449,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         raise SolverError(
             "Newton's method for the link reference q1d = φ⁻¹(X_d)",
             f"no convergence to X_d = {X_d.tolist()} from q = {q.tolist()}",
-            float(np.max(np.abs(out[nv:]))),
+            float(np.max(np.abs(self._newton_error))),
         )
 
 
@@ -445,9 +461,10 @@ def _time_derivative(expression: ca.SX, variables: list[ca.SX], rates: list[ca.S
 def _reference_derivatives(q: ca.SX, X: ca.SX) -> ca.Function:
     r"""Derivatives q', q'', q''', q'''' of the link reference as one casadi Function.
 
-    Input (q, X', X'', X''', X'''') stacked, output the derivatives stacked, each (nv,), along
-    :math:`\phi(q(t)) = X(t)` (m = nv): :math:`q^{(k)} = J^{-1}(X^{(k)} - R_k)`, :math:`R_k` the
-    k-th derivative of :math:`\phi(q(t))` with :math:`q^{(k)} = 0`.
+    Input ``reference`` (nv, 5): q and X', X'', X''', X'''' as columns; output
+    ``derivatives`` (nv, 4): q' to q'''' as columns, along :math:`\phi(q(t)) = X(t)`
+    (m = nv): :math:`q^{(k)} = J^{-1}(X^{(k)} - R_k)`, :math:`R_k` the k-th derivative of
+    :math:`\phi(q(t))` with :math:`q^{(k)} = 0`.
     """
     nv = q.shape[0]
     rates = [q] + [ca.SX.sym(f"q_{k}", nv) for k in range(1, 5)]
@@ -461,7 +478,29 @@ def _reference_derivatives(q: ca.SX, X: ca.SX) -> ca.Function:
             derivative, ca.vertcat(*rates[1 : k + 1]), ca.vertcat(*solved, ca.SX.zeros(nv))
         )
         solved.append(ca.solve(J, targets[k - 1] - remainder))
-    return ca.Function("reference_derivatives", [ca.vertcat(q, *targets)], [ca.vertcat(*solved)])
+    return ca.Function(
+        "reference_derivatives",
+        [ca.horzcat(q, *targets)],
+        [ca.horzcat(*solved)],
+        ["reference"],
+        ["derivatives"],
+    )
+
+
+#: Inputs of the flexible law (:func:`_law_function`), by name.
+_LAW_INPUTS = (
+    "q",
+    "v",
+    "link_reference",
+    "force",
+    "model_force",
+    "gamma1",
+    "gamma2",
+    "stiffness",
+    "motor_inertia",
+)
+#: Outputs of the flexible law, by name.
+_LAW_OUTPUTS = ("u", "X", "V", "V1", "motor_reference")
 
 
 def _law_function(
@@ -471,21 +510,22 @@ def _law_function(
     X: ca.SX,
     q: ca.SX,
 ) -> ca.Function:
-    r"""The law as one casadi Function of one input vector (see :meth:`_evaluate`).
+    r"""The flexible law: its one definition, a casadi Function with named inputs and outputs.
 
     ``X`` is the task map of the symbol ``q``; ``coordinates`` are the task rows of the declared
-    contacts. Input: q1, q2, dq1, dq2 (the plant's order: q1 and dq1 (nv,), q2 and dq2 (nf,)),
-    q1d and its 4 derivatives (nv,), the force term
-    :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and its 2 derivatives, the model's contact
-    force and its derivative (each (n,), n declared contacts); second input, the parameters
-    γ1, γ2, K (nf,), B (nf,), so that one compiled library serves every gain and stiffness
-    (sweeps do not recompile). Output, stacked: u (nu,), the task coordinates of the links
-    X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
+    contacts (n of them). Inputs (:data:`_LAW_INPUTS`): ``q`` = (q1, q2) and ``v`` =
+    (dq1, dq2) in the plant's order, each (nv + nf,); ``link_reference`` (nv, 5), q1d and its
+    4 derivatives as columns; ``force`` (n, 3), the force term
+    :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and its 2 derivatives as columns;
+    ``model_force`` (n, 2), the model's contact force and its derivative; and the parameters
+    ``gamma1``, ``gamma2``, ``stiffness`` K (nf,) and ``motor_inertia`` B (nf,), so that one
+    compiled library serves every gain and stiffness (sweeps do not recompile). Outputs
+    (:data:`_LAW_OUTPUTS`): ``u`` (nu,), ``X`` the task coordinates of the links (m,), ``V``,
+    ``V1``, ``motor_reference`` (nf, 3): q2d, dq2d, ddq2d as columns.
     """
     nv, nf, n = model.nv, flexible.nf, len(coordinates)
-    parameters = ca.SX.sym("parameters", 2 + 2 * nf)  # γ1, γ2, K (nf,), B (nf,)
-    gamma1, gamma2 = parameters[0], parameters[1]
-    K, B = parameters[2 : 2 + nf], parameters[2 + nf :]
+    gamma1, gamma2 = ca.SX.sym("gamma1"), ca.SX.sym("gamma2")
+    K, B = ca.SX.sym("stiffness", nf), ca.SX.sym("motor_inertia", nf)
     motors = [int(i) for i in flexible.v_index]
     rigid = [i for i in range(nv) if i not in motors]
     q1, dq1 = ca.SX.sym("q1", nv), ca.SX.sym("dq1", nv)
@@ -523,6 +563,23 @@ def _law_function(
         + gamma1 * gamma2 * (ca.dot(q1_error, q1_error) + ca.dot(q2_error, q2_error))
         + 0.5 * ca.dot(deflection_error, K * deflection_error)
     )
-    inputs = ca.vertcat(q1, q2, dq1, dq2, *r, *f, *lam)
-    outputs = ca.vertcat(u, link_X, V, V1, q2d, dq2d, ddq2d)
-    return ca.Function("flexible_brogliato_law", [inputs, parameters], [outputs])
+    inputs = {
+        "q": ca.vertcat(q1, q2),
+        "v": ca.vertcat(dq1, dq2),
+        "link_reference": ca.horzcat(*r),
+        "force": ca.horzcat(*f),
+        "model_force": ca.horzcat(*lam),
+        "gamma1": gamma1,
+        "gamma2": gamma2,
+        "stiffness": K,
+        "motor_inertia": B,
+    }
+    motor_reference = ca.horzcat(q2d, dq2d, ddq2d)
+    outputs = dict(zip(_LAW_OUTPUTS, (u, link_X, V, V1, motor_reference), strict=True))
+    return ca.Function(
+        "flexible_brogliato_law",
+        [inputs[name] for name in _LAW_INPUTS],
+        [outputs[name] for name in _LAW_OUTPUTS],
+        list(_LAW_INPUTS),
+        list(_LAW_OUTPUTS),
+    )
