@@ -137,8 +137,10 @@ def simulate(
     k = 0
     try:
         loop.share_plant_data()
+        pushed = bool(loop.pushes)  # (a scene without pushes skips the call)
         for k in range(n_steps):
-            loop.push(k)
+            if pushed:
+                loop.push(k)
             state = loop.sample(k * h)
             if k % hold == 0:
                 loop.control(k * h, state)

@@ -573,10 +573,12 @@ class MoreauJean:
         if not solved:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
-        impulse[i] = P.item()
-        impacts = _closing_impacts(impulse, self.memory.activation, (i,), t)
+        impulse[i] = P_i = P.item()
+        impacts: tuple[tuple[int, float], ...] = ()
+        if _closes(P_i, self.memory.activation.item(i)):
+            impacts = ((i, 0.0 if t is None else float(t)),)
         # next_memory(impulse, (i,), ...), built once
-        self.memory = self._row_memories[i] if impulse[i] > 0.0 else self._free_memory
+        self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
         return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
 
     def _contact_outcome(
@@ -1035,9 +1037,18 @@ def _closing_impacts(
     """
     impacts: tuple[tuple[int, float], ...] = ()
     for i in rows:
-        if impulse[i] > 0.0 and activation[i] <= 0.0:
+        if _closes(impulse[i], activation[i]):
             impacts += ((int(i), 0.0 if t is None else float(t)),)
     return impacts
+
+
+def _closes(impulse: float, activation: float) -> bool:
+    """Whether a row with this ``impulse`` [N s] and ``activation`` closed in the step.
+
+    It gets an impulse without being held by the last step (activation 0,
+    :func:`~ucontrol.integrators.step_stages.next_memory`): an impact at the step's start.
+    """
+    return impulse > 0.0 and activation <= 0.0
 
 
 def _pad(rows: Vector, size: int) -> Vector:
