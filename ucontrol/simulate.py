@@ -138,12 +138,16 @@ def simulate(
     k = 0
     try:
         loop.share_plant_data()
+        pushed = bool(loop.pushes)  # (a scene without pushes skips the call)
+        sample, control, advance = loop.sample, loop.control, loop.advance  # the stages
         for k in range(n_steps):
-            loop.push(k)
-            state = loop.sample(k * h)
+            if pushed:
+                loop.push(k)
+            t = k * h  # [s]
+            state = sample(t)
             if k % hold == 0:
-                loop.control(k * h, state)
-            loop.advance(state)
+                control(t, state)
+            advance(state)
             if k % 1000 == 0:
                 last_checkpoint = _report_progress(bar, k + 1, log, out_dir, last_checkpoint)
         k = n_steps

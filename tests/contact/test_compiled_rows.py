@@ -33,18 +33,18 @@ def test_rows_equal_pinocchio_and_finite_differences(name: str, rng: np.random.G
         pin.updateFramePlacements(model, data)
         gap, velocity = constraints.evaluate(data, q, v)
         J = constraints.jacobian(data, np.arange(constraints.size))
-        values = rows(q, v)
+        gap_c, velocity_c, J_c = rows(q, v)
         # Measured: 0 m, 5.6e-17 m/s and 2.8e-17 (round-off of two frame compositions).
-        np.testing.assert_allclose(values.gap, gap, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(values.normal_velocity, velocity, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(values.rows, J, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(gap_c, gap, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(velocity_c, velocity, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(J_c, J, rtol=0, atol=1e-14)
         # The rows are the derivative of the gaps (central differences, error ~ eps^2).
         eps = 1e-6
         for j in range(scene.robot.nv):
             step = np.zeros(scene.robot.nv)
             step[j] = eps
-            derivative = (rows(q + step, v).gap - rows(q - step, v).gap) / (2 * eps)
-            np.testing.assert_allclose(derivative, values.rows[:, j], rtol=0, atol=1e-8)
+            derivative = (rows(q + step, v)[0] - rows(q - step, v)[0]) / (2 * eps)
+            np.testing.assert_allclose(derivative, J_c[:, j], rtol=0, atol=1e-8)
 
 
 @needs_compiled_code
@@ -61,14 +61,14 @@ def test_rows_with_dynamics_fill_m_and_h_as_pinocchio(armature, rng: np.random.G
     rows.bind_dynamics(bound)
     for _ in range(10):
         q, v = _random_state(robot, rng)
-        values = rows(q, v)
+        gap = rows(q, v)[0]
         pin.computeAllTerms(model, reference, q, v)
         np.testing.assert_allclose(bound.M, reference.M, rtol=0, atol=1e-14)  # both triangles
         np.testing.assert_allclose(bound.nle, reference.nle, rtol=0, atol=1e-13)
         kinetic, potential = rows.energies()
         assert kinetic == pytest.approx(reference.kinetic_energy, rel=1e-14, abs=1e-15)
         assert potential == pytest.approx(reference.potential_energy, rel=1e-14, abs=1e-15)
-        np.testing.assert_array_equal(values.gap, rows(q, v).gap)  # the rows unchanged
+        np.testing.assert_array_equal(gap, rows(q, v)[0])  # the rows unchanged
     panda = load_scene("panda_table")  # nv = 7: Pinocchio's dynamics, the rows alone
     assert not compiled_rows(panda.constraints, dynamics=True).dynamics
 
@@ -79,9 +79,10 @@ def test_values_are_fresh_arrays() -> None:
     rows = compiled_rows(scene.constraints)
     assert rows is not None
     first = rows(scene.q0, np.zeros(2))
-    kept = first.gap.copy()
+    kept = [value.copy() for value in first]
     rows(scene.q0 + 0.1, np.ones(2))
-    np.testing.assert_array_equal(first.gap, kept)
+    for value, copy in zip(first, kept, strict=True):
+        np.testing.assert_array_equal(value, copy)
 
 
 def test_sets_that_do_not_qualify_keep_the_pinocchio_path() -> None:

@@ -23,7 +23,7 @@ one library serves every plane and bound of a robot's contact frames and stop co
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,20 +38,6 @@ Vector = NDArray[np.float64]
 
 #: The compiled call's inputs: the state, then the planes' and the stops' constant terms.
 _IN_NAMES = ["q", "v", "planes", "stops"]
-
-
-class RowValues(NamedTuple):
-    """The constraints at one state (q, v), fresh arrays.
-
-    Attributes:
-        gap: Gaps in [m] or [rad], shape (n,).
-        normal_velocity: ``J v`` in [m/s] or [rad/s], shape (n,).
-        rows: Normal Jacobian rows J, shape (n, nv).
-    """
-
-    gap: Vector
-    normal_velocity: Vector
-    rows: Vector
 
 
 class ConstraintRows:
@@ -142,14 +128,20 @@ class ConstraintRows:
         kinetic, potential = self._energies.tolist()
         return kinetic, potential
 
-    def __call__(self, q: Vector, v: Vector) -> RowValues:
-        """Gaps, normal velocities and rows at (q (nq,), v (nv,)), in new arrays."""
+    def __call__(self, q: Vector, v: Vector) -> tuple[Vector, Vector, Vector]:
+        """Gaps, normal velocities and rows at (q (nq,), v (nv,)), in new arrays.
+
+        Returns:
+            The gaps in [m] or [rad] (n,), the normal velocities ``J v`` in [m/s] or [rad/s]
+            (n,) and the normal Jacobian rows J (n, nv), as a plain tuple (unpacked at once
+            by its callers: a record type would be one object more per step).
+        """
         self._q[...], self._v[...] = q, v
         self._run()
         out = self._out.copy()
         gaps, velocities, rows = self._parts
         self.last_rows = out[rows].reshape(self._n, self._nv)
-        return RowValues(out[gaps], out[velocities], self.last_rows)
+        return out[gaps], out[velocities], self.last_rows
 
     def buffers(self) -> tuple[Vector, Vector, Vector]:
         """The compiled call's inputs q (nv,), v (nv,) and its output, as the last call left them.

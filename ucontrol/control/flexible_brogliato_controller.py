@@ -101,6 +101,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.control.brogliato_controller import (
+    _STATE_FORCE_INPUTS,
     BrogliatoController,
     BrogliatoGains,
     _reference_terms,
@@ -213,64 +214,91 @@ class FlexibleBrogliatoController(BrogliatoController):
         self._newton_step = CompiledFunction(
             ca.Function(
                 "newton_step",
-                [ca.vertcat(q, X_d)],
-                [ca.vertcat(ca.solve(ca.jacobian(X, q), error), error)],
+                [q, X_d],
+                [ca.solve(ca.jacobian(X, q), error), error],
+                ["q", "X_d"],
+                ["step", "error"],
             )
         )
         self._reference_derivatives = CompiledFunction(_reference_derivatives(q, X))
         state_force = cycle.force_profile == "state"
-        self._law = CompiledFunction(
+        law = self._law = CompiledFunction(
             _law_function(model, flexible, self.machine.coordinates, X, q, state_force=state_force)
         )
-        parameters: list[Vector] = [
-            np.array([gains.gamma1, gains.gamma2]),
-            flexible.stiffness,
-            flexible.motor_inertia,
-        ]
+        function = law.function
+        inputs = {name: law.input_view(function.index_in(name)) for name in function.name_in()}
+        # Parameters: constant per controller.
+        inputs["gamma1"][...], inputs["gamma2"][...] = gains.gamma1, gains.gamma2
         if state_force:
-            parameters.append(np.array([gains.force_gain]))
-        self._law.input_buffer(1)[:] = np.concatenate(parameters)  # constant per controller
-        # The inputs of the law and of Newton's step, written in place before each call: the
-        # law's (see _law_function) as views of its parts; the derivatives of the reference
-        # read (q1d, X_d', ..., X_d'''') in place from the law's input.
+            inputs["force_gain"][...] = gains.force_gain
+        inputs["stiffness"][...] = flexible.stiffness
+        inputs["motor_inertia"][...] = flexible.motor_inertia
+        # The inputs written in place before each call. The measured state q = (q1, q2) and
+        # v = (dq1, dq2), each (nv + nf,), as the plant orders them, and views of q1, dq1
+        # (nv,), q2, dq2 (nf,).
         nv, nf = robot.nv, flexible.nf
-        x = self._law.input_buffer(0)
-        size = 2 * nv + 2 * nf  # the plant's q = (q1, q2) and v = (dq1, dq2), each (nv + nf,)
-        self._q_input, self._v_input = x[: nv + nf], x[nv + nf : size]
-        # Views of q1, dq1 (nv,), q2, dq2 (nf,).
-        self._state_input = (x[:nv], x[nv + nf : 2 * nv + nf], x[nv : nv + nf], x[size - nf : size])
-        self._reference_input = x[size : size + 5 * nv]  # then q1d and its 4 derivatives
-        self._target_input = tuple(x[size + k * nv : size + (k + 1) * nv] for k in range(1, 5))
-        # The force term (3, n) and the model force (2, n); or, with the state-based λ_d
-        # (_state_force_input), held, active, λ_t and its 2 derivatives, measured, λ (each n).
-        self._model_force_input = x[size + 5 * nv :]
+        self._q_input, self._v_input = inputs["q"], inputs["v"]
+        self._state_input = (
+            self._q_input[:nv], self._v_input[:nv], self._q_input[nv:], self._v_input[nv:]
+        )  # fmt: skip
+        # The link reference: q1d and its 4 derivatives (nv, 5), first holding X_d's
+        # derivatives 1 to 4, which the derivatives of q1d then replace (Function
+        # reference_derivatives, whose input is bound to it).
+        self._reference_input = law.input_buffer(law.function.index_in("link_reference"))
+        self._target_input = tuple(inputs["link_reference"][:, 1:].T)
+        derivatives = self._reference_derivatives
+        derivatives.bind_input(derivatives.function.index_in("reference"), self._reference_input)
+        # The force term and its 2 derivatives (n, 3), then the model's contact force and its
+        # derivative (n, 2): both bound to one array, written at once. With the state-based
+        # λ_d, what the law designs it from, each (n,) (λ_t (n, 3) with its derivatives):
+        # held, active, λ_t, λ_t', λ_t'', measured, λ bound to the rows of one array.
         n = len(self.machine.contacts)
+        self._model_force_input = np.zeros(7 * n if state_force else 5 * n)
         self._state_force_rows = self._model_force_input.reshape(7, n) if state_force else None
-        self._reference_derivatives.bind_input(0, self._reference_input)
+        parts = (
+            zip(_STATE_FORCE_INPUTS, (1, 1, 3, 1, 1))
+            if state_force
+            else (
+                ("force", 3),
+                ("model_force", 2),
+            )
+        )
+        start = 0
+        for name, size in parts:  # sizes in columns of n
+            if n:
+                part = self._model_force_input[start : start + size * n]
+                law.bind_input(function.index_in(name), part)
+            start += size * n
         # Views of the reference input: q1d, the targets' derivatives 1 to 4 (those of q1d
-        # once solved), all 5 as rows; of Newton's input and output.
+        # once solved), all 5 as rows.
         self._reference_q = self._reference_input[:nv]
         self._reference_tail = self._reference_input[nv:]
         self._reference_rows = self._reference_input.reshape(5, nv)
+        # The law's outputs bound, by name, to the parts of one array (copied at once per
+        # call), and a view of each part.
+        self._law_output = np.zeros(sum(function.nnz_out(name) for name in function.name_out()))
+        self._output_slices: dict[str, slice] = {}
+        start = 0
+        for name in function.name_out():
+            end = start + law.function.nnz_out(name)
+            self._output_slices[name] = slice(start, end)
+            law.bind_output(law.function.index_out(name), self._law_output[start:end])
+            start = end
+        self._V1_output = self._law_output[self._output_slices["V1"]]
         # The three compiled calls on their inputs as written, and their output buffers.
         self._run_newton = self._newton_step.runner()
-        self._newton_output = self._newton_step.output_buffer(0)
-        self._run_derivatives = self._reference_derivatives.runner()
-        self._derivatives_output = self._reference_derivatives.output_buffer(0)
-        self._run_flexible_law = self._law.runner()
-        self._flexible_law_output = self._law.output_buffer(0)
-        self._newton_input = self._newton_step.input_buffer(0)
-        self._newton_q = self._newton_input[:nv]  # Newton's iterate, updated in place
-        self._newton_target = self._newton_input[nv:]
+        newton = self._newton_step.function
+        self._newton_output = self._newton_step.output_buffer(newton.index_out("step"))
+        self._newton_error = self._newton_step.output_buffer(newton.index_out("error"))
+        self._run_derivatives = derivatives.runner()
+        self._derivatives_output = derivatives.output_buffer(0)
+        self._run_flexible_law = law.runner()
+        # Newton's iterate (updated in place) and target.
+        self._newton_q = self._newton_step.input_buffer(newton.index_in("q"))
+        self._newton_target = self._newton_step.input_buffer(newton.index_in("X_d"))
         # The coefficients [s^k / k!] of Newton's start by step dt [s] (see _taylor_start).
         self._taylor: dict[float, Vector] = {}
-        self._newton_out: tuple[Vector, Vector] | None = None  # (output buffer, its step)
-        # Outputs of the law: u (nu,), X (m,), V, V1, q2d, dq2d, ddq2d (nf,) (, λ_d (n,)).
         self._nf = nf
-        self._lambda_d_slice = slice(2 * nv + 2 + 3 * nf, None) if state_force else None
-        self._V1_index = 2 * nv + 1
-        self._X_slice, self._u_slice = slice(nv, 2 * nv), slice(0, nv)
-        self._q2d_slice = slice(2 * nv + 2, 2 * nv + 2 + nf)
         self._split_shapes = ((robot.nq + nf,), (nv + nf,))
         self._flexible_log_fields: tuple[Log, tuple[NDArray[np.float64], ...]] | None = None
 
@@ -283,7 +311,8 @@ class FlexibleBrogliatoController(BrogliatoController):
         # Read-only force derivatives of a held call (kept alive, so that the same object is
         # the same values: the plateau), their force-term rows and the first of them.
         self._force_rates: tuple[tuple[Vector, ...], list[float], list[float]] | None = None
-        # The law's outputs of the last call (u, X, V, V1, q2d, dq2d, ddq2d (, λ_d)).
+        # The law's outputs of the last call (:data:`_LAW_OUTPUTS` (, ``lambda_d`` (n,)), as
+        # ``_law_output``).
         state_force = self.cycle.force_profile == "state"
         n = len(self.machine.contacts) if state_force else 0
         self._outputs = np.zeros(2 * nv + 2 + 3 * nf + n)
@@ -298,8 +327,8 @@ class FlexibleBrogliatoController(BrogliatoController):
     @property
     def motor_desired(self) -> tuple[Vector, ...]:
         r""":math:`q_{2d}, \dot q_{2d}, \ddot q_{2d}` at the last call, each (nf,)."""
-        nv = self.robot.nv
-        return tuple(self._outputs[2 * nv + 2 :].reshape(3, self.flexible.nf).copy())
+        motor = self._outputs[self._output_slices["motor_reference"]]
+        return tuple(motor.reshape(3, self.flexible.nf).copy())
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Actuator torques, shape (nu,), in [N m] (or [N]): motor torques on flexible joints."""
@@ -320,15 +349,15 @@ class FlexibleBrogliatoController(BrogliatoController):
         self.desired = desired
         # The law's input and output hold the last evaluation (that after the phase update).
         out = self._outputs = self._law_output.copy()  # fresh: the torque returned is kept
-        nv = self.robot.nv
-        self.V, self.V1 = out.item(2 * nv), out.item(2 * nv + 1)
-        self.X = out[self._X_slice]
-        if self._lambda_d_slice is not None:  # λ_d applied, on the task rows (m,)
+        part = self._output_slices
+        self.V, self.V1 = out[part["V"]].item(), out[part["V1"]].item()
+        self.X = out[part["X"]]
+        if self._state_force_rows is not None:  # λ_d applied, on the task rows (m,)
             assert self._lambda_d_output is not None
-            self._lambda_d_output[machine.coordinates] = out[self._lambda_d_slice]
+            self._lambda_d_output[machine.coordinates] = out[part["lambda_d"]]
         self._link_rows = self._reference_rows.copy()
         self._reference_time = t
-        return out[self._u_slice]
+        return out[part["u"]]
 
     def prepare_log(self, log: Log) -> None:
         """Declare the rigid controller's fields and :data:`FLEXIBLE_LOG_FIELDS`."""
@@ -349,7 +378,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             )
         motor_desired, link_desired = fields[1]  # in the order of FLEXIBLE_LOG_FIELDS
         k = log.size  # len(log)
-        motor_desired[k] = self._outputs[self._q2d_slice]
+        motor_desired[k] = self._outputs[self._output_slices["motor_reference"]][: self._nf]
         link_desired[k] = self._link_rows[0]
 
     def _evaluate(self, t: float, q1: Vector, desired: DesiredState) -> float:
@@ -397,8 +426,7 @@ class FlexibleBrogliatoController(BrogliatoController):
             self._model_force_input.fill(0.0)
             self._force_written = False
         self._run_flexible_law()
-        self._law_output = self._flexible_law_output
-        return self._law_output.item(self._V1_index)
+        return self._V1_output.item()
 
     def _write_flexible_state_force(
         self, desired: DesiredState, rows: list[tuple[int, int]]
@@ -456,15 +484,10 @@ class FlexibleBrogliatoController(BrogliatoController):
             q[...] = q1
         else:
             self._taylor_start(t - self._reference_time)
-        nv = q.size
         self._newton_target[...] = X_d
-        run_newton, out = self._run_newton, self._newton_output
+        run_newton, step = self._run_newton, self._newton_output
         for _ in range(NEWTON_ITERATIONS):
             run_newton()
-            views = self._newton_out
-            if views is None or views[0] is not out:  # the output buffer stays put
-                views = self._newton_out = (out, out[:nv])
-            step = views[1]
             values = step.tolist()
             if not all(map(math.isfinite, values)):  # singular task Jacobian
                 break
@@ -474,7 +497,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         raise SolverError(
             "Newton's method for the link reference q1d = φ⁻¹(X_d)",
             f"no convergence to X_d = {X_d.tolist()} from q = {q.tolist()}",
-            float(np.max(np.abs(out[nv:]))),
+            float(np.max(np.abs(self._newton_error))),
         )
 
 
@@ -486,9 +509,10 @@ def _time_derivative(expression: ca.SX, variables: list[ca.SX], rates: list[ca.S
 def _reference_derivatives(q: ca.SX, X: ca.SX) -> ca.Function:
     r"""Derivatives q', q'', q''', q'''' of the link reference as one casadi Function.
 
-    Input (q, X', X'', X''', X'''') stacked, output the derivatives stacked, each (nv,), along
-    :math:`\phi(q(t)) = X(t)` (m = nv): :math:`q^{(k)} = J^{-1}(X^{(k)} - R_k)`, :math:`R_k` the
-    k-th derivative of :math:`\phi(q(t))` with :math:`q^{(k)} = 0`.
+    Input ``reference`` (nv, 5): q and X', X'', X''', X'''' as columns; output
+    ``derivatives`` (nv, 4): q' to q'''' as columns, along :math:`\phi(q(t)) = X(t)`
+    (m = nv): :math:`q^{(k)} = J^{-1}(X^{(k)} - R_k)`, :math:`R_k` the k-th derivative of
+    :math:`\phi(q(t))` with :math:`q^{(k)} = 0`.
     """
     nv = q.shape[0]
     rates = [q] + [ca.SX.sym(f"q_{k}", nv) for k in range(1, 5)]
@@ -502,7 +526,17 @@ def _reference_derivatives(q: ca.SX, X: ca.SX) -> ca.Function:
             derivative, ca.vertcat(*rates[1 : k + 1]), ca.vertcat(*solved, ca.SX.zeros(nv))
         )
         solved.append(ca.solve(J, targets[k - 1] - remainder))
-    return ca.Function("reference_derivatives", [ca.vertcat(q, *targets)], [ca.vertcat(*solved)])
+    return ca.Function(
+        "reference_derivatives",
+        [ca.horzcat(q, *targets)],
+        [ca.horzcat(*solved)],
+        ["reference"],
+        ["derivatives"],
+    )
+
+
+#: Outputs of the flexible law, by name.
+_LAW_OUTPUTS = ("u", "X", "V", "V1", "motor_reference")
 
 
 def _law_function(
@@ -514,33 +548,33 @@ def _law_function(
     *,
     state_force: bool = False,
 ) -> ca.Function:
-    r"""The law as one casadi Function of one input vector (see :meth:`_evaluate`).
+    r"""The flexible law: its one definition, a casadi Function with named inputs and outputs.
 
     ``X`` is the task map of the symbol ``q``; ``coordinates`` are the task rows of the declared
-    contacts. Input: q1, q2, dq1, dq2 (the plant's order: q1 and dq1 (nv,), q2 and dq2 (nf,)),
-    q1d and its 4 derivatives (nv,), the force term
-    :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and its 2 derivatives, the model's contact
-    force and its derivative (each (n,), n declared contacts); second input, the parameters
-    γ1, γ2, K (nf,), B (nf,), so that one compiled library serves every gain and stiffness
-    (sweeps do not recompile). Output, stacked: u (nu,), the task coordinates of the links
-    X (m,), V, V1, q2d, dq2d, ddq2d (nf,).
+    contacts (n of them). Inputs, in this order: ``q`` = (q1, q2) and ``v`` =
+    (dq1, dq2) in the plant's order, each (nv + nf,); ``link_reference`` (nv, 5), q1d and its
+    4 derivatives as columns; ``force`` (n, 3), the force term
+    :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and its 2 derivatives as columns;
+    ``model_force`` (n, 2), the model's contact force and its derivative; and the parameters
+    ``gamma1``, ``gamma2``, ``stiffness`` K (nf,) and ``motor_inertia`` B (nf,), so that one
+    compiled library serves every gain and stiffness (sweeps do not recompile). Outputs
+    (:data:`_LAW_OUTPUTS`): ``u`` (nu,), ``X`` the task coordinates of the links (m,), ``V``,
+    ``V1``, ``motor_reference`` (nf, 3): q2d, dq2d, ddq2d as columns.
 
     With ``state_force`` (``force_profile = "state"``) the law designs :math:`\lambda_d` from
     the state (:func:`~ucontrol.control.brogliato_controller._state_force`, the rigid law's
     design applied to the links under the desired link torque :math:`U_R`, i.e. with the
-    motors on their reference, e = 0): the force inputs are then, each (n,), the held and
-    active contacts, the time profile :math:`\lambda_t` and its 2 derivatives, the
-    measured-force flag and the measured force; the parameters end with :math:`K_f`; and the
-    output ends with :math:`\lambda_d` (n,). Its derivatives, which :math:`\dot U_R` and
-    :math:`\ddot U_R` need, are those of this expression of the state (by AD, with the
-    model's link acceleration and jerk), the measured force taking those of
-    :math:`\lambda_d` as before.
+    motors on their reference, e = 0): ``force`` and ``model_force`` are replaced by ``held``,
+    ``active`` (n,), ``lambda_time`` (n, 3) the time profile :math:`\lambda_t` and its 2
+    derivatives, ``measured`` and ``lambda_measured`` (n,), a parameter ``force_gain``
+    :math:`K_f` is added, and an output ``lambda_d`` (n,). Its derivatives, which
+    :math:`\dot U_R` and :math:`\ddot U_R` need, are those of this expression of the state
+    (by AD, with the model's link acceleration and jerk), the measured force taking those of
+    :math:`\lambda_d` as with the time profile.
     """
     nv, nf, n = model.nv, flexible.nf, len(coordinates)
-    # γ1, γ2, K (nf,), B (nf,) (, K_f)
-    parameters = ca.SX.sym("parameters", 2 + 2 * nf + int(state_force))
-    gamma1, gamma2 = parameters[0], parameters[1]
-    K, B = parameters[2 : 2 + nf], parameters[2 + nf : 2 + 2 * nf]
+    gamma1, gamma2 = ca.SX.sym("gamma1"), ca.SX.sym("gamma2")
+    K, B = ca.SX.sym("stiffness", nf), ca.SX.sym("motor_inertia", nf)
     motors = [int(i) for i in flexible.v_index]
     rigid = [i for i in range(nv) if i not in motors]
     q1, dq1 = ca.SX.sym("q1", nv), ca.SX.sym("dq1", nv)
@@ -555,16 +589,16 @@ def _law_function(
     s1 = dq1_error + gamma2 * q1_error
     link_input = ca.SX.zeros(nv)
     link_input[motors] = K * (q2 - q1[motors])  # spring torque on the links
+    force_inputs: dict[str, ca.SX] = {}
     if state_force:
-        names = ("held", "active", "lambda_t", "lambda_t_1", "lambda_t_2", "measured")
-        held, active, *lambda_t, measured, lambda_m = (
-            ca.SX.sym(name, n) for name in (*names, "lambda_measured")
-        )
+        force_gain = ca.SX.sym("force_gain")
+        force_inputs = {name: ca.SX.sym(name, n) for name in _STATE_FORCE_INPUTS}
+        lambda_t = [ca.SX.sym(f"lambda_t_{k}", n) for k in range(3)]
+        force_inputs["lambda_time"] = lambda_t[0]
+        measured, lambda_m = force_inputs["measured"], force_inputs["lambda_measured"]
         drift = ca.jtimes(J_c @ dq1, q1, dq1)  # J̇_c q̇1 [m/s²]
         closed_loop = (M, J_c, drift, ddq1_r, C @ s1 + gamma1 * s1)
-        force_inputs = {"held": held, "active": active, "lambda_time": lambda_t[0]}
-        force_inputs |= {"measured": measured, "lambda_measured": lambda_m}
-        force_term, lambda_d = _state_force(closed_loop, force_inputs, parameters[-1])
+        force_term, lambda_d = _state_force(closed_loop, force_inputs, force_gain)
         used = lambda_d + measured * (lambda_m - lambda_d)  # the model's force [N]
         U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ force_term  # [N m]
         link_input[rigid] = U_R[rigid]
@@ -573,14 +607,15 @@ def _law_function(
         lambda_d_rate = _time_derivative(lambda_d, own, [dq1, ddq1, *r[1:4], lambda_t[1]])
         variables = [q1, dq1, q2, *r[:4], lambda_t[0], lambda_t[1], lambda_m]
         rates = [dq1, ddq1, dq2, *r[1:], lambda_t[1], lambda_t[2], lambda_d_rate]
-        force_symbols = [held, active, *lambda_t, measured, lambda_m]
+        force_inputs["lambda_time"] = ca.horzcat(*lambda_t)
+        force_inputs["force_gain"] = force_gain
     else:
         U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ f[0]  # [N m]
         link_input[rigid] = U_R[rigid]
         ddq1 = ca.solve(M, link_input - C @ dq1 - g + J_c.T @ lam[0])  # [rad/s²]
         variables = [q1, dq1, q2, *r[:4], f[0], f[1], lam[0]]
         rates = [dq1, ddq1, dq2, *r[1:], f[1], f[2], lam[1]]
-        force_symbols = [*f, *lam]
+        force_inputs = {"force": ca.horzcat(*f), "model_force": ca.horzcat(*lam)}
     dU_R = _time_derivative(U_R, variables, rates)
     ddU_R = _time_derivative(dU_R, variables, rates)
     q2d = r[0][motors] + U_R[motors] / K
@@ -599,6 +634,17 @@ def _law_function(
         + gamma1 * gamma2 * (ca.dot(q1_error, q1_error) + ca.dot(q2_error, q2_error))
         + 0.5 * ca.dot(deflection_error, K * deflection_error)
     )
-    inputs = ca.vertcat(q1, q2, dq1, dq2, *r, *force_symbols)
-    outputs = ca.vertcat(u, link_X, V, V1, q2d, dq2d, ddq2d, *([lambda_d] if state_force else []))
-    return ca.Function("flexible_brogliato_law", [inputs, parameters], [outputs])
+    inputs = {"q": ca.vertcat(q1, q2), "v": ca.vertcat(dq1, dq2)}
+    inputs |= {"link_reference": ca.horzcat(*r), **force_inputs}
+    inputs |= {"gamma1": gamma1, "gamma2": gamma2, "stiffness": K, "motor_inertia": B}
+    motor_reference = ca.horzcat(q2d, dq2d, ddq2d)
+    outputs = dict(zip(_LAW_OUTPUTS, (u, link_X, V, V1, motor_reference), strict=True))
+    if state_force:
+        outputs["lambda_d"] = lambda_d
+    return ca.Function(
+        "flexible_brogliato_state_force_law" if state_force else "flexible_brogliato_law",
+        list(inputs.values()),
+        list(outputs.values()),
+        list(inputs),
+        list(outputs),
+    )

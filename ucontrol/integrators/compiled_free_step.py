@@ -189,6 +189,7 @@ class CompiledFreeStep:
         )
         self._run, self._out = self.function.runner(), self.function.output_buffer(0)
         self._last: Vector | None = None  # the last call's outputs
+        self._activation_source: Vector | None = None  # the activation input's last source
         self._source: ConstraintRows | None = None  # see read_rows_of
 
     def __call__(
@@ -198,11 +199,15 @@ class CompiledFreeStep:
 
         ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`);
         ``activation`` (n,) is the step memory's (the impact law reads which constraints are
-        held). The returned arrays are fresh; :meth:`contact_terms`, :meth:`offsets` and
-        :meth:`single_row` read the same call's other outputs.
+        held); a read-only one (the memories shared between steps) is copied into the call's
+        input only when it is not the array copied last. The returned arrays are fresh;
+        :meth:`contact_terms`, :meth:`offsets` and :meth:`single_row` read the same call's
+        other outputs.
         """
         self._kinetic[0] = state.kinetic_energy
-        self._activation[:] = activation
+        if activation is not self._activation_source or activation.flags.writeable:
+            self._activation[:] = activation
+            self._activation_source = activation  # a read-only array: unchanged until replaced
         q, v, tau_in, J, gap, velocity = self._inputs
         source = self._source
         if source is not None and state.normal_rows is source.last_rows:

@@ -633,10 +633,10 @@ class MoreauJean:
         if not solved:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
-        impulse[i] = P.item()
+        impulse[i] = P_i = P.item()
         impacts = _closing_impacts(impulse, self.memory.activation, (i,), state)
         # next_memory(impulse, (i,), ...), built once
-        self.memory = self._row_memories[i] if impulse[i] > 0.0 else self._free_memory
+        self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
         return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
 
     def _contact_outcome(
@@ -1103,6 +1103,7 @@ def _closing_impacts(
         if is_impact(impulse[i], activation[i], u_minus[i]):
             impacts += ((int(i), 0.0 if t is None else float(t)),)
     return impacts
+
 
 
 def _pad(rows: Vector, size: int) -> Vector:
