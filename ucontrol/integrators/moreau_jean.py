@@ -1105,7 +1105,6 @@ def _closing_impacts(
     return impacts
 
 
-
 def _pad(rows: Vector, size: int) -> Vector:
     """``rows`` (normal rows) followed by zeros (tangential rows), shape (size,)."""
     return rows if rows.size == size else np.concatenate((rows, np.zeros(size - rows.size)))
