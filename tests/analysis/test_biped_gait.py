@@ -131,3 +131,21 @@ def test_bad_section_input_is_refused(scene: Scene, section: BipedSection) -> No
         section.to_state(np.zeros(7))
     with pytest.raises(InvalidParameterError, match="planar base"):
         BipedSection(section.law, section.flow, base=("x", "z", "knee_left"))
+
+
+def test_the_designed_gait_is_a_stable_gait_of_the_event_driven_closed_loop() -> None:
+    """robots/rabbit_walk_designed.toml (the casadi OCP's step, L = 0.4 m at 0.6 m/s).
+
+    Its start is the post-impact instant: the trailing foot still touches the ground, a few
+    1e-7 m below the new stance foot (the transcription's drift), and leaves upwards.
+    """
+    scene = load_scene("rabbit_walk_designed")
+    law = scene.build_controller()
+    assert isinstance(law, HZDController)
+    flow = StanceFlow(scene.constraints, law=law, rtol=1e-10, atol=1e-10, max_duration=2.0)
+    section = BipedSection(law, flow)
+    z0 = section.from_state(scene.q0, scene.v0)
+    gait = find_gait(flow, section.to_state, section.from_state, z0, drop_trivial=1, tol=1e-9)
+    designed_period = 0.4 / 0.6  # [s] the task's step length over its speed
+    assert gait.period == pytest.approx(designed_period, rel=5e-3)  # measured 7.8e-4
+    assert gait.stable and np.max(np.abs(gait.multipliers)) < 0.7  # measured 0.607

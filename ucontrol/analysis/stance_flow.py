@@ -49,8 +49,9 @@ from ucontrol.exceptions import InvalidParameterError, StrideError
 Vector = NDArray[np.float64]
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
-#: Gap in [m] below which a foot counts as on the ground at the start of a stride.
-STANCE_GAP_TOLERANCE = 1e-9
+#: Gap in [m] below which a foot counts as on the ground at the start of a stride (a designed
+#: start carries its transcription's drift, a few 1e-7 m, between the two feet).
+STANCE_GAP_TOLERANCE = 1e-6
 
 
 class WalkingLaw(Protocol):
