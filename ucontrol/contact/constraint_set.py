@@ -318,16 +318,32 @@ class ConstraintSet:
         Returns:
             The barred constraints' indices (empty without rules).
         """
+        margins = self.closure_margins(q)
+        return [i for i, *_ in self._closure_rules if margins[i] < 0.0]
+
+    def closure_margins(self, q: Vector) -> Vector:
+        r"""How far each contact with a rule is past the frame its rule names, in [m].
+
+        :math:`a \cdot (p_i - p_j)` (:meth:`closure_barred`) for the contacts with
+        ``closes_ahead_of``, :math:`+\infty` for the other constraints: a contact is barred
+        while its margin is negative.
+
+        Args:
+            q: Configuration of the robot, shape (nq,).
+
+        Returns:
+            The margins, shape (n,).
+        """
+        margins = np.full(self.size, np.inf)
         data = self._rule_data
         if data is None:
-            return []
+            return margins
         pin.framesForwardKinematics(self.robot.model, data, q)
         placements = data.oMf
-        return [
-            i
-            for i, frame, other, direction in self._closure_rules
-            if direction.dot(placements[frame].translation - placements[other].translation) < 0.0
-        ]
+        for i, frame, other, direction in self._closure_rules:
+            step = placements[frame].translation - placements[other].translation  # [m]
+            margins[i] = direction.dot(step)
+        return margins
 
     def jacobian(self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]) -> Vector:
         """Normal Jacobian rows of the constraints ``indices``, shape (len(indices), nv).

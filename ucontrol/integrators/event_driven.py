@@ -63,6 +63,18 @@ reaches :math:`\mu\lambda_n`), besides lift-off and impacts. 3D friction (two ta
 collision shapes, sphere–sphere contacts and moving surfaces have no sustained friction: a
 frictional constraint of theirs that stays closed raises :class:`IntegrationError`.
 
+**Contacts that may not close.** A point contact with a scuffing rule (``closes_ahead_of``: a
+walker's swing foot passes through the slope near mid-stance, ignored as in Garcia et al.
+1998) is barred while its margin :math:`m = a \cdot (p_i - p_j)`
+(:meth:`~ucontrol.contact.ConstraintSet.closure_margins`) is below -``rule_slack``, unless
+it is closed (a held stance foot stays held). A barred contact has no gap event, so its
+crossings of the surface are neither impacts nor closures; it has an event on m rising to 0
+instead, at which its bar lifts, and an unbarred one an event on m falling to
+-2 ``rule_slack``, at which the bar is set again. A contact whose bar lifts while it is below
+its surface (:math:`g < 0`) is left out of the impact and active-set stages until its gap
+event, the next crossing of :math:`g = 0` downwards: its strike is the crossing after the
+lifting, the stride map's (:class:`~ucontrol.analysis.stance_flow.StanceFlow`).
+
 **Energy ledger.** The friction work :math:`\int \lambda_t u_t\,dt` and the actuator work
 :math:`\int \tau \cdot v\,dt` are integrated as extra states, and each impact's (and capture's)
 kinetic-energy loss is added up: :attr:`EventDriven.ledger` (:class:`EnergyLedger`) closes
@@ -204,6 +216,7 @@ class _Settled:
     impacts: tuple[int, ...] = ()  # the constraints with an impact (closing, with an impulse)
     modes: _Modes | None = None  # tangential modes of the closed frictional constraints
     impact_loss: float = 0.0  # kinetic energy lost at the impact and capture, in [J]
+    barred: Mask | None = None  # open constraints the scuffing rule bars from closing
 
 
 @dataclass(frozen=True)
@@ -218,6 +231,7 @@ class _Segment:
     releasing: Mask  # closed constraints whose multiplier event fired
     left_stick: Mask  # sticking constraints whose friction reached the cone
     stopped: Mask  # slipping constraints whose sliding velocity reached zero
+    turned: Mask  # open constraints whose scuffing rule lifted or set its bar
     friction_work: float = 0.0  # ∫ λ_t u_t dt [J]
     actuator_work: float = 0.0  # ∫ τ·v dt [J]
 
@@ -270,6 +284,10 @@ class EventDriven:
     #: Closed constraints whose multiplier starts below this, in [N] or [N m], get no release
     #: event (a release from zero force is caught by the next active-set solve).
     release_force = 1e-12
+    #: A contact with a scuffing rule is barred once its margin is below minus this, in [m],
+    #: and its bar is set again when the margin falls to minus twice this (a hysteresis, so
+    #: that the located event leaves the contact on its new side).
+    rule_slack = 1e-10
 
     def __init__(
         self,
@@ -335,6 +353,11 @@ class EventDriven:
         )
         self._n = constraints.size
         self._bilateral = constraints.bilateral is not None
+        #: The contacts with a scuffing rule (``closes_ahead_of``), shape (n,).
+        self._ruled = np.zeros(self._n, dtype=bool)
+        self._ruled[: len(constraints.contacts)] = [
+            bool(contact.closes_ahead_of) for contact in constraints.contacts
+        ]
         self._carry: tuple[Vector, Vector, Mask, _Modes | None] | None = None
         #: Work and losses since construction (:class:`EnergyLedger`).
         self.ledger = EnergyLedger()
@@ -366,7 +389,7 @@ class EventDriven:
         active = np.zeros(self._n, dtype=bool)
         closed, modes = self._carried_closed_set(q, v)
         none = np.zeros(self._n, dtype=bool)
-        closing = releasing = left_stick = stopped = none
+        closing = releasing = left_stick = stopped = turned = none
         solutions: list[ContactSolution] = []
         impacts: list[tuple[int, float]] = []  # (constraint, absolute time [s])
         t, events, stalls = 0.0, 0, 0
@@ -383,15 +406,17 @@ class EventDriven:
             impacts += [(i, start + t) for i in settled.impacts]
             if h - t <= _STALL_TIME:
                 break
-            segment = self._integrate(q, v, tau, closed, modes, h - t, settled.max_step, start, t)
+            segment = self._integrate(
+                q, v, tau, closed, modes, h - t, settled.max_step, start, t, settled.barred
+            )
             q, v = segment.q, segment.v
             impulse[closed] += segment.impulse
             actuator_work += segment.actuator_work
             friction_work += segment.friction_work
             t += segment.duration
             closing, releasing = segment.closing, segment.releasing
-            left_stick, stopped = segment.left_stick, segment.stopped
-            if not (closing.any() or releasing.any() or left_stick.any() or stopped.any()):
+            left_stick, stopped, turned = segment.left_stick, segment.stopped, segment.turned
+            if not (closing | releasing | left_stick | stopped | turned).any():
                 break
             events += 1
             stalls = stalls + 1 if segment.duration <= _STALL_TIME else 0
@@ -400,7 +425,7 @@ class EventDriven:
                     self.name,
                     start + t,
                     f"{stalls} events without the time advancing (constraints "
-                    f"{self._names(closing | releasing | left_stick | stopped)}): impacts "
+                    f"{self._names(closing | releasing | left_stick | stopped | turned)}): impacts "
                     f"accumulate faster than the time resolution (raise zeno_velocity = "
                     f"{self.zeno_velocity:g} m/s) or the active set chatters in a degenerate "
                     "configuration (use moreau_jean)",
@@ -457,11 +482,12 @@ class EventDriven:
         if closed is None:
             closed = (gap <= self.closure_gap) & (np.abs(u) <= self.closure_velocity)
         impulse = np.zeros(self._n)
-        near = closed | closing | (gap <= self.closure_gap)
+        barred, submerged = self._scuffing(q, gap, closed | closing)
+        near = (closed | closing | (gap <= self.closure_gap)) & ~(barred | submerged)
         if not near.any():
             if self._bilateral:
                 q, v = self._project(q, v, near, time)
-            return _Settled(q, v, near, impulse, math.inf, [])
+            return _Settled(q, v, near, impulse, math.inf, [], barred=barred)
         indices = np.flatnonzero(near)
         terms = dynamics.constraint_terms(q, v, tau, indices, t=time)
         u_near = u[indices]
@@ -514,7 +540,25 @@ class EventDriven:
             impacts,
             new_modes,
             loss,
+            barred,
         )
+
+    def _scuffing(self, q: Vector, gap: Vector, held: Mask) -> tuple[Mask, Mask]:
+        """The contacts the scuffing rule bars at q, and those it let through under the surface.
+
+        A contact with ``closes_ahead_of`` not in ``held`` (closed or closing) is barred while
+        its margin (:meth:`~ucontrol.contact.ConstraintSet.closure_margins`) is below
+        -``rule_slack``. Once its bar lifts, a contact still below its surface
+        (g < -``closure_gap``: the swing foot passing through the slope) is left out too,
+        until its gap event (g crossing 0 downwards) marks the strike. Both masks shape (n,).
+        """
+        none = np.zeros(self._n, dtype=bool)
+        if not self._ruled.any():
+            return none, none
+        margins = self.constraints.closure_margins(q[: self.robot.nq])  # [m]
+        free = self._ruled & ~held
+        barred = free & (margins < -self.rule_slack)
+        return barred, free & ~barred & (gap < -self.closure_gap)
 
     def _kinetic_energy(self, q: Vector, v: Vector, time: float) -> float:
         """The kinetic energy at (q, v) in [J] (motors included), at the absolute time [s]."""
@@ -884,6 +928,7 @@ class EventDriven:
         max_step: float,
         start: float,
         t_start: float,
+        barred: Mask | None = None,
     ) -> _Segment:
         r"""Integrate with the closed set and modes fixed until ``duration`` [s] or an event.
 
@@ -901,6 +946,10 @@ class EventDriven:
         (event :math:`s u_t = 0`, at :math:`-` ``closure_velocity`` when it starts from rest).
         The state carries :math:`\int \lambda_n dt`, :math:`\int \lambda_t u_t dt` and
         :math:`\int \tau \cdot v\,dt`.
+
+        An open contact with a scuffing rule that ``barred`` (n,) bars has no gap event but an
+        event on its margin m rising to 0 (the bar lifts); an unbarred one has its gap event
+        and one on m falling to -2 ``rule_slack`` (the bar is set again).
         """
         dynamics, nv = self._dynamics, self._dynamics.nv
         closed_indices = np.flatnonzero(closed)
@@ -920,6 +969,12 @@ class EventDriven:
         slipping = np.flatnonzero(~stick)
         tangents = frictional if k else None
         slip_offsets = np.zeros(slipping.size)  # [m/s]
+        barred = np.zeros(self._n, dtype=bool) if barred is None else barred
+        ruled = open_indices[self._ruled[open_indices]]
+        lifting = barred[ruled]
+        rule_sign = np.where(lifting, -1.0, 1.0)  # events on -m (barred) or m + 2 slack
+        rule_offset = np.where(lifting, 0.0, 2.0 * self.rule_slack)  # [m]
+        link_nq = self.robot.nq
         cache: dict[str, Any] = {"key": None}
 
         def evaluate(t: float, y: Vector) -> tuple[Vector, Vector]:
@@ -971,6 +1026,10 @@ class EventDriven:
                     multipliers = np.zeros(0)
                     gap, _ = dynamics.kinematics(q, v, origin + t)
                     acceleration = dynamics.free_acceleration(q, v, tau)
+                rules = np.zeros(0)
+                if ruled.size:
+                    rules = rule_sign * self.constraints.closure_margins(q[:link_nq])[ruled]
+                    rules += rule_offset
                 rate = np.concatenate(
                     (
                         dynamics.chart_rate(q0, dq, v),
@@ -982,14 +1041,15 @@ class EventDriven:
                 cache["key"] = key
                 cache["value"] = (
                     rate,
-                    np.concatenate((gap[open_indices] + offsets, multipliers, margins)),
+                    np.concatenate((gap[open_indices] + offsets, multipliers, margins, rules)),
                 )
             value: tuple[Vector, Vector] = cache["value"]
             return value
 
         y0 = np.concatenate((np.zeros(nv), v0, np.zeros(m + 2)))
         initial = evaluate(0.0, y0)[1]
-        at_rest = np.abs(initial[open_indices.size + m + 2 * sticking.size :]) <= (
+        slip_start = open_indices.size + m + 2 * sticking.size
+        at_rest = np.abs(initial[slip_start : slip_start + slipping.size]) <= (
             self.closure_velocity
         )
         slip_offsets[at_rest] = self.closure_velocity  # s u_t starts at 0: fire at -ε
@@ -997,10 +1057,10 @@ class EventDriven:
         initial = evaluate(0.0, y0)[1]
         watched = np.concatenate(
             (
-                np.ones(open_indices.size, dtype=bool),
+                ~barred[open_indices],
                 initial[open_indices.size : open_indices.size + m + 2 * sticking.size]
                 > self.release_force,
-                np.ones(slipping.size, dtype=bool),
+                np.ones(slipping.size + ruled.size, dtype=bool),
             )
         )
         events = [_event(evaluate, int(j)) for j in np.flatnonzero(watched)]
@@ -1027,12 +1087,15 @@ class EventDriven:
         releasing = np.zeros(self._n, dtype=bool)
         left_stick = np.zeros(self._n, dtype=bool)
         stopped = np.zeros(self._n, dtype=bool)
+        turned = np.zeros(self._n, dtype=bool)
         n_open, n_stick = open_indices.size, sticking.size
         closing[open_indices[fired[:n_open]]] = True
         releasing[closed_indices[fired[n_open : n_open + m]]] = True
         cone_fired = fired[n_open + m : n_open + m + 2 * n_stick]
         left_stick[frictional[sticking[cone_fired[:n_stick] | cone_fired[n_stick:]]]] = True
-        stopped[frictional[slipping[fired[n_open + m + 2 * n_stick :]]]] = True
+        slip_end = slip_start + slipping.size
+        stopped[frictional[slipping[fired[slip_start:slip_end]]]] = True
+        turned[ruled[fired[slip_end:]]] = True
         return _Segment(
             q=dynamics.configuration(q0, y[:nv]),
             v=y[nv : 2 * nv].copy(),
@@ -1042,6 +1105,7 @@ class EventDriven:
             releasing=releasing,
             left_stick=left_stick,
             stopped=stopped,
+            turned=turned,
             friction_work=float(y[-2]),
             actuator_work=float(y[-1]),
         )

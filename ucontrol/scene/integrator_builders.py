@@ -34,8 +34,8 @@ def build_integrator(
             frictionless) or event_driven against moving surfaces, a ``qpsolvers:`` contact
             solver was asked for a scene with friction, the compliant integrator for a
             scene with moving surfaces, bilateral constraints or clearance joints, or Coulomb
-            joint friction or a contact's ``closes_ahead_of`` rule with an integrator other
-            than ``moreau_jean``.
+            joint friction with an integrator other than ``moreau_jean``, or a contact's
+            ``closes_ahead_of`` rule with compliant.
     """
     name = scene.integrator.name
     laws = _impact_laws(scene)
@@ -75,12 +75,12 @@ def build_integrator(
             f"`motion`; {name} does not handle time-dependent constraints)",
         )
     barred = [c.name for c in scene.contacts if c.closes_ahead_of]
-    if barred and name != "moreau_jean":
+    if barred and name == "compliant":
         raise InvalidParameterError(
             "[integrator] name",
             name,
-            f"'moreau_jean' for contacts with a `closes_ahead_of` rule ({barred}; only "
-            "Moreau–Jean applies it, docs/moreau_jean.md)",
+            f"'moreau_jean' or 'event_driven' for contacts with a `closes_ahead_of` rule "
+            f"({barred}; compliant does not apply it, docs/legged.md)",
         )
     if _joint_coulomb(scene) and name != "moreau_jean":
         raise InvalidParameterError(
