@@ -34,9 +34,8 @@ from biped_gait_design import FEET, momentum
 from matplotlib.figure import Figure
 from scipy.integrate import solve_ivp
 
-from ucontrol.analysis.biped_section import BipedSection
-from ucontrol.analysis.gait import Gait, find_gait
-from ucontrol.analysis.stance_flow import StanceFlow
+from ucontrol.analysis.biped_section import BipedSection, find_biped_gait
+from ucontrol.analysis.gait import Gait
 from ucontrol.campaign.overrides import apply_overrides
 from ucontrol.control.hzd_controller import HZDController
 from ucontrol.exceptions import PhysicsWarning
@@ -183,11 +182,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, object]:
     scene = load_scene("rabbit_walk")
     law = scene.build_controller()
     assert isinstance(law, HZDController)
-    flow = StanceFlow(scene.constraints, law=law, rtol=1e-10, atol=1e-10, max_duration=2.0)
-    section = BipedSection(law, flow)
-    z0 = section.from_state(scene.q0, scene.v0)
-    gait = find_gait(flow, section.to_state, section.from_state, z0, drop_trivial=1, tol=1e-9)
-    stride = flow.stride(gait.q, gait.v)
+    section, gait = find_biped_gait(law, scene.constraints, scene.q0, scene.v0)
+    stride = section.flow.stride(gait.q, gait.v)
     delta2 = (
         momentum(scene.robot, stride.q, stride.v, FEET[1])
         / momentum(scene.robot, stride.q, stride.v_minus, FEET[0])

@@ -13,9 +13,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ucontrol.analysis.biped_section import BipedSection
-from ucontrol.analysis.gait import Gait, find_gait
-from ucontrol.analysis.stance_flow import StanceFlow
+from ucontrol.analysis.biped_section import BipedSection, find_biped_gait
+from ucontrol.analysis.gait import Gait
 from ucontrol.control.hzd_controller import HZDController
 from ucontrol.exceptions import InvalidParameterError, ShapeError
 from ucontrol.scene import Scene, load_scene
@@ -30,20 +29,26 @@ def scene() -> Scene:
     return load_scene("rabbit_walk")
 
 
-@pytest.fixture(scope="module")
-def section(scene: Scene) -> BipedSection:
+def _found(scene: Scene) -> tuple[BipedSection, Gait]:
+    """The scene's section and gait, found from its start."""
     law = scene.build_controller()
     assert isinstance(law, HZDController)
-    flow = StanceFlow(scene.constraints, law=law, rtol=1e-10, atol=1e-10, max_duration=2.0)
-    return BipedSection(law, flow)
+    return find_biped_gait(law, scene.constraints, scene.q0, scene.v0)
 
 
 @pytest.fixture(scope="module")
-def gait(scene: Scene, section: BipedSection) -> Gait:
-    z0 = section.from_state(scene.q0, scene.v0)
-    return find_gait(
-        section.flow, section.to_state, section.from_state, z0, drop_trivial=1, tol=1e-9
-    )
+def found(scene: Scene) -> tuple[BipedSection, Gait]:
+    return _found(scene)
+
+
+@pytest.fixture(scope="module")
+def section(found: tuple[BipedSection, Gait]) -> BipedSection:
+    return found[0]
+
+
+@pytest.fixture(scope="module")
+def gait(found: tuple[BipedSection, Gait]) -> Gait:
+    return found[1]
 
 
 def _momentum(scene: Scene, q: np.ndarray, v: np.ndarray, foot: str) -> float:
@@ -139,13 +144,7 @@ def test_the_designed_gait_is_a_stable_gait_of_the_event_driven_closed_loop() ->
     Its start is the post-impact instant: the trailing foot still touches the ground, a few
     1e-7 m below the new stance foot (the transcription's drift), and leaves upwards.
     """
-    scene = load_scene("rabbit_walk_designed")
-    law = scene.build_controller()
-    assert isinstance(law, HZDController)
-    flow = StanceFlow(scene.constraints, law=law, rtol=1e-10, atol=1e-10, max_duration=2.0)
-    section = BipedSection(law, flow)
-    z0 = section.from_state(scene.q0, scene.v0)
-    gait = find_gait(flow, section.to_state, section.from_state, z0, drop_trivial=1, tol=1e-9)
+    gait = _found(load_scene("rabbit_walk_designed"))[1]
     designed_period = 0.4 / 0.6  # [s] the task's step length over its speed
     assert gait.period == pytest.approx(designed_period, rel=5e-3)  # measured 7.8e-4
     assert gait.stable and np.max(np.abs(gait.multipliers)) < 0.7  # measured 0.607

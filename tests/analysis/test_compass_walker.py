@@ -21,7 +21,7 @@ from ucontrol.exceptions import (
     InvalidParameterError,
     NotFoundError,
     PenetrationWarning,
-    ShapeError,
+    StrideError,
 )
 from ucontrol.scene import Scene
 
@@ -33,7 +33,6 @@ RATE_SCALE = math.sqrt(9.81)
 #: themselves differ from the limit by O(beta) (1.5e-4 at 1e-3).
 LIMIT_TOLERANCE = 1e-7
 MULTIPLIER_TOLERANCE = 5e-5
-DOWNHILL = np.array([1.0, 0.0, 0.0])
 
 
 def _scene(tmp_path: Path, beta: float) -> Scene:
@@ -81,7 +80,7 @@ def gaits(tmp_path_factory: pytest.TempPathFactory) -> dict[float, Gait]:
     z0 = np.array([0.2003109, -0.1998325, -0.0158230])
     found = {}
     for beta in (1e-3, 1e-4):
-        flow = StanceFlow(_scene(tmp_path, beta).constraints, ahead=DOWNHILL)
+        flow = StanceFlow(_scene(tmp_path, beta).constraints)
         found[beta] = find_gait(flow, *_chart(flow), z0, step=1e-6)
     return found
 
@@ -115,7 +114,7 @@ def test_the_scuff_is_ignored_and_the_swing_foot_strikes_ahead(
     tmp_path: Path, gaits: dict[float, Gait]
 ) -> None:
     scene = _scene(tmp_path, 1e-4)
-    flow = StanceFlow(scene.constraints, ahead=DOWNHILL)
+    flow = StanceFlow(scene.constraints)
     q, v = _chart(flow)[0](gaits[1e-4].z)
     stride = flow.stride(q, v)
     # The struck foot (b) is ahead of the old stance foot (a, at x = 0), a step length away.
@@ -137,11 +136,6 @@ def test_the_scuff_is_ignored_and_the_swing_foot_strikes_ahead(
     assert -1e-4 < scene.constraints.gaps(solution.y[:4, -1])[1] < -1e-5
 
 
-def test_a_direction_of_travel_of_the_wrong_shape_is_refused(tmp_path: Path) -> None:
-    with pytest.raises(ShapeError, match="ahead"):
-        StanceFlow(_scene(tmp_path, 1e-2).constraints, ahead=np.array([1.0, 0.0]))
-
-
 @pytest.mark.slow
 def test_moreau_jean_walks_the_gait_and_its_strides_converge_at_order_one() -> None:
     # The shipped scene (beta = 1e-2) released on its own gait: the event-driven strides
@@ -151,7 +145,7 @@ def test_moreau_jean_walks_the_gait_and_its_strides_converge_at_order_one() -> N
     # largest over the first four strides, h = 2, 1, 0.5 ms: |z - z*| 1.9e-2, 7.2e-3, 3.9e-3;
     # |t - kT| 6.6e-2, 2.7e-2, 1.5e-2 s (the first stride alone: 3.3e-3, 1.6e-3, 8.4e-4).
     scene = Scene.from_toml(ROBOTS / "compass_walker.toml")
-    flow = StanceFlow(scene.constraints, ahead=DOWNHILL)
+    flow = StanceFlow(scene.constraints)
     to_state, from_state = _chart(flow)
     gait = find_gait(flow, to_state, from_state, np.array([0.2, -0.2, -0.016]), step=1e-6)
     q0, v0 = to_state(gait.z)
@@ -247,7 +241,7 @@ def test_event_driven_walks_the_stride_maps_strides() -> None:
     # keeps the swing foot's gap event off until the hip passes the stance foot, so the
     # strikes are those of StanceFlow's strides, to the integration's tolerance.
     scene = Scene.from_toml(ROBOTS / "compass_walker.toml")
-    flow = StanceFlow(scene.constraints, ahead=DOWNHILL)
+    flow = StanceFlow(scene.constraints)
     q, v, t = scene.q0, scene.v0, 0.0
     strides = []
     for _ in range(10):
@@ -287,6 +281,24 @@ def test_a_bar_lifting_under_the_slope_is_not_a_strike() -> None:
     run = dataclasses.replace(scene, contacts=contacts, integrator=settings)
     log = simulate(run, duration=1.3, dt=0.1).log
     assert log.gap[:, 1].min() < -1e-5  # sampled during the scuff, after the lifting
-    stride = StanceFlow(scene.constraints, ahead=DOWNHILL).stride(scene.q0, scene.v0)
+    stride = StanceFlow(scene.constraints).stride(scene.q0, scene.v0)
     assert list(log.impacts.constraint) == ["foot_b/ground"]
     assert abs(log.impacts.t[0] - stride.duration) <= EVENT_DRIVEN_TOLERANCE
+    # StanceFlow takes the tilted rule from the scene and finds the same strike.
+    tilted = StanceFlow(run.constraints).stride(scene.q0, scene.v0)
+    assert abs(tilted.duration - stride.duration) <= EVENT_DRIVEN_TOLERANCE
+    assert np.max(np.abs(tilted.v - stride.v)) <= EVENT_DRIVEN_TOLERANCE
+
+
+def test_stance_flow_takes_the_scenes_scuffing_rule() -> None:
+    # A rule measured into the slope (the hip is never "ahead" of the stance foot below it)
+    # bars the swing foot for good: no strike at t = 1.238 s, and the walker falls on until
+    # its stance foot would slip (t = 1.681 s).
+    scene = Scene.from_toml(ROBOTS / "compass_walker.toml")
+    into = (0.0, 0.0, -1.0)
+    contacts = tuple(dataclasses.replace(c, direction_of_travel=into) for c in scene.contacts)
+    barred = dataclasses.replace(scene, contacts=contacts)
+    with pytest.raises(
+        StrideError, match=r"1\.68\d* s in: the stance foot 'foot_a/ground' would slip"
+    ):
+        StanceFlow(barred.constraints, max_duration=3.0).stride(scene.q0, scene.v0)

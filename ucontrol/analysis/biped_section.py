@@ -13,6 +13,8 @@ foot, placed at the origin (x is irrelevant on flat ground) and at rest. Relabel
 in :meth:`BipedSection.from_state` makes the map from one step to the next a map of one
 section, whatever foot is down. The chart keeps a direction the section does not have (the
 swing foot's height at the strike): its multiplier is 0 (``drop_trivial = 1``).
+:func:`find_biped_gait` puts the stance flow, this chart and
+:func:`~ucontrol.analysis.gait.find_gait` together.
 """
 
 from __future__ import annotations
@@ -22,13 +24,19 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_vector
+from ucontrol.analysis.gait import Gait, find_gait
 from ucontrol.analysis.stance_flow import StanceFlow
+from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.control.hzd_controller import OUTPUTS, HZDController
 from ucontrol.exceptions import InvalidParameterError
 
 Vector = NDArray[np.float64]
 #: Size of the chart's coordinates.
 SIZE = 2 * (OUTPUTS + 1)
+#: Tolerances (rtol = atol) of the closed loop's strides in :func:`find_biped_gait`.
+STRIDE_TOLERANCE = 1e-10
+#: Longest stride in [s] of :func:`find_biped_gait` (RABBIT's steps last about 0.6 s).
+MAX_STRIDE = 2.0
 
 
 class BipedSection:
@@ -91,3 +99,45 @@ class BipedSection:
         index = self._legs[leg]
         pitch = self._base[2]
         return np.concatenate(([q[pitch]], q[index], [v[pitch]], v[index]))
+
+
+def find_biped_gait(
+    law: HZDController,
+    constraints: ConstraintSet,
+    q0: Vector,
+    v0: Vector,
+    *,
+    tol: float = 1e-9,
+) -> tuple[BipedSection, Gait]:
+    """The period-one gait of a biped under its law, by Newton on the stride map at heel strike.
+
+    The strides are the event-driven closed loop's (:class:`StanceFlow` with ``law``,
+    :data:`STRIDE_TOLERANCE`, :data:`MAX_STRIDE`) on the chart of :class:`BipedSection`;
+    Newton (:func:`~ucontrol.analysis.gait.find_gait`, the swing foot's trivial multiplier
+    dropped) starts from the post-strike state (q0, v0).
+
+    Args:
+        law: The walking law.
+        constraints: The biped's feet (a scene's constraints).
+        q0: Post-strike configuration to start from, shape (nq,).
+        v0: Post-strike velocity, shape (nv,).
+        tol: Newton's tolerance on the residual :math:`P(z) - z`.
+
+    Returns:
+        The section (its :attr:`BipedSection.flow` the stance flow) and the gait.
+
+    Raises:
+        SolverError: Newton did not converge (:func:`~ucontrol.analysis.gait.find_gait`).
+        StrideError: A stride failed (:meth:`StanceFlow.stride`).
+    """
+    flow = StanceFlow(
+        constraints,
+        law=law,
+        rtol=STRIDE_TOLERANCE,
+        atol=STRIDE_TOLERANCE,
+        max_duration=MAX_STRIDE,
+    )
+    section = BipedSection(law, flow)
+    z0 = section.from_state(q0, v0)
+    gait = find_gait(flow, section.to_state, section.from_state, z0, drop_trivial=1, tol=tol)
+    return section, gait

@@ -42,7 +42,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from ucontrol._validation import as_positive, as_vector
+from ucontrol._validation import as_positive
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import InvalidParameterError, StrideError
 
@@ -91,11 +91,18 @@ class StanceFlow:
         rtol: Relative tolerance of solve_ivp.
         atol: Absolute tolerance of solve_ivp.
         max_duration: Longest stride in [s]: a foot that has not struck by then is an error.
-        ahead: Direction of travel in the world frame, shape (3,), or None. Given, a foot that
-            reaches the ground behind the stance foot along it does not strike (a point foot
-            scuffing the ground as the legs cross, ignored as in Garcia et al. 1998): the strike
-            event of foot :math:`b` is :math:`g_b + \max(0, -(p_b - p_s) \cdot a)`.
         law: The actuators' law given the stance contact's index, or None (a passive walker).
+
+    The scuffing rule is the scene's: a contact declared with ``closes_ahead_of``
+    (:class:`~ucontrol.contact.PointContact`; a point foot passing through the slope as the
+    legs cross, ignored as in Garcia et al. 1998) has no strike event while
+    :meth:`~ucontrol.contact.ConstraintSet.closure_barred` bars it, but an event on its margin
+    :math:`a \cdot (p_\text{ahead} - p_\text{other})` rising to 0; from there on its strike
+    is the next crossing of its gap downwards (a foot under the slope when its bar lifts
+    strikes only after coming back above it), as under the event-driven integrator. (An
+    ``ahead`` argument of its own is not kept: every walker analysed here is a scene's, which
+    declares the rule, and one rule for the flow and the integrators keeps their strides
+    alike.)
 
     Raises:
         InvalidParameterError: The robot has nq != nv, or a constraint is not a sticking point
@@ -109,7 +116,6 @@ class StanceFlow:
         rtol: float = 1e-12,
         atol: float = 1e-12,
         max_duration: float = 10.0,
-        ahead: Vector | None = None,
         law: WalkingLaw | None = None,
     ) -> None:
         robot = constraints.robot
@@ -133,7 +139,6 @@ class StanceFlow:
         self.rtol = as_positive("rtol", rtol)
         self.atol = as_positive("atol", atol)
         self.max_duration = as_positive("max_duration", max_duration)
-        self.ahead = None if ahead is None else as_vector("ahead", ahead, 3)
         self._data = pin.Data(robot.model)
         self._drift_data = pin.Data(robot.model)
         self._frames = [robot.frame_id(contact.frame) for contact in constraints.contacts]
@@ -236,11 +241,18 @@ class StanceFlow:
         def rate(_: float, y: Vector) -> Vector:
             return np.concatenate((y[nv:], pinned(y)[0]))
 
-        def strike_event(i: int) -> Callable[[float, Vector], float]:
+        def gap_event(i: int) -> Callable[[float, Vector], float]:
             def event(_: float, y: Vector) -> float:
-                return float(self.constraints.gaps(y[:nv])[i]) + self._behind(y[:nv], i, stance)
+                return float(self.constraints.gaps(y[:nv])[i])
 
             event.terminal, event.direction = True, -1.0  # type: ignore[attr-defined]
+            return event
+
+        def bar_event(i: int) -> Callable[[float, Vector], float]:
+            def event(_: float, y: Vector) -> float:
+                return float(self.constraints.closure_margins(y[:nv])[i])
+
+            event.terminal, event.direction = True, 1.0  # type: ignore[attr-defined]
             return event
 
         def lift_off(_: float, y: Vector) -> float:
@@ -258,21 +270,29 @@ class StanceFlow:
                 )
         lift_off.terminal, lift_off.direction = True, -1.0  # type: ignore[attr-defined]
         slip.terminal, slip.direction = True, -1.0  # type: ignore[attr-defined]
-        events = [strike_event(i) for i in others] + [lift_off, slip]
-        solution = self.solve(rate, 0.0, y0, events)
-        fired = [k for k, times in enumerate(solution.t_events) if len(times)]
-        if not fired:
-            raise StrideError(
-                self.max_duration, "no foot struck the ground (the section is never crossed)"
-            )
-        event = fired[0]
-        t_end, y_end = float(solution.t_events[event][0]), solution.y_events[event][0]
-        if event >= len(others):
-            kind = "lift off" if event == len(others) else "slip"
-            raise StrideError(
-                t_end, f"the stance foot {self.constraints.names[stance]!r} would {kind}"
-            )
-        foot = others[event]
+        margins = self.constraints.closure_margins(q)
+        barred = [i for i in others if margins[i] < 0.0]
+        t_end, y_end = 0.0, y0
+        while True:
+            allowed = [i for i in others if i not in barred]
+            events = [gap_event(i) for i in allowed] + [bar_event(i) for i in barred]
+            solution = self.solve(rate, t_end, y_end, [*events, lift_off, slip])
+            fired = [k for k, times in enumerate(solution.t_events) if len(times)]
+            if not fired:
+                raise StrideError(
+                    self.max_duration, "no foot struck the ground (the section is never crossed)"
+                )
+            event = fired[0]
+            t_end, y_end = float(solution.t_events[event][0]), solution.y_events[event][0]
+            if event >= len(events):
+                kind = "lift off" if event == len(events) else "slip"
+                raise StrideError(
+                    t_end, f"the stance foot {self.constraints.names[stance]!r} would {kind}"
+                )
+            if event < len(allowed):
+                break
+            barred.remove(barred[event - len(allowed)])  # its bar lifts: its gap is watched
+        foot = allowed[event]
         q_end, v_minus = y_end[:nv], y_end[nv:]
         v_plus, impulse = self.heel_strike(q_end, v_minus, foot)
         self._check_strike(q_end, v_plus, impulse, stance, foot, t_end)
@@ -304,15 +324,6 @@ class StanceFlow:
         if self.law is None:
             return None
         return self._selection @ np.asarray(self.law.torque(q, v, stance), dtype=float)
-
-    def _behind(self, q: Vector, foot: int, stance: int) -> float:
-        """How far ``foot`` is behind the stance foot along :attr:`ahead` in [m] (0 if ahead)."""
-        if self.ahead is None:
-            return 0.0
-        model, data = self.robot.model, self._drift_data
-        pin.framesForwardKinematics(model, data, q)
-        step = data.oMf[self._frames[foot]].translation - data.oMf[self._frames[stance]].translation
-        return max(0.0, -float(step @ self.ahead))
 
     def _check_strike(
         self, q: Vector, v: Vector, impulse: Vector, old: int, new: int, t: float
