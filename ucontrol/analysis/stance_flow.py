@@ -22,11 +22,11 @@ The heel strike of foot :math:`b` is plastic and without slip,
 after which :math:`b` is the stance foot; the old stance foot must leave (its normal velocity
 :math:`\ge 0` after the strike) and :math:`\Lambda` must lie in the friction cone, or the
 stride is refused (:class:`~ucontrol.exceptions.StrideError`) rather than continued with a
-model that does not hold. This is the event-driven reference of the walkers run by
-Moreau–Jean with Coulomb friction (the event-driven integrator,
-:mod:`ucontrol.integrators.event_driven`, is frictionless). Robots with ``nq == nv`` only
-(planar walkers on prismatic and revolute joints). The joints receive no input, or those of a
-state-feedback law given the stance foot (``law``, e.g.
+model that does not hold. This is the reference stride map of the walkers run with Coulomb
+friction by Moreau–Jean and by the event-driven integrator
+(:mod:`ucontrol.integrators.event_driven`; docs/legged.md compares their strikes). Robots
+with ``nq == nv`` only (planar walkers on prismatic and revolute joints). The joints receive
+no input, or those of a state-feedback law given the stance foot (``law``, e.g.
 :meth:`~ucontrol.control.hzd_controller.HZDController.torque`), evaluated inside the
 right-hand side (no zero-order hold): the stride map of a walker in closed loop.
 """
