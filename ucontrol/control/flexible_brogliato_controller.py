@@ -77,7 +77,8 @@ the desired task trajectory :math:`C^4` (:mod:`ucontrol.control.trajectory_segme
 :math:`q_{1d}` is :math:`C^4` and neither V (which holds :math:`q_{1d}'''` through
 :math:`\dot q_{2d}`) nor the motor torque (:math:`q_{1d}''''` through :math:`\ddot q_{2d}`)
 jumps at the switches; only the gap target steps, from the virtual target to the surface at
-:math:`t_f`, and the force term switches on there.
+:math:`t_f`, and the force term switches on there (both back at an opening before the fall
+under the takeoff rule, :mod:`ucontrol.control.phase_machine`).
 
 V and V1 are built on the tracked target :math:`X_d^*` (the virtual target during
 transitions), unlike the rigid controller which clips the reference at the surface: a motor
