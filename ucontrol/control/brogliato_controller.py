@@ -179,6 +179,9 @@ class BrogliatoController:
         # λ_d applied on the task rows (the state profile's output), or None: the time
         # profile's, ``desired.force``.
         self._lambda_d_output: Vector | None = None
+        # With the state profile, the law's inputs that λ_d is designed from and the position
+        # of each declared contact in them (see _write_state_force_inputs); else None.
+        self._state_force_inputs: tuple[tuple[Vector, ...], NDArray[np.int64]] | None = None
         if type(self)._order == 2:
             self._build_rigid_law()
         self._log_fields: tuple[Log, tuple[NDArray[Any], ...]] | None = None
@@ -219,9 +222,11 @@ class BrogliatoController:
         self._velocity_input, self._posture_input = inputs["v"], inputs["posture_error"]
         # The force term (time profile), or what the law designs λ_d from (state profile).
         self._force_input = inputs.get("force")
-        self._state_force_inputs = (
-            tuple(inputs[name] for name in _STATE_FORCE_INPUTS) if state_force else None
-        )
+        if state_force:
+            self._state_force_inputs = (
+                tuple(inputs[name] for name in _STATE_FORCE_INPUTS),
+                self.machine.coordinates,
+            )
         target, reference = inputs["target"], inputs["reference"]
         self._law_columns = (*target.T, *reference.T)
         # The target at once from the machine's stacked samples, and the reference from the
@@ -463,19 +468,34 @@ class BrogliatoController:
         self._run_law()
 
     def _write_state_force_inputs(self, desired: DesiredState, rows: list[tuple[int, int]]) -> None:
-        """The inputs of the state-based λ_d: held and active rows, time profile, force."""
+        r"""Write the inputs of the state-based λ_d (:func:`_state_force`) in place.
+
+        The inputs (``_state_force_inputs``) are the 1-D arrays held, active, the time profile
+        :math:`\lambda_t` and each of its derivatives in ``desired.force_derivatives`` (none
+        for the rigid law, two for the flexible one), measured and λ; declared contact i sits
+        at one position of each (its task row in the rigid law, i in the flexible one). Held
+        contacts (``rows``, :meth:`_held_contacts`) get the profile, and the measured force
+        where it is valid; active ones are the held and those closed over the last step.
+        Nothing is written while no contact is held and the inputs are still zeros.
+        """
         assert self._state_force_inputs is not None
-        held, active, lambda_time, measured, lambda_measured = self._state_force_inputs
-        for values in self._state_force_inputs:
+        inputs, positions = self._state_force_inputs
+        if not rows and not self._force_written:
+            return
+        for values in inputs:
             values.fill(0.0)
-        active[self.machine.coordinates[self._closed]] = 1.0
-        force, contact_force = desired.force, self.contact_force
+        self._force_written = bool(rows)
+        held, active, *profile, measured, lambda_measured = inputs
+        active[positions[self._closed]] = 1.0
+        samples = (desired.force, *desired.force_derivatives)  # [N], [N/s^k]
         held_before = self.desired.constrained  # at the last call
-        for i, j in rows:
-            held[j] = active[j] = 1.0
-            lambda_time[j] = force[i]  # [N]
+        for i, _ in rows:
+            k = positions[i]
+            held[k] = active[k] = 1.0
+            for values, sample in zip(profile, samples, strict=True):
+                values[k] = sample[i]
             if self._persistent[i] and held_before[i]:  # a force of this law
-                measured[j], lambda_measured[j] = 1.0, contact_force[i]
+                measured[k], lambda_measured[k] = 1.0, self.contact_force[i]
 
     def _force_terms(
         self, desired: DesiredState, rows: list[tuple[int, int]]

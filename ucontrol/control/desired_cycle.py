@@ -21,7 +21,13 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol._validation import as_float, as_in_interval, as_non_negative, as_positive
+from ucontrol._validation import (
+    as_bool,
+    as_float,
+    as_in_interval,
+    as_non_negative,
+    as_positive,
+)
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.trajectory_segment import smooth_step
 from ucontrol.exceptions import (
@@ -133,6 +139,11 @@ class DesiredCycle:
             impact to :math:`t_f`: ``"virtual"`` (default), the virtual target, as
             :math:`\bar s`; ``"clipped"``, the target clipped at the surface, as the book does
             (docs/controller.md, "After the first impact").
+        takeoff_on_opening: Whether the constrained phase ends when its contact is measured
+            open (no positive force over the last control period): during the fall of
+            :math:`\lambda_d` the takeoff starts then, before it back to the transition
+            (docs/impact_control.md, "Takeoff on opening"). None (default): on with the state
+            profile, off with the time profile (see :attr:`ends_on_opening`).
     """
 
     path: NominalPath
@@ -150,6 +161,7 @@ class DesiredCycle:
     blend_time: float = 0.8
     force_profile: str = "time"
     reference_after_impact: str = "virtual"
+    takeoff_on_opening: bool | None = None
 
     def __post_init__(self) -> None:
         for name in (
@@ -175,6 +187,9 @@ class DesiredCycle:
             raise InvalidParameterError(
                 "force_profile", self.force_profile, f"one of {list(FORCE_PROFILES)}"
             )
+        if self.takeoff_on_opening is not None:
+            opening = as_bool("takeoff_on_opening", self.takeoff_on_opening)
+            object.__setattr__(self, "takeoff_on_opening", opening)
         object.__setattr__(
             self, "depth_exponent", as_in_interval("depth_exponent", self.depth_exponent, 0, 1)
         )
@@ -210,6 +225,13 @@ class DesiredCycle:
     def period(self) -> float:
         """Period P of the cycle in [s]."""
         return float(self.path.period)
+
+    @property
+    def ends_on_opening(self) -> bool:
+        """Whether the takeoff rule is on: ``takeoff_on_opening``, or the state profile's."""
+        if self.takeoff_on_opening is None:
+            return self.force_profile == "state"
+        return self.takeoff_on_opening
 
     def depth(self, V1: float) -> float:
         r"""Virtual depth :math:`d = \mathrm{clip}(\alpha V_1^p, d_{min}, d_{max})` in [m].

@@ -77,7 +77,8 @@ the desired task trajectory :math:`C^4` (:mod:`ucontrol.control.trajectory_segme
 :math:`q_{1d}` is :math:`C^4` and neither V (which holds :math:`q_{1d}'''` through
 :math:`\dot q_{2d}`) nor the motor torque (:math:`q_{1d}''''` through :math:`\ddot q_{2d}`)
 jumps at the switches; only the gap target steps, from the virtual target to the surface at
-:math:`t_f`, and the force term switches on there.
+:math:`t_f`, and the force term switches on there (both back at an opening before the fall
+under the takeoff rule, :mod:`ucontrol.control.phase_machine`).
 
 V and V1 are built on the tracked target :math:`X_d^*` (the virtual target during
 transitions), unlike the rigid controller which clips the reference at the surface: a motor
@@ -254,7 +255,9 @@ class FlexibleBrogliatoController(BrogliatoController):
         # held, active, λ_t, λ_t', λ_t'', measured, λ bound to the rows of one array.
         n = len(self.machine.contacts)
         self._model_force_input = np.zeros(7 * n if state_force else 5 * n)
-        self._state_force_rows = self._model_force_input.reshape(7, n) if state_force else None
+        if state_force:  # the rows, contact i at position i (_write_state_force_inputs)
+            rows = tuple(self._model_force_input.reshape(7, n))
+            self._state_force_inputs = (rows, np.arange(n))
         parts = (
             zip(_STATE_FORCE_INPUTS, (1, 1, 3, 1, 1))
             if state_force
@@ -352,7 +355,7 @@ class FlexibleBrogliatoController(BrogliatoController):
         part = self._output_slices
         self.V, self.V1 = out[part["V"]].item(), out[part["V1"]].item()
         self.X = out[part["X"]]
-        if self._state_force_rows is not None:  # λ_d applied, on the task rows (m,)
+        if self._state_force_inputs is not None:  # λ_d applied, on the task rows (m,)
             assert self._lambda_d_output is not None
             self._lambda_d_output[machine.coordinates] = out[part["lambda_d"]]
         self._link_rows = self._reference_rows.copy()
@@ -401,8 +404,8 @@ class FlexibleBrogliatoController(BrogliatoController):
         derivatives = self._derivatives_output
         tail[...] = derivatives  # q1d derivatives 1 to 4
         held = self._held_contacts(desired.constrained)
-        if self._state_force_rows is not None:  # λ_d designed in the law from the state
-            self._write_flexible_state_force(desired, held)
+        if self._state_force_inputs is not None:  # λ_d designed in the law from the state
+            self._write_state_force_inputs(desired, held)
         elif held:
             # λ_d and its derivatives (3, n): 0 unless held; the force λ used and its
             # derivative (2, n): the measured value with the derivatives of λ_d, or λ_d where
@@ -427,31 +430,6 @@ class FlexibleBrogliatoController(BrogliatoController):
             self._force_written = False
         self._run_flexible_law()
         return self._V1_output.item()
-
-    def _write_flexible_state_force(
-        self, desired: DesiredState, rows: list[tuple[int, int]]
-    ) -> None:
-        """The inputs of the state-based λ_d, per declared contact (see :func:`_law_function`).
-
-        Held and active contacts, the time profile λ_t and its first 2 derivatives on the held
-        ones, and the measured force where it is valid, as :class:`BrogliatoController` writes
-        them on its task rows.
-        """
-        state = self._state_force_rows
-        assert state is not None
-        if not rows and not self._force_written:
-            return
-        state.fill(0.0)
-        self._force_written = bool(rows)
-        held, active, lambda_t, lambda_1, lambda_2, measured, lambda_m = state
-        active[self._closed] = 1.0
-        rates = desired.force_derivatives
-        held_before = self.desired.constrained  # at the last call
-        for i, _ in rows:
-            held[i] = active[i] = 1.0
-            lambda_t[i], lambda_1[i], lambda_2[i] = desired.force[i], rates[0][i], rates[1][i]
-            if self._persistent[i] and held_before[i]:  # a force of this law
-                measured[i], lambda_m[i] = 1.0, self.contact_force[i]
 
     def _taylor_start(self, dt: float) -> None:
         r"""Newton's start: the last call's q1d expanded to ``dt`` [s] later, written in place.
@@ -580,8 +558,6 @@ def _law_function(
     q1, dq1 = ca.SX.sym("q1", nv), ca.SX.sym("dq1", nv)
     q2, dq2 = ca.SX.sym("q2", nf), ca.SX.sym("dq2", nf)
     r = [ca.SX.sym(f"q1d_{k}", nv) for k in range(5)]
-    f = [ca.SX.sym(f"f_{k}", n) for k in range(3)]
-    lam = [ca.SX.sym(f"lambda_{k}", n) for k in range(2)]
     link_X = ca.substitute(X, q, q1)
     J_c = ca.jacobian(link_X, q1)[[int(c) for c in coordinates], :]
     M, C, g = model.mass_matrix(q1), model.coriolis_matrix(q1, dq1), model.gravity(q1)
@@ -609,7 +585,9 @@ def _law_function(
         rates = [dq1, ddq1, dq2, *r[1:], lambda_t[1], lambda_t[2], lambda_d_rate]
         force_inputs["lambda_time"] = ca.horzcat(*lambda_t)
         force_inputs["force_gain"] = force_gain
-    else:
+    else:  # the force term and its 2 derivatives, the model's force and its derivative
+        f = [ca.SX.sym(f"f_{k}", n) for k in range(3)]
+        lam = [ca.SX.sym(f"lambda_{k}", n) for k in range(2)]
         U_R = M @ ddq1_r + C @ dq1_r + g - gamma1 * s1 + J_c.T @ f[0]  # [N m]
         link_input[rigid] = U_R[rigid]
         ddq1 = ca.solve(M, link_input - C @ dq1 - g + J_c.T @ lam[0])  # [rad/s²]

@@ -17,6 +17,15 @@ Per declared contact (a gap coordinate :math:`X_{1,i}`) and per cycle k:
 If the contact is not reached or not settled by :math:`t_d`, the takeoff starts anyway (the
 cycle is then reported without :math:`t_f`).
 
+With the takeoff rule (:attr:`DesiredCycle.ends_on_opening`, on with the state-based
+:math:`\lambda_d`) a constrained contact stays constrained only while it is measured closed:
+if it opens once :math:`\lambda_d` has started its fall (:math:`t \ge t_d - T_f`), the
+takeoff starts then (:math:`t_d` is that time); if it opens before, it goes back to TRANSITION,
+its gap target stepping to the virtual depth :math:`-d_{min}` (the step of :math:`t_f`,
+reversed; the other coordinates keep their course), until it has been closed for the rest time
+again. Every sample the machine spends in CONSTRAINED then has a positive measured force
+(docs/impact_control.md, "Takeoff on opening").
+
 The pieces depend on the ``order`` k of the machine (the number of derivatives its law holds,
 see :mod:`ucontrol.control.trajectory_segment`). For k = 2 (the rigid law) they are those above
 (cubic, parabola, quintic blends): :math:`C^1` joins. For k > 2 (the flexible-joint law,
@@ -24,7 +33,8 @@ k = 4) every join is :math:`C^k`: the approach and the stops are the Hermite pol
 degree 2k + 1 to their end at rest (:class:`RestHermite`), the takeoff parabola starts with
 zero acceleration and its acceleration rises to a along the smooth step of continuity k - 2
 (:class:`SmoothParabola`), and the blends use the smooth step of continuity k. Only the gap
-target of a contact jumps, from the virtual target to the surface at :math:`t_f`, by design.
+target of a contact jumps, from the virtual target to the surface at :math:`t_f` (and back at an
+opening under the takeoff rule), by design.
 
 The machine only keeps times and segment parameters, so every cycle is built from the same
 declared values: nothing of cycle k leaks into cycle k + 1 except the state of the robot.
@@ -133,6 +143,7 @@ class PhaseMachine:
         self.cycle = cycle
         self.contacts = [phase.contact for phase in cycle.contact_phases]
         self.coordinates = np.array([task.names.index(name) for name in self.contacts])
+        self._ends_on_opening = cycle.ends_on_opening  # the takeoff rule
         self._coordinate_list = [int(j) for j in self.coordinates]
         self._A_t = np.ascontiguousarray(task.A.T)  # (3, m)
         # The samples of the desired trajectory are one flat array, ((order + 1) m,): derivative
@@ -241,7 +252,8 @@ class PhaseMachine:
             transition is due (an approach, a takeoff, the end of the rest time, of a takeoff
             or of a blend); the contacts whose closure matters and the closures that keep the
             phases as they are: an approaching contact that closes has its first impact, a
-            transiting one that opens or closes restarts or starts its rest time.
+            transiting one that opens or closes restarts or starts its rest time, and with the
+            takeoff rule a constrained one that opens leaves its constrained phase.
         """
         cycle = self.cycle
         times = [
@@ -258,7 +270,10 @@ class PhaseMachine:
                 times.append(float(self._takeoff_started[i]) + cycle.takeoff_time)
             else:
                 times.append(self.takeoff_time(i))
-            if phase is Phase.APPROACH:
+            if phase is Phase.CONSTRAINED and self._ends_on_opening:
+                watched.append(i)
+                expected.append(True)
+            elif phase is Phase.APPROACH:
                 watched.append(i)
                 expected.append(False)
             elif phase is Phase.TRANSITION:
@@ -359,7 +374,7 @@ class PhaseMachine:
         return force, tuple(derivatives)
 
     def update(self, t: float, closed: NDArray[np.bool_], V1: float, now: DesiredState) -> bool:
-        r"""Advance the phases to time ``t`` and return whether any event happened.
+        r"""Advance the phases to time ``t``; return whether any event happened or phase changed.
 
         Returns at once while ``t`` is before every due time and no contact that matters has
         opened or closed (see :meth:`_due_time`).
@@ -422,6 +437,16 @@ class PhaseMachine:
             elif phase is Phase.CONSTRAINED and _reached(t, self.takeoff_time(i)):
                 self._take_off(i, t)
                 event = Event.TAKEOFF
+            elif phase is Phase.CONSTRAINED and self._ends_on_opening and not closed[i]:
+                if _reached(t, self.takeoff_time(i) - cycle.force_fall_time):  # λ_d falls
+                    self._take_off(i, t)
+                    event = Event.TAKEOFF
+                else:  # lost before the fall: a new transition towards a virtual target
+                    self.phases[i] = Phase.TRANSITION
+                    self._closed_since[i] = None
+                    self.depth[i] = cycle.depth_min
+                    self._segments[j] = Constant(-self.depth[i])
+                    happened = True
             elif phase is Phase.TAKEOFF and _reached(
                 t, self._takeoff_started[i] + cycle.takeoff_time
             ):
