@@ -30,6 +30,7 @@ from ucontrol.solvers.contact_solution import (
 )
 from ucontrol.solvers.lcp_refinement import (
     POLISH_THRESHOLD,
+    active_set_solution,
     refine_lcp_solution,
     single_constraint_solution,
 )
@@ -81,17 +82,30 @@ class ProxsuiteLCPSolver:
         self._bounds: dict[int, tuple[NDArray[np.float64], ...]] = {}
         self._mixed_bounds: dict[tuple[int, int], tuple[NDArray[np.float64], ...]] = {}
 
-    def solve(self, D: NDArray[np.float64], b: NDArray[np.float64]) -> ContactSolution:
+    def solve(
+        self,
+        D: NDArray[np.float64],
+        b: NDArray[np.float64],
+        guess: NDArray[np.bool_] | None = None,
+    ) -> ContactSolution:
         """Impulses P >= 0 with D P + b >= 0 and P · (D P + b) = 0.
 
         Args:
             D: Delassus matrix, symmetric positive semidefinite, shape (m, m), [m/s per N s].
             b: Free constraint velocity plus restitution term in [m/s], shape (m,).
+            guess: Constraints guessed active (the last step's held ones), shape (m,), or
+                None. The exact solve on that set is returned, without a QP, when it solves
+                the problem (:func:`~ucontrol.solvers.lcp_refinement.active_set_solution`):
+                the same impulses as the QP's solution polished on the same set.
         """
         start = time.perf_counter()
         m = b.size
         if m == 1 and self.exact_single:
             return single_constraint_solution(D, b, start)
+        if guess is not None:
+            guessed = active_set_solution(D, b, guess, start)
+            if guessed is not None:
+                return guessed
         bounds = self._bounds.get(m)
         if bounds is None:  # P >= 0 as the inequalities I P >= 0
             bounds = self._bounds[m] = (np.eye(m), np.zeros(m), np.full(m, INFINITY))
