@@ -14,9 +14,9 @@ last step's), kept only when it solves the LCP.
 The exact solve on an active set :math:`A` is :math:`D_{AA} P_A = -b_A`, :math:`P = 0`
 elsewhere. Redundant constraints (four feet of a table on the ground) make :math:`D_{AA}`
 singular; the system is then solved in the least-squares sense with the minimum-norm impulses,
-those of :math:`D_{AA}^+` (eigenvalues below :data:`RANK_TOLERANCE` times the largest taken as
-0), which split the load evenly where the geometry is symmetric. A regular :math:`D_{AA}` is
-recognised by its Cholesky factor, whose pivots all exceed that tolerance.
+those of :math:`D_{AA}^+` from its eigenvalues (those below :data:`RANK_TOLERANCE` times the
+largest taken as 0), which split the load evenly where the geometry is symmetric; a regular
+:math:`D_{AA}` has one solution, the same.
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ POLISH_THRESHOLD = 1e-13
 #: Problems up to this size that the QP and the polish leave above the residual tolerance
 #: are solved again by Lemke's pivoting method.
 LEMKE_FALLBACK_SIZE = 50
-#: Relative size, to the largest, below which an eigenvalue of :math:`D_{AA}` (or a squared
-#: Cholesky pivot, to the largest diagonal entry) counts as 0: the rank of the active set.
+#: Relative size, to the largest, below which an eigenvalue of :math:`D_{AA}` counts as 0:
+#: the rank of the active set.
 RANK_TOLERANCE = 1e-12
 
 Vector = NDArray[np.float64]
@@ -167,45 +167,45 @@ def active_set_solution(
 
 
 def _solve_on_active_set(D: Vector, b: Vector, active: NDArray[np.bool_]) -> Vector | None:
-    """Impulses with ``D_AA P_A = -b_A`` on ``active`` and 0 elsewhere; None if some P_A < 0."""
-    candidate = np.zeros(b.size)
-    if not np.count_nonzero(active):
-        return candidate
-    if active.all():
-        D_active, b_active = D, b
-    else:
-        D_active, b_active = D[np.ix_(active, active)], b[active]
-    if b_active.size == 1:
-        if D_active[0, 0] <= 0.0:
+    """Impulses with ``D_AA P_A = -b_A`` on ``active`` and 0 elsewhere; None if some P_A < 0.
+
+    (Written for a few rows: Python comparisons where numpy's reductions cost more.)
+    """
+    count = np.count_nonzero(active)
+    if not count:
+        return np.zeros(b.size)
+    if count == 1:
+        i = int(active.argmax())
+        d = float(D[i, i])
+        if d <= 0.0 or b[i] > 0.0:
             return None
-        P_active = -b_active / D_active[0, 0]
-    else:
-        P_active = _non_negative_solve(D_active, -b_active)
-    if (P_active < 0.0).any():
-        return None
-    candidate[active] = P_active
+        candidate = np.zeros(b.size)
+        candidate[i] = -b[i] / d
+        return candidate
+    if count == b.size:
+        return _non_negative_solve(D, -b)
+    rows = np.flatnonzero(active)
+    candidate = np.zeros(b.size)
+    candidate[rows] = _non_negative_solve(D.take(rows, 0).take(rows, 1), -b.take(rows))
     return candidate
 
 
 def _non_negative_solve(A: Vector, y: Vector) -> NDArray[np.floating]:
     """A solution x >= 0 of the consistent system ``A x = y`` (A symmetric PSD), if one exists.
 
-    A Cholesky solve first (regular A: every squared pivot above :data:`RANK_TOLERANCE` times
-    the largest diagonal entry); redundant constraints make A singular, where the minimum-norm
-    solution (module docstring) may be negative although a non-negative one exists, which
-    non-negative least squares finds.
+    The minimum-norm solution from A's eigenvalues (module docstring), the unique one where A
+    is regular; redundant constraints make A singular, where it may be negative although a
+    non-negative one exists, which non-negative least squares finds.
     """
-    potrf, potrs, syev = _lapack()
-    factor, info = potrf(A, lower=False, clean=False)
-    if info == 0 and factor.diagonal().min() ** 2 > RANK_TOLERANCE * A.diagonal().max():
-        x: NDArray[np.floating] = potrs(factor, y, lower=False)[0]
-        if (x >= 0.0).all():
-            return x
-    eigenvalues, vectors, _ = syev(A)
-    kept = eigenvalues > RANK_TOLERANCE * eigenvalues[-1]  # (ascending)
-    basis = vectors[:, kept]
-    x = basis.dot(basis.T.dot(y) / eigenvalues[kept])
-    if (x < 0.0).any():
+    eigenvalues, vectors, _ = _lapack()(A)  # ascending
+    values = eigenvalues.tolist()
+    threshold = RANK_TOLERANCE * values[-1]
+    dropped = 0  # eigenvalues counted as 0, the first ones
+    while dropped < len(values) and values[dropped] <= threshold:
+        dropped += 1
+    basis = vectors[:, dropped:]
+    x: NDArray[np.floating] = basis.dot(basis.T.dot(y) / eigenvalues[dropped:])
+    if min(x.tolist()) < 0.0:
         import scipy.optimize  # rare: loaded only when needed
 
         x = scipy.optimize.nnls(A, y)[0]
@@ -213,12 +213,11 @@ def _non_negative_solve(A: Vector, y: Vector) -> NDArray[np.floating]:
 
 
 @functools.cache
-def _lapack() -> tuple[Any, Any, Any]:
-    """LAPACK's ``dpotrf``, ``dpotrs`` and ``dsyev``, loaded by the first exact solve.
+def _lapack() -> Any:
+    """LAPACK's ``dsyev``, loaded by the first exact solve.
 
-    Called directly: the numpy and scipy.linalg wrappers' checks cost more than the
-    factorization of a few rows.
+    Called directly: numpy's ``eigh`` wrapper costs more than the decomposition of a few rows.
     """
-    from scipy.linalg.lapack import dpotrf, dpotrs, dsyev
+    from scipy.linalg.lapack import dsyev
 
-    return dpotrf, dpotrs, dsyev
+    return dsyev
