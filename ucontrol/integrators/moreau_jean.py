@@ -392,6 +392,7 @@ class MoreauJean:
             if self.compiled
             and not compilation_disabled()
             and isinstance(self.solver, ProxsuiteLCPSolver)
+            and self.solver.active_set_start
             else None
         )
         if self._bilateral is not None:

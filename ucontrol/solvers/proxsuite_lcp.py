@@ -60,6 +60,9 @@ class ProxsuiteLCPSolver:
         residual_tolerance: Largest complementarity residual accepted as solved, in [m/s].
         exact_single: Solve one-constraint problems by their closed form
             ``P = max(0, -b / D)`` (the QP's exact solution) instead of calling proxsuite.
+        active_set_start: Try the exact solve on a guessed active set before the QP when
+            :meth:`solve` is given one (Moreau–Jean gives its last step's); False always
+            solves the QP.
     """
 
     name = "proxsuite"
@@ -72,9 +75,11 @@ class ProxsuiteLCPSolver:
         polish: bool = True,
         residual_tolerance: float = 1e-8,
         exact_single: bool = True,
+        active_set_start: bool = True,
     ):
         self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
         self.exact_single = exact_single
+        self.active_set_start = active_set_start
         self.polish = polish
         self._qp = WarmStartedQP(eps_abs=eps_abs, max_iter=max_iter, fixed_constraints=True)
         self.eps_abs = self._qp.eps_abs
@@ -94,15 +99,16 @@ class ProxsuiteLCPSolver:
             D: Delassus matrix, symmetric positive semidefinite, shape (m, m), [m/s per N s].
             b: Free constraint velocity plus restitution term in [m/s], shape (m,).
             guess: Constraints guessed active (the last step's held ones), shape (m,), or
-                None. The exact solve on that set is returned, without a QP, when it solves
-                the problem (:func:`~ucontrol.solvers.lcp_refinement.active_set_solution`):
-                the same impulses as the QP's solution polished on the same set.
+                None. With ``active_set_start``, the exact solve on that set is returned
+                without a QP when it solves the problem
+                (:func:`~ucontrol.solvers.lcp_refinement.active_set_solution`): the impulses
+                the QP's solution gets from the polish on the same set.
         """
         start = time.perf_counter()
         m = b.size
         if m == 1 and self.exact_single:
             return single_constraint_solution(D, b, start)
-        if guess is not None:
+        if guess is not None and self.active_set_start:
             guessed = active_set_solution(D, b, guess, start)
             if guessed is not None:
                 return guessed
