@@ -704,16 +704,18 @@ class MoreauJean:
             rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
             rate_now = _pad(rate_now, r)
             u_free[:r] += _pad(rate_next, r)
+        held_rows: NDArray[np.bool_] | None = None
         if inverse_inertia is None and activation is self.memory.activation:
             assert self._free_step is not None  # computed by the free step, same activation
             rebound, closure = self._free_step.offsets(indices)
         else:  # the impact law on the normal rows
+            held_rows = activation[indices] > 0.0
             rebound, closure = newton_offsets(
                 NUMPY_OPS,
                 state.gap[indices],
                 state.normal_velocity[indices],
                 constraints.restitution[indices],
-                activation[indices] > 0.0,
+                held_rows,
                 self.dt,
                 self.restitution_threshold,
                 self.newton_law == "siconos",
@@ -724,7 +726,9 @@ class MoreauJean:
             if m_b and bilateral_offset is not None:  # (module docstring)
                 closure[-m_b:] = bilateral_offset
         b = u_free + closure
-        guess = activation[indices] > 0.0 if self._guessing_solver is not None else None
+        guess = None
+        if self._guessing_solver is not None:  # the last step's active rows
+            guess = activation[indices] > 0.0 if held_rows is None else held_rows
         solution = self._solve(D, b + rebound, indices, tangents, m_b, guess)
         plastic = False
         if self._guarded and np.count_nonzero(rebound):  # the energy guard
@@ -1119,6 +1123,8 @@ def _closing_impacts(
     """
     impacts: tuple[tuple[int, float], ...] = ()
     u_minus, t = state.normal_velocity, state.t
+    if len(rows) > 1:  # Python floats: cheaper than numpy scalars from a few rows on
+        impulse, activation, u_minus = impulse.tolist(), activation.tolist(), u_minus.tolist()
     for i in rows:
         if is_impact(impulse[i], activation[i], u_minus[i]):
             impacts += ((int(i), 0.0 if t is None else float(t)),)

@@ -190,7 +190,7 @@ def _solve_on_active_set(D: Vector, b: Vector, active: NDArray[np.bool_]) -> Vec
     return candidate
 
 
-def _non_negative_solve(A: Vector, y: Vector) -> NDArray[np.floating]:
+def _non_negative_solve(A: Vector, y: Vector) -> Vector:
     """A solution x >= 0 of the consistent system ``A x = y`` (A symmetric PSD), if one exists.
 
     The minimum-norm solution from A's eigenvalues (module docstring), the unique one where A
@@ -204,7 +204,7 @@ def _non_negative_solve(A: Vector, y: Vector) -> NDArray[np.floating]:
     while dropped < len(values) and values[dropped] <= threshold:
         dropped += 1
     basis = vectors[:, dropped:]
-    x: NDArray[np.floating] = basis.dot(basis.T.dot(y) / eigenvalues[dropped:])
+    x: Vector = basis.dot(basis.T.dot(y) / eigenvalues[dropped:])
     if min(x.tolist()) < 0.0:
         import scipy.optimize  # rare: loaded only when needed
 
