@@ -8,10 +8,11 @@ operations in every loop, timed with it). One contact (``panda_hand_tcp``) or fo
 make every sphere touch the table at the start; the four are redundant (the Delassus matrix is
 singular). The loops advance the same state with the same dt, dynamics and active-set rule:
 
-- ``ucontrol``: ``MoreauJean.evaluate`` then ``MoreauJean.step`` (proxsuite, warm-started,
-  for two or more active contacts; one active contact is solved by its closed form
-  ``P = max(0, -b / D)``, which is the QP's exact solution);
-- ``ucontrol, QP always``: the same with proxsuite also for a single active contact;
+- ``ucontrol``: ``MoreauJean.evaluate`` then ``MoreauJean.step`` (one active contact is solved
+  by its closed form ``P = max(0, -b / D)``, which is the QP's exact solution; two or more by
+  the exact solve on the last step's active set when it solves the LCP, else by proxsuite,
+  warm-started);
+- ``ucontrol, QP always``: the same with proxsuite for every contact problem;
 - ``pin ADMM`` / ``pin PGS``: :class:`ucontrol.solvers.PinocchioStepper`, a Python loop written
   as a Pinocchio user would (``aba``, ``crba``, ``PointContactConstraintModel``,
   ``ConstraintCholeskyDecomposition``, ``ADMMConstraintSolver`` / ``PGSConstraintSolver``,
@@ -138,7 +139,7 @@ def make_loops(
     """One step function ``(q, v, tau) -> (q_next, v_next, any_active)`` per loop of LOOPS."""
 
     def ucontrol(exact_single: bool) -> Step:
-        solver = ProxsuiteLCPSolver(exact_single=exact_single)
+        solver = ProxsuiteLCPSolver(exact_single=exact_single, active_set_start=exact_single)
         return integrator_step(
             MoreauJean(robot, ConstraintSet(robot, contacts), dt=dt, solver=solver)
         )

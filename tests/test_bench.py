@@ -92,6 +92,12 @@ def test_joint_stops_leave_ucontrol_alone() -> None:
     assert f"No Pinocchio reference: {report.no_reference}." in report.markdown()
 
 
+def test_the_cpu_clock_times_the_loops_and_says_so() -> None:
+    report = bench_scene(load_scene(ROBOTS / "ball.toml"), steps=50, repeats=1, clock="cpu")
+    assert report.clock == "cpu" and "cpu clock" in report.markdown().splitlines()[0]
+    assert all(loop.time_us > 0.0 for loop in report.loops)
+
+
 def test_one_velocity_coordinate_ball_is_compared_with_pinocchio() -> None:
     report = bench_scene(load_scene(ROBOTS / "ball.toml"), steps=600, repeats=1, warmup=0)
     assert [loop.name for loop in report.loops] == [UCONTROL, "pin ADMM", "pin PGS"]
@@ -122,7 +128,15 @@ def test_replayed_forces_reproduce_the_closed_loop(scene_file: str) -> None:
 
 @pytest.mark.parametrize(
     ("argument", "value"),
-    [("steps", 0), ("steps", 1.5), ("repeats", 0), ("warmup", -1), ("warmup", True), ("dt", -1.0)],
+    [
+        ("steps", 0),
+        ("steps", 1.5),
+        ("repeats", 0),
+        ("warmup", -1),
+        ("warmup", True),
+        ("dt", -1.0),
+        ("clock", "sundial"),
+    ],
 )
 def test_bad_arguments_raise_a_typed_error(argument: str, value: object) -> None:
     scene = load_scene(ROBOTS / "ball.toml")

@@ -196,6 +196,7 @@ class BenchReport:
             None when the reference loops ran.
         peak_rss_mb: Peak resident set size of the process at the end, in [MB]
             (``ru_maxrss`` / 1024, Linux units).
+        clock: The clock of the times, ``"wall"`` or ``"cpu"`` (:data:`CLOCKS`).
     """
 
     scene: str
@@ -206,6 +207,7 @@ class BenchReport:
     loops: tuple[LoopResult, ...]
     no_reference: str | None
     peak_rss_mb: float
+    clock: str = "wall"
 
     def loop(self, name: str) -> LoopResult:
         """The result of the loop ``name``."""
@@ -225,7 +227,8 @@ class BenchReport:
         )
         lines = [
             f"{self.scene}: dt = {self.dt:g} s, {self.steps} steps of the scene's own forces "
-            f"replayed open loop, best of {self.repeats} after {self.warmup} warm-up steps",
+            f"replayed open loop, best of {self.repeats} after {self.warmup} warm-up steps, "
+            f"{self.clock} clock",
             "",
             header,
             "|:---|---:|---:|---:|---:|---:|",
@@ -301,6 +304,7 @@ def bench_scene(
     repeats: int = 5,
     warmup: int = 100,
     dt: float | None = None,
+    clock: str = "wall",
 ) -> BenchReport:
     """Time the scene's step against Pinocchio's ADMM and PGS loops (module docstring).
 
@@ -310,15 +314,18 @@ def bench_scene(
         repeats: Timed runs per loop, the fastest kept, >= 1.
         warmup: Untimed steps before the timed runs, >= 0.
         dt: Time step in [s]; default the scene's.
+        clock: ``"wall"`` or ``"cpu"`` (the process's CPU time: on a loaded machine the
+            loops' ratios then hold, where wall times also count the waits for a core).
 
     Raises:
         InvalidParameterError: ``steps``, ``repeats`` or ``warmup`` is not an integer in its
-            range, or ``dt`` is not > 0.
+            range, ``dt`` is not > 0, or ``clock`` is not a name of :data:`CLOCKS`.
         SimulationError: The recording run failed.
     """
     steps = _as_count("steps", steps, 1)
     repeats = _as_count("repeats", repeats, 1)
     warmup = _as_count("warmup", warmup, 0)
+    _check_clock(clock)
     h = scene.integrator.dt if dt is None else as_positive("dt", dt)
     tau = recorded_forces(scene, max(steps, warmup), h)
     rows = list(tau)
@@ -330,7 +337,16 @@ def bench_scene(
     obstacles = reference_obstacles(scene)
     loops = _loops(scene, h, references=not obstacles)
     times = {
-        name: time_loop(build(), forces, q0, v0, steps=steps, repeats=repeats, warmup=warmup)
+        name: time_loop(
+            build(),
+            forces,
+            q0,
+            v0,
+            steps=steps,
+            repeats=repeats,
+            warmup=warmup,
+            clock=CLOCKS[clock],
+        )
         for name, build in loops.items()
     }
     # Untimed runs on fresh loops: integrators keep state between steps (warm starts).
@@ -354,6 +370,7 @@ def bench_scene(
         warmup=warmup,
         loops=results,
         no_reference="; ".join(obstacles) if obstacles else None,
+        clock=clock,
         peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
     )
 
@@ -380,6 +397,12 @@ def _loops(scene: Scene, dt: float, *, references: bool) -> dict[str, Callable[[
 def _stepper_loop(scene: Scene, **options: Any) -> Step:
     """The :data:`Step` of a :class:`PinocchioStepper` of the scene's contacts."""
     return stepper_step(PinocchioStepper(scene.robot.model, scene.contacts, **options))
+
+
+def _check_clock(clock: str) -> None:
+    """Raise :class:`InvalidParameterError` unless ``clock`` names one of :data:`CLOCKS`."""
+    if clock not in CLOCKS:
+        raise InvalidParameterError("clock", clock, f"one of {sorted(CLOCKS)}")
 
 
 def _as_count(name: str, value: Any, minimum: int) -> int:
@@ -506,8 +529,7 @@ def bench_closed_loop(
     repeats = _as_count("repeats", repeats, 1)
     if duration is not None:
         duration = as_positive("duration", duration)
-    if clock not in CLOCKS:
-        raise InvalidParameterError("clock", clock, f"one of {sorted(CLOCKS)}")
+    _check_clock(clock)
     runs = []
     for k in range(repeats + 1):
         timers = _Timers(CLOCKS[clock])

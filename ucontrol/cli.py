@@ -220,7 +220,7 @@ def _parser() -> argparse.ArgumentParser:
         "--clock",
         choices=("wall", "cpu"),
         default="wall",
-        help="closed loop: wall time or this process's CPU time",
+        help="wall time or this process's CPU time (steadier on a loaded machine)",
     )
     view = commands.add_parser(
         "view", help="replay a saved run in meshcat, or export it as a standalone HTML page"
@@ -511,7 +511,12 @@ def _bench(args: argparse.Namespace) -> int:
         table = closed_loop_markdown([result])
     else:
         report = bench_scene(
-            scene, steps=args.steps, repeats=args.repeats, warmup=args.warmup, dt=args.dt
+            scene,
+            steps=args.steps,
+            repeats=args.repeats,
+            warmup=args.warmup,
+            dt=args.dt,
+            clock=args.clock,
         )
         table = report.markdown()
     print(table)

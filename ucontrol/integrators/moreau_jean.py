@@ -236,6 +236,7 @@ from ucontrol.integrators.step_stages import (
     release_gap,
     theta_displacement,
 )
+from ucontrol.model.compiled_function import compilation_disabled
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
@@ -385,6 +386,15 @@ class MoreauJean:
         if self._rows is not None and self._rows.dynamics:
             self._rows.bind_dynamics(self._data)
         self._rigid_rows = self._rows if self.flexible is None else None
+        # The frictionless solver started from the last step's active set (a fast path).
+        self._guessing_solver = (
+            self.solver
+            if self.compiled
+            and not compilation_disabled()
+            and isinstance(self.solver, ProxsuiteLCPSolver)
+            and self.solver.active_set_start
+            else None
+        )
         if self._bilateral is not None:
             if self.friction_solver is not None and not getattr(
                 self.friction_solver, "bilateral_rows", False
@@ -511,14 +521,18 @@ class MoreauJean:
 
         ``"constraint rows"`` (gaps, rows and, on small robots, M and h in one compiled call),
         ``"free step"`` (the free velocity, predicted gaps and Delassus terms) and
-        ``"single row"`` (a step with one active row); none with ``compiled = False``,
-        ``UCONTROL_NO_COMPILE`` or no C compiler.
+        ``"single row"`` (a step with one active row), ``"active-set start"`` (the
+        frictionless problem solved on the last step's active set first, the QP only when
+        that fails: :meth:`~ucontrol.solvers.ProxsuiteLCPSolver.solve`); none with
+        ``compiled = False`` or ``UCONTROL_NO_COMPILE``, the first three none without a C
+        compiler.
         """
         free = self._free_step
         paths = (
             ("constraint rows", self._rows is not None),
             ("free step", free is not None),
             ("single row", free is not None and free.single_rows),
+            ("active-set start", self._guessing_solver is not None),
         )
         return tuple(name for name, used in paths if used)
 
@@ -690,16 +704,18 @@ class MoreauJean:
             rate_now, rate_next = self._surface_rates(indices, tangents, state.t)
             rate_now = _pad(rate_now, r)
             u_free[:r] += _pad(rate_next, r)
+        held_rows: NDArray[np.bool_] | None = None
         if inverse_inertia is None and activation is self.memory.activation:
             assert self._free_step is not None  # computed by the free step, same activation
             rebound, closure = self._free_step.offsets(indices)
         else:  # the impact law on the normal rows
+            held_rows = activation[indices] > 0.0
             rebound, closure = newton_offsets(
                 NUMPY_OPS,
                 state.gap[indices],
                 state.normal_velocity[indices],
                 constraints.restitution[indices],
-                activation[indices] > 0.0,
+                held_rows,
                 self.dt,
                 self.restitution_threshold,
                 self.newton_law == "siconos",
@@ -710,7 +726,10 @@ class MoreauJean:
             if m_b and bilateral_offset is not None:  # (module docstring)
                 closure[-m_b:] = bilateral_offset
         b = u_free + closure
-        solution = self._solve(D, b + rebound, indices, tangents, m_b)
+        guess = None
+        if self._guessing_solver is not None:  # the last step's active rows
+            guess = activation[indices] > 0.0 if held_rows is None else held_rows
+        solution = self._solve(D, b + rebound, indices, tangents, m_b, guess)
         plastic = False
         if self._guarded and np.count_nonzero(rebound):  # the energy guard
             u_plus = solution.velocity[:r] - rebound[:r] - closure[:r]
@@ -719,7 +738,7 @@ class MoreauJean:
                 NUMPY_OPS, solution.impulses[:r], u_free[:r], u_plus, u_k, self.theta
             )
             if gains_energy(gain, state.kinetic_energy):
-                solution, plastic = self._solve(D, b, indices, tangents, m_b), True
+                solution, plastic = self._solve(D, b, indices, tangents, m_b, guess), True
         impulse = np.zeros(constraints.size)
         impulse[indices] = solution.impulses[:m]
         friction_impulse = np.zeros((constraints.size, 3)) if self._friction else None
@@ -961,11 +980,14 @@ class MoreauJean:
         indices: NDArray[np.intp],
         tangents: NDArray[np.intp] | None,
         equalities: int = 0,
+        guess: NDArray[np.bool_] | None = None,
     ) -> ContactSolution:
         """The contact problem (D, b) of the constraints ``indices``.
 
         Frictionless when ``tangents`` is None and no joint has Coulomb friction (a mixed
-        problem with ``equalities`` bilateral rows last), else a Coulomb problem whose
+        problem with ``equalities`` bilateral rows last; without them and with the
+        ``"active-set start"`` path, solved first on the active set ``guess`` of the last
+        step, shape (m,)), else a Coulomb problem whose
         constraint ``indices[j]`` has ``tangents[j]`` tangential rows, followed by the
         Coulomb joints' rows and the ``equalities`` bilateral rows. An unsolved problem raises
         :class:`ContactSolveError` or warns, as ``on_unsolved`` says.
@@ -979,6 +1001,8 @@ class MoreauJean:
             solver = self.solver
             if equalities:  # bilateral rows last (checked at construction: proxsuite's)
                 solution = self.solver.solve_mixed(D, b, equalities)  # type: ignore[attr-defined]
+            elif guess is not None and self._guessing_solver is not None:
+                solution = self._guessing_solver.solve(D, b, guess)
             else:
                 solution = self.solver.solve(D, b)
         else:
@@ -1099,6 +1123,8 @@ def _closing_impacts(
     """
     impacts: tuple[tuple[int, float], ...] = ()
     u_minus, t = state.normal_velocity, state.t
+    if len(rows) > 1:  # Python floats: cheaper than numpy scalars from a few rows on
+        impulse, activation, u_minus = impulse.tolist(), activation.tolist(), u_minus.tolist()
     for i in rows:
         if is_impact(impulse[i], activation[i], u_minus[i]):
             impacts += ((int(i), 0.0 if t is None else float(t)),)

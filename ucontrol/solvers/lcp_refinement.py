@@ -7,12 +7,23 @@ tolerance. :func:`refine_lcp_solution` then polishes them: the linear system of 
 QP identified is solved directly and kept when it satisfies complementarity better, which brings
 restitution to machine precision. Small problems still above the residual tolerance (nearly
 dependent constraints, where iterative QP methods stall) are solved again by Lemke's method.
-:func:`single_constraint_solution` is the closed form of a one-constraint problem.
+:func:`single_constraint_solution` is the closed form of a one-constraint problem, and
+:func:`active_set_solution` the same exact solve on an active set guessed before any QP (the
+last step's), kept only when it solves the LCP.
+
+The exact solve on an active set :math:`A` is :math:`D_{AA} P_A = -b_A`, :math:`P = 0`
+elsewhere. Redundant constraints (four feet of a table on the ground) make :math:`D_{AA}`
+singular; the system is then solved in the least-squares sense with the minimum-norm impulses,
+those of :math:`D_{AA}^+` from its eigenvalues (those below :data:`RANK_TOLERANCE` times the
+largest taken as 0), which split the load evenly where the geometry is symmetric; a regular
+:math:`D_{AA}` has one solution, the same.
 """
 
 from __future__ import annotations
 
+import functools
 import time
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,6 +42,9 @@ POLISH_THRESHOLD = 1e-13
 #: Problems up to this size that the QP and the polish leave above the residual tolerance
 #: are solved again by Lemke's pivoting method.
 LEMKE_FALLBACK_SIZE = 50
+#: Relative size, to the largest, below which an eigenvalue of :math:`D_{AA}` counts as 0:
+#: the rank of the active set.
+RANK_TOLERANCE = 1e-12
 
 Vector = NDArray[np.float64]
 
@@ -122,44 +136,88 @@ def single_constraint_solution(D: Vector, b: Vector, start: float) -> ContactSol
     )
 
 
-def _solve_on_active_set(D: Vector, b: Vector, active: NDArray[np.bool_]) -> Vector | None:
-    """Impulses with ``D_AA P_A = -b_A`` on ``active`` and 0 elsewhere; None if some P_A < 0."""
-    candidate = np.zeros(b.size)
-    if not np.count_nonzero(active):
-        return candidate
-    if active.all():
-        D_active, b_active = D, b
-    else:
-        D_active, b_active = D[np.ix_(active, active)], b[active]
-    if b_active.size == 1:
-        if D_active[0, 0] <= 0.0:
-            return None
-        P_active = -b_active / D_active[0, 0]
-    else:
-        P_active = _non_negative_solve(D_active, -b_active)
-    if (P_active < 0.0).any():
+def active_set_solution(
+    D: Vector, b: Vector, guess: NDArray[np.bool_], start: float
+) -> ContactSolution | None:
+    """The exact solve on the active set ``guess``, if it solves the LCP; else None.
+
+    The warm start of a solve: for a contact held step after step the active set of the last
+    step is that of this one, and the solve on it (module docstring) is the polish the QP's
+    solution would get. It is kept when its impulses are non-negative and its
+    natural-map residual is at most :data:`POLISH_THRESHOLD`, the accuracy a polished QP
+    solution has; otherwise the caller solves the QP.
+
+    Args:
+        D: Delassus matrix, symmetric positive semidefinite, shape (m, m), [m/s per N s].
+        b: Free constraint velocity plus restitution term in [m/s], shape (m,).
+        guess: The constraints guessed active, shape (m,).
+        start: ``time.perf_counter()`` at the start of the solve, for its timing.
+    """
+    impulses = _solve_on_active_set(D, b, guess)
+    if impulses is None:
         return None
-    candidate[active] = P_active
+    velocity = D.dot(impulses)
+    velocity += b
+    residual = natural_map_residual(D.diagonal(), impulses, velocity)
+    if not residual <= POLISH_THRESHOLD:
+        return None
+    return ContactSolution(
+        impulses, velocity, "solved", 0, residual, time.perf_counter() - start, True
+    )
+
+
+def _solve_on_active_set(D: Vector, b: Vector, active: NDArray[np.bool_]) -> Vector | None:
+    """Impulses with ``D_AA P_A = -b_A`` on ``active`` and 0 elsewhere; None if some P_A < 0.
+
+    (Written for a few rows: Python comparisons where numpy's reductions cost more.)
+    """
+    count = np.count_nonzero(active)
+    if not count:
+        return np.zeros(b.size)
+    if count == 1:
+        i = int(active.argmax())
+        d = float(D[i, i])
+        if d <= 0.0 or b[i] > 0.0:
+            return None
+        candidate = np.zeros(b.size)
+        candidate[i] = -b[i] / d
+        return candidate
+    if count == b.size:
+        return _non_negative_solve(D, -b)
+    rows = np.flatnonzero(active)
+    candidate = np.zeros(b.size)
+    candidate[rows] = _non_negative_solve(D.take(rows, 0).take(rows, 1), -b.take(rows))
     return candidate
 
 
-def _non_negative_solve(A: Vector, y: Vector) -> NDArray[np.floating]:
+def _non_negative_solve(A: Vector, y: Vector) -> Vector:
     """A solution x >= 0 of the consistent system ``A x = y`` (A symmetric PSD), if one exists.
 
-    A direct solve first (regular A); redundant constraints make A singular, where the
-    minimum-norm least-squares solution may be negative although a non-negative one exists,
-    which non-negative least squares finds.
+    The minimum-norm solution from A's eigenvalues (module docstring), the unique one where A
+    is regular; redundant constraints make A singular, where it may be negative although a
+    non-negative one exists, which non-negative least squares finds.
     """
-    x: NDArray[np.floating]
-    try:
-        x = np.linalg.solve(A, y)
-        if (x >= 0.0).all() and np.abs(A @ x - y).max() <= 1e-12 * (1.0 + np.abs(y).max()):
-            return x
-    except np.linalg.LinAlgError:
-        pass
-    x = np.linalg.lstsq(A, y, rcond=1e-12)[0]
-    if (x < 0.0).any():
+    eigenvalues, vectors, _ = _lapack()(A)  # ascending
+    values = eigenvalues.tolist()
+    threshold = RANK_TOLERANCE * values[-1]
+    dropped = 0  # eigenvalues counted as 0, the first ones
+    while dropped < len(values) and values[dropped] <= threshold:
+        dropped += 1
+    basis = vectors[:, dropped:]
+    x: Vector = basis.dot(basis.T.dot(y) / eigenvalues[dropped:])
+    if min(x.tolist()) < 0.0:
         import scipy.optimize  # rare: loaded only when needed
 
         x = scipy.optimize.nnls(A, y)[0]
     return x
+
+
+@functools.cache
+def _lapack() -> Any:
+    """LAPACK's ``dsyev``, loaded by the first exact solve.
+
+    Called directly: numpy's ``eigh`` wrapper costs more than the decomposition of a few rows.
+    """
+    from scipy.linalg.lapack import dsyev
+
+    return dsyev

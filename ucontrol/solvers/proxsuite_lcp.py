@@ -30,6 +30,7 @@ from ucontrol.solvers.contact_solution import (
 )
 from ucontrol.solvers.lcp_refinement import (
     POLISH_THRESHOLD,
+    active_set_solution,
     refine_lcp_solution,
     single_constraint_solution,
 )
@@ -59,6 +60,9 @@ class ProxsuiteLCPSolver:
         residual_tolerance: Largest complementarity residual accepted as solved, in [m/s].
         exact_single: Solve one-constraint problems by their closed form
             ``P = max(0, -b / D)`` (the QP's exact solution) instead of calling proxsuite.
+        active_set_start: Try the exact solve on a guessed active set before the QP when
+            :meth:`solve` is given one (Moreau–Jean gives its last step's); False always
+            solves the QP.
     """
 
     name = "proxsuite"
@@ -71,9 +75,11 @@ class ProxsuiteLCPSolver:
         polish: bool = True,
         residual_tolerance: float = 1e-8,
         exact_single: bool = True,
+        active_set_start: bool = True,
     ):
         self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
         self.exact_single = exact_single
+        self.active_set_start = active_set_start
         self.polish = polish
         self._qp = WarmStartedQP(eps_abs=eps_abs, max_iter=max_iter, fixed_constraints=True)
         self.eps_abs = self._qp.eps_abs
@@ -81,17 +87,31 @@ class ProxsuiteLCPSolver:
         self._bounds: dict[int, tuple[NDArray[np.float64], ...]] = {}
         self._mixed_bounds: dict[tuple[int, int], tuple[NDArray[np.float64], ...]] = {}
 
-    def solve(self, D: NDArray[np.float64], b: NDArray[np.float64]) -> ContactSolution:
+    def solve(
+        self,
+        D: NDArray[np.float64],
+        b: NDArray[np.float64],
+        guess: NDArray[np.bool_] | None = None,
+    ) -> ContactSolution:
         """Impulses P >= 0 with D P + b >= 0 and P · (D P + b) = 0.
 
         Args:
             D: Delassus matrix, symmetric positive semidefinite, shape (m, m), [m/s per N s].
             b: Free constraint velocity plus restitution term in [m/s], shape (m,).
+            guess: Constraints guessed active (the last step's held ones), shape (m,), or
+                None. With ``active_set_start``, the exact solve on that set is returned
+                without a QP when it solves the problem
+                (:func:`~ucontrol.solvers.lcp_refinement.active_set_solution`): the impulses
+                the QP's solution gets from the polish on the same set.
         """
         start = time.perf_counter()
         m = b.size
         if m == 1 and self.exact_single:
             return single_constraint_solution(D, b, start)
+        if guess is not None and self.active_set_start:
+            guessed = active_set_solution(D, b, guess, start)
+            if guessed is not None:
+                return guessed
         bounds = self._bounds.get(m)
         if bounds is None:  # P >= 0 as the inequalities I P >= 0
             bounds = self._bounds[m] = (np.eye(m), np.zeros(m), np.full(m, INFINITY))
