@@ -21,6 +21,12 @@ from ucontrol.exceptions import (
 
 Vector = NDArray[np.float64]
 
+#: Largest nv for which the compiled symbolic terms (M, C, h, a frame's kinematics) of
+#: :mod:`ucontrol.model.symbolic_model` beat Pinocchio's recursive algorithms: measured faster
+#: at nv = 2 and slower at nv = 7, where the Christoffel terms, which grow as nv³ in the C
+#: code, dominate (docs/benchmarks.md, sixth round). Here, not there, so that choosing a path
+#: by it needs no casadi.
+SMALL_ROBOT_MAX_NV = 3
 
 #: The frame taken where several share a name, in order of preference.
 _FRAME_PREFERENCE = (

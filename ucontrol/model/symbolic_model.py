@@ -51,13 +51,8 @@ import numpy as np
 import pinocchio as pin
 
 from ucontrol.exceptions import InvalidParameterError
+from ucontrol.model.robot_model import SMALL_ROBOT_MAX_NV as SMALL_ROBOT_MAX_NV  # its home before
 from ucontrol.model.robot_model import RobotModel
-
-#: Largest nv for which the compiled symbolic terms (M, C, h, a frame's kinematics) beat
-#: Pinocchio's recursive algorithms: measured faster at nv = 2 and slower at nv = 7, where the
-#: Christoffel terms, which grow as nv³ in the C code, dominate (docs/benchmarks.md, sixth
-#: round).
-SMALL_ROBOT_MAX_NV = 3
 
 #: Numbers per body in the ``inertia`` input (:func:`inertia_parameters`): the mass in [kg], the
 #: centre of mass in the joint frame (3,) in [m], the rotational inertia about it in [kg m²] as
