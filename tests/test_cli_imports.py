@@ -21,9 +21,9 @@ from ucontrol.model.compile_cache import CACHE_ENV
 from ucontrol.model.compiled_function import NO_COMPILE_ENV
 
 #: Imported by other commands (convergence, design, sweep, plot, view) or by scenes with a
-#: Brogliato controller or a spline path, never by a plain run of the default scene; the
-#: campaign package's runner and spec (dask's side), which the parser of ``ucontrol sweep``
-#: and ``--set`` need not load.
+#: Brogliato, walking, impedance, juggling or hopping controller or a spline path, never by a
+#: plain run of the default scene; the campaign package's runner and spec (dask's side), which
+#: the parser of ``ucontrol sweep`` and ``--set`` need not load.
 HEAVY = (
     "scipy",
     "ucontrol.convergence",
@@ -34,6 +34,11 @@ HEAVY = (
     "ucontrol.control.brogliato_controller",
     "ucontrol.control.spline_path",
     "ucontrol.design.cycle_transcription",
+    "ucontrol.control.hzd_controller",
+    "ucontrol.control.impedance_controller",
+    "ucontrol.control.juggling_controller",
+    "ucontrol.control.raibert_controller",
+    "ucontrol.control.path_reach",
     "dask",
     "matplotlib",
     "meshcat",
