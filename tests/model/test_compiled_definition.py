@@ -169,3 +169,32 @@ def test_a_process_loading_a_recorded_library_does_not_import_casadi(cache: Path
     )
     assert completed.returncode == 0, completed.stderr
     assert completed.stdout.split() == ["True", "False"]
+
+
+@needs_compiled_code
+def test_a_brogliato_law_loaded_by_its_definition_runs_the_built_laws_loop(
+    cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The two-link tracking scene, its law built then loaded: the same log bit for bit."""
+    from ucontrol.control import brogliato_controller
+    from ucontrol.scene import load_scene
+    from ucontrol.simulate import simulate
+
+    built = []
+    law_function = brogliato_controller._rigid_law_function
+
+    def counted(*args: object, **kwargs: object) -> ca.Function:
+        built.append(1)
+        return law_function(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(brogliato_controller, "_rigid_law_function", counted)
+    logs = []
+    for builds in (1, 1):  # built, then loaded
+        scene = load_scene("two_link_one_constraint")
+        result = simulate(scene, scene.build_controller(), duration=0.5, progress=False)
+        assert len(built) == builds
+        logs.append({name: getattr(result.log, name) for name in result.log.fields})
+    assert logs[0].keys() == logs[1].keys()
+    for key in logs[0]:
+        if key != "solver_time":  # a timing
+            np.testing.assert_array_equal(logs[0][key], logs[1][key], err_msg=key)

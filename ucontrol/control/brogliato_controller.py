@@ -47,6 +47,7 @@ from ucontrol.control.phase import Phase
 from ucontrol.control.phase_machine import DesiredState, PhaseMachine
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.model.compile_cache import definition_key
 from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.model.robot_model import RobotModel
 
@@ -101,6 +102,12 @@ IMPACT_SPEED = 1e-6
 #: Outputs of the law's casadi Function, by name (:func:`_rigid_law_function`): the torque
 #: (nv,), V1 and V on the reference [J], the task coordinates X (m,).
 LAW_OUTPUTS = ("tau", "V1", "V", "X")
+#: The modules whose code writes the law (part of its definition key).
+_GENERATED_BY = (
+    "ucontrol.control.brogliato_controller",
+    "ucontrol.model.symbolic_model",
+    "ucontrol.model.compiled_function",
+)
 
 #: Per-sample fields written to the log (name: shape, with m task coordinates and n contacts).
 LOG_FIELDS = {
@@ -193,19 +200,28 @@ class BrogliatoController:
             for j in model.supports[joint][1:]
             for i in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
         ]
-        kinematics = _symbolic_kinematics(robot, task.frame)
         state_force = self.cycle.force_profile == "state"
-        self._clipped_reference = self.cycle.reference_after_impact == "clipped"
-        function = _rigid_law_function(
-            *(robot.nv, task.m, self._redundant, support, kinematics),
-            state_force=state_force,
-            clipped_reference=self._clipped_reference,
+        self._clipped_reference = clipped = self.cycle.reference_after_impact == "clipped"
+        arguments = (robot.nv, task.m, self._redundant, support)
+
+        def build() -> ca.Function:
+            kinematics = _symbolic_kinematics(robot, task.frame)
+            return _rigid_law_function(
+                *arguments, kinematics, state_force=state_force, clipped_reference=clipped
+            )
+
+        # What the law is built from (the model for the symbolic kinematics): a later build
+        # of an equal law loads its library without casadi's graph.
+        definition = definition_key(
+            [*arguments, model.saveToString(), task.frame, state_force, clipped], _GENERATED_BY
         )
-        law = self._rigid_law = CompiledFunction(function)
-        inputs = {name: law.input_view(function.index_in(name)) for name in function.name_in()}
+        name = _law_name(state_force)
+        law = self._rigid_law = CompiledFunction.cached(name, definition, build)
+        names = law.names_in()
+        inputs = {name: law.input_view(law.index_in(name)) for name in names}
         # The configuration input of a law with its own kinematics, or None.
         self._configuration_input = inputs.get("q")
-        self._law_index = {name: function.index_in(name) for name in function.name_in()}
+        self._law_index = {name: law.index_in(name) for name in names}
         self._run_law = law.runner()
         self._bind_data(self._data)
         inputs["parameters"][:] = _law_parameters(task, gains)  # constant per controller
@@ -226,15 +242,15 @@ class BrogliatoController:
         self._law_columns = (*target.T, *reference.T)
         # The target at once from the machine's stacked samples, and the reference from the
         # target's first two columns where nothing is clipped.
-        self._target_buffer = law.input_buffer(function.index_in("target"))
-        self._reference_buffer = law.input_buffer(function.index_in("reference"))
+        self._target_buffer = law.input_buffer(law.index_in("target"))
+        self._reference_buffer = law.input_buffer(law.index_in("reference"))
         self._target_head = self._target_buffer[: self._reference_buffer.size]
-        outputs = {name: law.output_buffer(function.index_out(name)) for name in LAW_OUTPUTS}
+        outputs = {name: law.output_buffer(law.index_out(name)) for name in LAW_OUTPUTS}
         self._V1_output, self._V_output = outputs["V1"], outputs["V"]
         self._X_output = outputs["X"]
         self._tau_output = outputs["tau"]
         if state_force:
-            self._lambda_d_output = law.output_buffer(function.index_out("lambda_d"))
+            self._lambda_d_output = law.output_buffer(law.index_out("lambda_d"))
 
     def use_plant_data(self, data: pin.Data | None) -> bool:
         """Read M(q) and h(q, v) from the plant's evaluation instead of computing them.
@@ -525,6 +541,11 @@ def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
     )
 
 
+def _law_name(state_force: bool) -> str:
+    """The name of the law's Function (:func:`_rigid_law_function`)."""
+    return "brogliato_state_force_law" if state_force else "brogliato_law"
+
+
 def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
     r"""``(q, v, inertia) -> (C (nv, nv), p (3,), J (3, nv), dJ (3, nv))`` of ``frame``, or None.
 
@@ -682,7 +703,7 @@ def _rigid_law_function(
     tau += J.T @ force
     outputs["tau"] = tau
     return ca.Function(
-        "brogliato_state_force_law" if state_force else "brogliato_law",
+        _law_name(state_force),
         list(inputs.values()),
         list(outputs.values()),
         list(inputs),

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import functools
 import hashlib
 import importlib.util
 import os
@@ -131,7 +132,8 @@ def definition_key(parts: Iterable[object], modules: Iterable[str]) -> str:
             read without importing them).
 
     The installed casadi is named by its extension module's path, size and modification time
-    (a reinstall changes them), read without importing casadi.
+    (a reinstall changes them), read without importing casadi. Both are read once per process
+    (the code a process runs is the code it loaded).
 
     Raises:
         OSError: A module's or casadi's file cannot be found or read.
@@ -140,7 +142,31 @@ def definition_key(parts: Iterable[object], modules: Iterable[str]) -> str:
     for part in parts:
         digest.update(repr(part).encode() + b"\0")
     for module in modules:
-        digest.update(_source_file(module).read_bytes() + b"\0")
+        digest.update(_source_digest(module))
+    digest.update(_casadi_files())
+    return "definition:" + digest.hexdigest()
+
+
+@functools.cache
+def _source_digest(module: str) -> bytes:
+    """SHA-256 of ``module``'s source file, read once per process without importing it.
+
+    Raises:
+        OSError: The module has no source file.
+    """
+    spec = importlib.util.find_spec(module)  # (imports its package, not the module)
+    if spec is None or spec.origin is None:
+        raise OSError(f"no source file for module {module}")
+    return hashlib.sha256(Path(spec.origin).read_bytes()).digest()
+
+
+@functools.cache
+def _casadi_files() -> bytes:
+    """The installed casadi's extension module: path, size and modification time (once).
+
+    Raises:
+        OSError: casadi or its extension module is missing.
+    """
     spec = importlib.util.find_spec("casadi")
     if spec is None or not spec.submodule_search_locations:
         raise OSError("casadi is not installed")
@@ -148,16 +174,7 @@ def definition_key(parts: Iterable[object], modules: Iterable[str]) -> str:
     if core is None:
         raise OSError("casadi's extension module is missing")
     info = core.stat()
-    digest.update(f"{core}:{info.st_size}:{info.st_mtime_ns}".encode())
-    return "definition:" + digest.hexdigest()
-
-
-def _source_file(module: str) -> Path:
-    """The source file of ``module``, found without importing it (its package is imported)."""
-    spec = importlib.util.find_spec(module)
-    if spec is None or spec.origin is None:
-        raise OSError(f"no source file for module {module}")
-    return Path(spec.origin)
+    return f"{core}:{info.st_size}:{info.st_mtime_ns}".encode()
 
 
 def find_library(stem: str, key: str) -> Path | None:

@@ -158,6 +158,10 @@ class CompiledFunction:
             self._function = _densified(self._build_function())
         return self._function
 
+    def names_in(self) -> list[str]:
+        """The inputs' names, in order."""
+        return list(self._in_names)
+
     def index_in(self, name: str) -> int:
         """Index of the input called ``name``."""
         return self._in_names.index(name)
