@@ -210,10 +210,12 @@ class BrogliatoController:
                 *arguments, kinematics, state_force=state_force, clipped_reference=clipped
             )
 
-        # What the law is built from (the model for the symbolic kinematics): a later build
-        # of an equal law loads its library without casadi's graph.
+        # What the law is built from (the model's kinematics for the symbolic ones; its
+        # inertias are an input): a later build of an equal law, e.g. for another draw of the
+        # masses, loads its library without casadi's graph.
         definition = definition_key(
-            [*arguments, model.saveToString(), task.frame, state_force, clipped], _GENERATED_BY
+            [*arguments, _without_inertias(model), task.frame, state_force, clipped],
+            _GENERATED_BY,
         )
         name = _law_name(state_force)
         law = self._rigid_law = CompiledFunction.cached(name, definition, build)
@@ -539,6 +541,14 @@ def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
             [gains.force_gain],
         ]
     )
+
+
+def _without_inertias(model: pin.Model) -> str:
+    """``model``'s serialized form with every body's inertia zeroed (the law's input)."""
+    copy = pin.Model(model)
+    for i in range(len(copy.inertias)):
+        copy.inertias[i] = pin.Inertia.Zero()
+    return str(copy.saveToString())
 
 
 def _law_name(state_force: bool) -> str:
