@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import needs_compiled_code
 
 from ucontrol.model.compile_cache import CACHE_ENV
 from ucontrol.model.compiled_function import NO_COMPILE_ENV
@@ -79,7 +80,9 @@ def _loaded(modules: set[str], heavy: tuple[str, ...]) -> list[str]:
     return sorted(m for m in modules if any(m == h or m.startswith(h + ".") for h in heavy))
 
 
-@pytest.mark.parametrize("cache", ["cold", "warm", "no_compile"])
+@pytest.mark.parametrize(
+    "cache", ["cold", pytest.param("warm", marks=needs_compiled_code), "no_compile"]
+)
 def test_run_of_the_default_scene_imports_no_heavy_module(tmp_path: Path, cache: str) -> None:
     env = {key: value for key, value in os.environ.items() if key != NO_COMPILE_ENV}
     env[CACHE_ENV] = str(tmp_path / "cache")
