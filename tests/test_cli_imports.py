@@ -49,7 +49,7 @@ PROGRAM = """
 import sys
 from ucontrol.cli import main
 
-code = main(["run", "--out", sys.argv[1], "--duration", "0.05", "--no-progress"])
+code = main(["run", *sys.argv[2:], "--out", sys.argv[1], "--duration", "0.05", "--no-progress"])
 print("exit", code)
 print("modules", " ".join(sorted(sys.modules)))
 """
@@ -59,10 +59,10 @@ print("modules", " ".join(sorted(sys.modules)))
 TIMINGS = ("solver_time",)
 
 
-def _run(out: Path, env: dict[str, str]) -> set[str]:
-    """The command in a new process; the modules loaded at its end."""
+def _run(out: Path, env: dict[str, str], *scene: str) -> set[str]:
+    """The command (on ``scene``, or the default) in a new process; the modules it loaded."""
     completed = subprocess.run(
-        [sys.executable, "-c", PROGRAM, str(out)],
+        [sys.executable, "-c", PROGRAM, str(out), *scene],
         capture_output=True,
         text=True,
         env=env,
@@ -95,11 +95,26 @@ def test_run_of_the_default_scene_imports_no_heavy_module(tmp_path: Path, cache:
     heavy = HEAVY if cache == "cold" else (*HEAVY, "casadi")
     assert _loaded(modules, heavy) == []
     if cache == "warm":
-        with (
-            np.load(tmp_path / "cold" / "log.npz") as a,
-            np.load(tmp_path / "run" / "log.npz") as b,
-        ):
-            assert a.files == b.files
-            for key in a.files:
-                if key not in TIMINGS:
-                    np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        _assert_same_logs(tmp_path / "cold", tmp_path / "run")
+
+
+@needs_compiled_code
+def test_warm_run_of_a_brogliato_scene_imports_no_casadi(tmp_path: Path) -> None:
+    """The law, the rows and the free step all found by their definitions: no casadi."""
+    env = {key: value for key, value in os.environ.items() if key != NO_COMPILE_ENV}
+    env[CACHE_ENV] = str(tmp_path / "cache")
+    scene = "two_link_one_constraint"
+    assert "ucontrol.control.brogliato_controller" in _run(tmp_path / "cold", env, scene)
+    modules = _run(tmp_path / "run", env, scene)
+    assert "ucontrol.control.brogliato_controller" in modules  # the law ran
+    assert _loaded(modules, ("casadi", "ucontrol.model.symbolic_model")) == []
+    _assert_same_logs(tmp_path / "cold", tmp_path / "run")
+
+
+def _assert_same_logs(first: Path, second: Path) -> None:
+    """The two runs' logs are equal bit for bit, timings aside."""
+    with np.load(first / "log.npz") as a, np.load(second / "log.npz") as b:
+        assert a.files == b.files
+        for key in a.files:
+            if key not in TIMINGS:
+                np.testing.assert_array_equal(a[key], b[key], err_msg=key)

@@ -35,7 +35,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import casadi as ca
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
@@ -52,6 +51,8 @@ from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.model.robot_model import RobotModel
 
 if TYPE_CHECKING:
+    import casadi as ca
+
     from ucontrol.log import Log
 
 
@@ -228,7 +229,7 @@ class BrogliatoController:
         self._bind_data(self._data)
         inputs["parameters"][:] = _law_parameters(task, gains)  # constant per controller
         if "inertia" in inputs:  # the model's inertias (e.g. mass-scaled), constant as well
-            from ucontrol.model.symbolic_model import inertia_parameters
+            from ucontrol.model.robot_model import inertia_parameters
 
             inputs["inertia"][:] = inertia_parameters(model)
         # The other inputs are written in place at each call: v, q ⊖ q_p, the force term, and
@@ -571,6 +572,8 @@ def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
     kinematics beside Pinocchio's pass, kept because it saves more than 5 % of a closed-loop
     step of the two-link scenes (docs/controller.md, "One law, two paths").
     """
+    import casadi as ca  # imported to build the law (a compile-cache miss)
+
     from ucontrol.model.symbolic_model import INERTIA_SIZE, SMALL_ROBOT_MAX_NV, SymbolicModel
 
     if robot.nv > SMALL_ROBOT_MAX_NV or robot.nq != robot.nv:
@@ -632,6 +635,8 @@ def _rigid_law_function(
     the held rows), ``measured`` (1 where the measured force is valid) and ``lambda_measured``
     (each (m,)), and a last output ``lambda_d`` (m,) gives the :math:`\lambda_d` applied.
     """
+    import casadi as ca  # imported to build the law (a compile-cache miss)
+
     M_upper, C = ca.SX.sym("M", nv, nv), ca.SX.sym("C", nv, nv)
     nle, v = ca.SX.sym("nle", nv), ca.SX.sym("v", nv)
     J_world, dJ_world = ca.SX.sym("J", 6, nv), ca.SX.sym("dJ", 6, nv)
@@ -760,6 +765,8 @@ def _state_force(
         The force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and
         :math:`\lambda_d`, on the task rows (m,), in [N].
     """
+    import casadi as ca  # imported to build the law (a compile-cache miss)
+
     M, J, dJ_v, ddq_r, dissipation = closed_loop
     held, active = inputs["held"], inputs["active"]
     J_active = ca.diag(active) @ J
@@ -791,6 +798,8 @@ def _reference_terms(
 
 def _cross(a: ca.SX, b: ca.SX) -> ca.SX:
     """Cross product of 3-vectors in the operations of Eigen's ``cross``."""
+    import casadi as ca  # imported to build the law (a compile-cache miss)
+
     return ca.vertcat(
         a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
     )
