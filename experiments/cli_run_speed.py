@@ -9,6 +9,18 @@ compiled laws loaded), its loop's CPU real-time factor. The default scene is the
 run`` runs without a scene (``two_link_drop``). Medians over the rounds; the load average (the
 other processes' work on a shared machine) is printed with them.
 
+The commands run as a user's second run does: one untimed run of each scene first fills the
+compile cache (its libraries are then found by their definitions, without casadi) and Python's
+bytecode cache, kept in a temporary directory (``PYTHONPYCACHEPREFIX``) even where the
+environment sets ``PYTHONDONTWRITEBYTECODE`` (an installed package ships its bytecode; an
+editable install compiled anew at every start costs 0.1-0.3 s more). ``--no-bytecode-cache``
+keeps the environment as it is.
+
+``--baseline DIR`` also runs each command from the source tree DIR (another revision, e.g.
+``git archive REV | tar -x -C DIR`` with ``robots`` linked as ``DIR/ucontrol/robots``),
+interleaved with this tree's, first on ``sys.path`` and with this tree's editable-install
+finder removed, and prints the command CPU of both.
+
 Run: ``python experiments/cli_run_speed.py --scenes default two_link_one_constraint panda_table
 --rounds 5``.
 """
@@ -38,14 +50,32 @@ def main(argv: Sequence[str] | None = None) -> dict[str, dict[str, float]]:
         "--scenes", nargs="+", default=[DEFAULT, "two_link_one_constraint", "panda_table"]
     )
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds")
+    parser.add_argument(
+        "--no-bytecode-cache",
+        action="store_true",
+        help="run the commands in this environment as it is (see the module docstring)",
+    )
+    parser.add_argument("--baseline", type=Path, default=None, help="a source tree to compare with")
     args = parser.parse_args(argv)
 
     samples: dict[str, list[dict[str, float]]] = {scene: [] for scene in args.scenes}
+    baseline: dict[str, list[float]] = {scene: [] for scene in args.scenes}
     with tempfile.TemporaryDirectory() as work:
+        env = dict(os.environ)
+        if not args.no_bytecode_cache:
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+            env["PYTHONPYCACHEPREFIX"] = str(Path(work) / "pycache")
+        for scene in args.scenes:  # warm-up: the compile and bytecode caches filled
+            _command(scene, Path(work) / scene, env)
+            if args.baseline is not None:
+                _command(scene, Path(work) / "baseline", env, args.baseline)
         for _ in range(args.rounds):
             for scene in args.scenes:
                 out = Path(work) / scene
-                samples[scene].append({**_command(scene, out), **_in_process(scene)})
+                samples[scene].append({**_command(scene, out, env), **_in_process(scene)})
+                if args.baseline is not None:
+                    other = _command(scene, Path(work) / "baseline", env, args.baseline)
+                    baseline[scene].append(other["command_cpu_s"])
     figures = {
         scene: {key: statistics.median(run[key] for run in runs) for key in runs[0]}
         for scene, runs in samples.items()
@@ -61,17 +91,40 @@ def main(argv: Sequence[str] | None = None) -> dict[str, dict[str, float]]:
             f"| {f['rtf_wall']:.1f}× | {f['rtf_cpu']:.1f}× | {f['in_process_rtf_cpu']:.1f}× "
             f"| {f['rtf_cpu'] / f['in_process_rtf_cpu']:.2f} |"
         )
+    if args.baseline is not None:
+        print(f"\n| scene | command CPU, {args.baseline} [s] | this tree [s] |\n|---|---|---|")
+        for scene, cpu in baseline.items():
+            this = [run["command_cpu_s"] for run in samples[scene]]
+            print(
+                f"| {scene} | {statistics.median(cpu):.3f} ({min(cpu):.3f}–{max(cpu):.3f}) "
+                f"| {statistics.median(this):.3f} ({min(this):.3f}–{max(this):.3f}) |"
+            )
     return figures
 
 
-def _command(scene: str, out: Path) -> dict[str, float]:
+#: Runs ``ucontrol.cli`` from the source tree ``sys.argv[1]`` (the rest: the command's words).
+_FROM_TREE = """
+import sys
+tree = sys.argv.pop(1)
+sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
+sys.path.insert(0, tree)
+from ucontrol.cli import main
+raise SystemExit(main(sys.argv[1:]))
+"""
+
+
+def _command(
+    scene: str, out: Path, env: dict[str, str], tree: Path | None = None
+) -> dict[str, float]:
     """``ucontrol run`` in a new process: its CPU and wall time and its summary's RTFs."""
-    command = [sys.executable, "-m", "ucontrol.cli", "run", "--out", str(out), "--no-progress"]
-    if scene != DEFAULT:
-        command.insert(4, scene)
+    words = ["run", "--out", str(out), "--no-progress", *([] if scene == DEFAULT else [scene])]
+    if tree is None:
+        command = [sys.executable, "-m", "ucontrol.cli", *words]
+    else:
+        command = [sys.executable, "-c", _FROM_TREE, str(tree), *words]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run(command, check=True, capture_output=True)
+    subprocess.run(command, check=True, capture_output=True, env=env)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)

@@ -1,9 +1,10 @@
 """`ucontrol run` of the default scene imports only what the run uses.
 
 A subprocess runs the command (the default scene, shortened) and lists the modules loaded at
-its end: none of the heavy ones that other commands or other scenes need. Without a compiled
-path (``UCONTROL_NO_COMPILE=1``), casadi is not loaded either: only the compiled constraint
-rows import it, to build their C code.
+its end: none of the heavy ones that other commands or other scenes need. casadi is loaded only
+to build the compiled paths' Functions on a cold compile cache: not with a warm one (the
+libraries are found by their definitions and loaded without casadi; the log is the cold run's
+bit for bit), nor without a compiled path (``UCONTROL_NO_COMPILE=1``).
 """
 
 from __future__ import annotations
@@ -13,14 +14,17 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+from conftest import needs_compiled_code
 
+from ucontrol.model.compile_cache import CACHE_ENV
 from ucontrol.model.compiled_function import NO_COMPILE_ENV
 
 #: Imported by other commands (convergence, design, sweep, plot, view) or by scenes with a
-#: Brogliato controller or a spline path, never by a plain run of the default scene; the
-#: campaign package's runner and spec (dask's side), which the parser of ``ucontrol sweep``
-#: and ``--set`` need not load.
+#: Brogliato, walking, impedance, juggling or hopping controller or a spline path, never by a
+#: plain run of the default scene; the campaign package's runner and spec (dask's side), which
+#: the parser of ``ucontrol sweep`` and ``--set`` need not load.
 HEAVY = (
     "scipy",
     "ucontrol.convergence",
@@ -31,6 +35,11 @@ HEAVY = (
     "ucontrol.control.brogliato_controller",
     "ucontrol.control.spline_path",
     "ucontrol.design.cycle_transcription",
+    "ucontrol.control.hzd_controller",
+    "ucontrol.control.impedance_controller",
+    "ucontrol.control.juggling_controller",
+    "ucontrol.control.raibert_controller",
+    "ucontrol.control.path_reach",
     "dask",
     "matplotlib",
     "meshcat",
@@ -40,19 +49,20 @@ PROGRAM = """
 import sys
 from ucontrol.cli import main
 
-code = main(["run", "--out", sys.argv[1], "--duration", "0.05", "--no-progress"])
+code = main(["run", *sys.argv[2:], "--out", sys.argv[1], "--duration", "0.05", "--no-progress"])
 print("exit", code)
 print("modules", " ".join(sorted(sys.modules)))
 """
 
 
-@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "no_compile"])
-def test_run_of_the_default_scene_imports_no_heavy_module(tmp_path: Path, compiled: bool) -> None:
-    env = {key: value for key, value in os.environ.items() if key != NO_COMPILE_ENV}
-    if not compiled:
-        env[NO_COMPILE_ENV] = "1"
+#: Log entries that are timings (they differ between any two runs).
+TIMINGS = ("solver_time",)
+
+
+def _run(out: Path, env: dict[str, str], *scene: str) -> set[str]:
+    """The command (on ``scene``, or the default) in a new process; the modules it loaded."""
     completed = subprocess.run(
-        [sys.executable, "-c", PROGRAM, str(tmp_path / "run")],
+        [sys.executable, "-c", PROGRAM, str(out), *scene],
         capture_output=True,
         text=True,
         env=env,
@@ -63,6 +73,48 @@ def test_run_of_the_default_scene_imports_no_heavy_module(tmp_path: Path, compil
     assert lines["exit"] == "0"
     modules = set(lines["modules"].split())
     assert "ucontrol.simulate" in modules  # the run did run
-    heavy = HEAVY if compiled else (*HEAVY, "casadi")
-    loaded = sorted(m for m in modules if any(m == h or m.startswith(h + ".") for h in heavy))
-    assert loaded == []
+    return modules
+
+
+def _loaded(modules: set[str], heavy: tuple[str, ...]) -> list[str]:
+    return sorted(m for m in modules if any(m == h or m.startswith(h + ".") for h in heavy))
+
+
+@pytest.mark.parametrize(
+    "cache", ["cold", pytest.param("warm", marks=needs_compiled_code), "no_compile"]
+)
+def test_run_of_the_default_scene_imports_no_heavy_module(tmp_path: Path, cache: str) -> None:
+    env = {key: value for key, value in os.environ.items() if key != NO_COMPILE_ENV}
+    env[CACHE_ENV] = str(tmp_path / "cache")
+    if cache == "no_compile":
+        env[NO_COMPILE_ENV] = "1"
+    if cache == "warm":
+        cold = _run(tmp_path / "cold", env)
+        assert "casadi" in cold  # the cold run built the compiled paths' Functions
+    modules = _run(tmp_path / "run", env)
+    heavy = HEAVY if cache == "cold" else (*HEAVY, "casadi")
+    assert _loaded(modules, heavy) == []
+    if cache == "warm":
+        _assert_same_logs(tmp_path / "cold", tmp_path / "run")
+
+
+@needs_compiled_code
+def test_warm_run_of_a_brogliato_scene_imports_no_casadi(tmp_path: Path) -> None:
+    """The law, the rows and the free step all found by their definitions: no casadi."""
+    env = {key: value for key, value in os.environ.items() if key != NO_COMPILE_ENV}
+    env[CACHE_ENV] = str(tmp_path / "cache")
+    scene = "two_link_one_constraint"
+    assert "ucontrol.control.brogliato_controller" in _run(tmp_path / "cold", env, scene)
+    modules = _run(tmp_path / "run", env, scene)
+    assert "ucontrol.control.brogliato_controller" in modules  # the law ran
+    assert _loaded(modules, ("casadi", "ucontrol.model.symbolic_model")) == []
+    _assert_same_logs(tmp_path / "cold", tmp_path / "run")
+
+
+def _assert_same_logs(first: Path, second: Path) -> None:
+    """The two runs' logs are equal bit for bit, timings aside."""
+    with np.load(first / "log.npz") as a, np.load(second / "log.npz") as b:
+        assert a.files == b.files
+        for key in a.files:
+            if key not in TIMINGS:
+                np.testing.assert_array_equal(a[key], b[key], err_msg=key)

@@ -23,7 +23,7 @@ one library serves every plane and bound of a robot's contact frames and stop co
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,6 +38,12 @@ Vector = NDArray[np.float64]
 
 #: The compiled call's inputs: the state, then the planes' and the stops' constant terms.
 _IN_NAMES = ["q", "v", "planes", "stops"]
+#: The modules whose code writes the compiled call (part of its definition key).
+_GENERATED_BY = (
+    "ucontrol.contact.compiled_rows",
+    "ucontrol.model.symbolic_model",
+    "ucontrol.model.compiled_function",
+)
 
 
 class ConstraintRows:
@@ -57,41 +63,23 @@ class ConstraintRows:
     """
 
     def __init__(self, constraints: ConstraintSet, *, dynamics: bool = False) -> None:
-        import casadi as ca  # imported only for the sets that qualify
-
+        from ucontrol.model.compile_cache import definition_key
         from ucontrol.model.compiled_function import CompiledFunction
-        from ucontrol.model.symbolic_model import SymbolicModel
 
         robot = constraints.robot
-        model = SymbolicModel(robot)
         nv, n_c, n = robot.nv, constraints.n_contacts, constraints.size
-        q, v = ca.SX.sym("q", nv), ca.SX.sym("v", nv)
-        planes = ca.SX.sym("planes", 4, n_c)  # columns (normal, offset)
-        stops = ca.SX.sym("stops", 2, n - n_c)  # columns (sign, bound)
-        gaps, rows = [], []
-        for i, contact in enumerate(constraints.contacts):
-            position = model.frame_position(contact.frame)(q)
-            normal = planes[:3, i]
-            gaps.append(ca.dot(normal, position) - planes[3, i])
-            rows.append(normal.T @ ca.jacobian(position, q))
-        for k, (index_q, index_v) in enumerate(constraints.stop_coordinates):
-            sign, bound = stops[0, k], stops[1, k]
-            gaps.append(sign * (q[index_q] - bound))
-            row = ca.SX.zeros(1, nv)
-            row[index_v] = sign
-            rows.append(row)
-        J = ca.vertcat(*rows)
-        outputs = [ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J.T))]  # J row by row
-        if dynamics:  # M, h, and the energies (T, V)
-            M = model.mass_matrix(q)
-            energies = ca.vertcat(0.5 * ca.dot(v, M @ v), model.potential_energy(q))
-            outputs += [M, model.nonlinear_effects(q, v), energies]
         name = "constraint_rows_dynamics" if dynamics else "constraint_rows"
-        out_names = ["rows", "M", "h", "energies"][: len(outputs)]
-        function = ca.Function(name, [q, v, planes, stops], outputs, _IN_NAMES, out_names)
-        self.function = CompiledFunction(function)
+        # What the Function is built from: casadi is imported only to build it (a cache miss).
+        definition = definition_key(
+            [name, robot.model.saveToString(), [c.frame for c in constraints.contacts], n_c, n,
+             list(constraints.stop_coordinates)],
+            _GENERATED_BY,
+        )  # fmt: skip
+        self.function = CompiledFunction.cached(
+            name, definition, lambda: _rows_function(constraints, name, dynamics)
+        )
         self.dynamics = dynamics
-        self._names = function.index_in, function.index_out  # inputs and outputs by name
+        self._names = self.function.index_in, self.function.index_out  # by name
         index, out = self._names
         self._energies = self.function.output_buffer(out("energies")) if dynamics else None
         # Column-major (4, n_c) and (2, n_s) inputs: the rows of the (n_c, 4) and (n_s, 2) terms.
@@ -152,11 +140,49 @@ class ConstraintRows:
         return self._q, self._v, self._out
 
 
+def _rows_function(constraints: ConstraintSet, name: str, dynamics: bool) -> Any:
+    """The casadi Function ``name`` of :class:`ConstraintRows` (its module docstring).
+
+    Raises:
+        InvalidParameterError: The robot has a joint :class:`SymbolicModel` does not support.
+    """
+    import casadi as ca  # imported only for the sets that qualify, and only to build
+
+    from ucontrol.model.symbolic_model import SymbolicModel
+
+    robot = constraints.robot
+    model = SymbolicModel(robot)
+    nv, n_c, n = robot.nv, constraints.n_contacts, constraints.size
+    q, v = ca.SX.sym("q", nv), ca.SX.sym("v", nv)
+    planes = ca.SX.sym("planes", 4, n_c)  # columns (normal, offset)
+    stops = ca.SX.sym("stops", 2, n - n_c)  # columns (sign, bound)
+    gaps, rows = [], []
+    for i, contact in enumerate(constraints.contacts):
+        position = model.frame_position(contact.frame)(q)
+        normal = planes[:3, i]
+        gaps.append(ca.dot(normal, position) - planes[3, i])
+        rows.append(normal.T @ ca.jacobian(position, q))
+    for k, (index_q, index_v) in enumerate(constraints.stop_coordinates):
+        sign, bound = stops[0, k], stops[1, k]
+        gaps.append(sign * (q[index_q] - bound))
+        row = ca.SX.zeros(1, nv)
+        row[index_v] = sign
+        rows.append(row)
+    J = ca.vertcat(*rows)
+    outputs = [ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J.T))]  # J row by row
+    if dynamics:  # M, h, and the energies (T, V)
+        M = model.mass_matrix(q)
+        energies = ca.vertcat(0.5 * ca.dot(v, M @ v), model.potential_energy(q))
+        outputs += [M, model.nonlinear_effects(q, v), energies]
+    out_names = ["rows", "M", "h", "energies"][: len(outputs)]
+    return ca.Function(name, [q, v, planes, stops], outputs, _IN_NAMES, out_names)
+
+
 def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> ConstraintRows | None:
     """:class:`ConstraintRows` of ``constraints`` when they qualify and compile, else None.
 
     With ``dynamics``, for robots of at most
-    :data:`~ucontrol.model.symbolic_model.SMALL_ROBOT_MAX_NV` joints, the rows also give the
+    :data:`~ucontrol.model.robot_model.SMALL_ROBOT_MAX_NV` joints, the rows also give the
     mass matrix, h and the energies (:meth:`ConstraintRows.bind_dynamics`), which their
     compiled symbolic terms compute faster than Pinocchio's recursive algorithms there.
 
@@ -170,7 +196,7 @@ def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> Cons
 
     if not qualifies(constraints) or not compilation_possible():
         return None  # (casadi not even imported)
-    from ucontrol.model.symbolic_model import SMALL_ROBOT_MAX_NV
+    from ucontrol.model.robot_model import SMALL_ROBOT_MAX_NV
 
     try:
         rows = ConstraintRows(

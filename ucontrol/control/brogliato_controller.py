@@ -35,7 +35,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import casadi as ca
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
@@ -47,10 +46,13 @@ from ucontrol.control.phase import Phase
 from ucontrol.control.phase_machine import DesiredState, PhaseMachine
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
+from ucontrol.model.compile_cache import definition_key
 from ucontrol.model.compiled_function import CompiledFunction
 from ucontrol.model.robot_model import RobotModel
 
 if TYPE_CHECKING:
+    import casadi as ca
+
     from ucontrol.log import Log
 
 
@@ -101,6 +103,12 @@ IMPACT_SPEED = 1e-6
 #: Outputs of the law's casadi Function, by name (:func:`_rigid_law_function`): the torque
 #: (nv,), V1 and V on the reference [J], the task coordinates X (m,).
 LAW_OUTPUTS = ("tau", "V1", "V", "X")
+#: The modules whose code writes the law (part of its definition key).
+_GENERATED_BY = (
+    "ucontrol.control.brogliato_controller",
+    "ucontrol.model.symbolic_model",
+    "ucontrol.model.compiled_function",
+)
 
 #: Per-sample fields written to the log (name: shape, with m task coordinates and n contacts).
 LOG_FIELDS = {
@@ -196,24 +204,35 @@ class BrogliatoController:
             for j in model.supports[joint][1:]
             for i in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)
         ]
-        kinematics = _symbolic_kinematics(robot, task.frame)
         state_force = self.cycle.force_profile == "state"
-        self._clipped_reference = self.cycle.reference_after_impact == "clipped"
-        function = _rigid_law_function(
-            *(robot.nv, task.m, self._redundant, support, kinematics),
-            state_force=state_force,
-            clipped_reference=self._clipped_reference,
+        self._clipped_reference = clipped = self.cycle.reference_after_impact == "clipped"
+        arguments = (robot.nv, task.m, self._redundant, support)
+
+        def build() -> ca.Function:
+            kinematics = _symbolic_kinematics(robot, task.frame)
+            return _rigid_law_function(
+                *arguments, kinematics, state_force=state_force, clipped_reference=clipped
+            )
+
+        # What the law is built from (the model's kinematics for the symbolic ones; its
+        # inertias are an input): a later build of an equal law, e.g. for another draw of the
+        # masses, loads its library without casadi's graph.
+        definition = definition_key(
+            [*arguments, _without_inertias(model), task.frame, state_force, clipped],
+            _GENERATED_BY,
         )
-        law = self._rigid_law = CompiledFunction(function)
-        inputs = {name: law.input_view(function.index_in(name)) for name in function.name_in()}
+        name = _law_name(state_force)
+        law = self._rigid_law = CompiledFunction.cached(name, definition, build)
+        names = law.names_in()
+        inputs = {name: law.input_view(law.index_in(name)) for name in names}
         # The configuration input of a law with its own kinematics, or None.
         self._configuration_input = inputs.get("q")
-        self._law_index = {name: function.index_in(name) for name in function.name_in()}
+        self._law_index = {name: law.index_in(name) for name in names}
         self._run_law = law.runner()
         self._bind_data(self._data)
         inputs["parameters"][:] = _law_parameters(task, gains)  # constant per controller
         if "inertia" in inputs:  # the model's inertias (e.g. mass-scaled), constant as well
-            from ucontrol.model.symbolic_model import inertia_parameters
+            from ucontrol.model.robot_model import inertia_parameters
 
             inputs["inertia"][:] = inertia_parameters(model)
         # The other inputs are written in place at each call: v, q ⊖ q_p, the force term, and
@@ -231,15 +250,15 @@ class BrogliatoController:
         self._law_columns = (*target.T, *reference.T)
         # The target at once from the machine's stacked samples, and the reference from the
         # target's first two columns where nothing is clipped.
-        self._target_buffer = law.input_buffer(function.index_in("target"))
-        self._reference_buffer = law.input_buffer(function.index_in("reference"))
+        self._target_buffer = law.input_buffer(law.index_in("target"))
+        self._reference_buffer = law.input_buffer(law.index_in("reference"))
         self._target_head = self._target_buffer[: self._reference_buffer.size]
-        outputs = {name: law.output_buffer(function.index_out(name)) for name in LAW_OUTPUTS}
+        outputs = {name: law.output_buffer(law.index_out(name)) for name in LAW_OUTPUTS}
         self._V1_output, self._V_output = outputs["V1"], outputs["V"]
         self._X_output = outputs["X"]
         self._tau_output = outputs["tau"]
         if state_force:
-            self._lambda_d_output = law.output_buffer(function.index_out("lambda_d"))
+            self._lambda_d_output = law.output_buffer(law.index_out("lambda_d"))
 
     def use_plant_data(self, data: pin.Data | None) -> bool:
         """Read M(q) and h(q, v) from the plant's evaluation instead of computing them.
@@ -545,6 +564,19 @@ def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
     )
 
 
+def _without_inertias(model: pin.Model) -> str:
+    """``model``'s serialized form with every body's inertia zeroed (the law's input)."""
+    copy = pin.Model(model)
+    for i in range(len(copy.inertias)):
+        copy.inertias[i] = pin.Inertia.Zero()
+    return str(copy.saveToString())
+
+
+def _law_name(state_force: bool) -> str:
+    """The name of the law's Function (:func:`_rigid_law_function`)."""
+    return "brogliato_state_force_law" if state_force else "brogliato_law"
+
+
 def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
     r"""``(q, v, inertia) -> (C (nv, nv), p (3,), J (3, nv), dJ (3, nv))`` of ``frame``, or None.
 
@@ -560,6 +592,8 @@ def _symbolic_kinematics(robot: RobotModel, frame: str) -> ca.Function | None:
     kinematics beside Pinocchio's pass, kept because it saves more than 5 % of a closed-loop
     step of the two-link scenes (docs/controller.md, "One law, two paths").
     """
+    import casadi as ca  # imported to build the law (a compile-cache miss)
+
     from ucontrol.model.symbolic_model import INERTIA_SIZE, SMALL_ROBOT_MAX_NV, SymbolicModel
 
     if robot.nv > SMALL_ROBOT_MAX_NV or robot.nq != robot.nv:
@@ -621,6 +655,8 @@ def _rigid_law_function(
     the held rows), ``measured`` (1 where the measured force is valid) and ``lambda_measured``
     (each (m,)), and a last output ``lambda_d`` (m,) gives the :math:`\lambda_d` applied.
     """
+    import casadi as ca  # imported to build the law (a compile-cache miss)
+
     M_upper, C = ca.SX.sym("M", nv, nv), ca.SX.sym("C", nv, nv)
     nle, v = ca.SX.sym("nle", nv), ca.SX.sym("v", nv)
     J_world, dJ_world = ca.SX.sym("J", 6, nv), ca.SX.sym("dJ", 6, nv)
@@ -702,7 +738,7 @@ def _rigid_law_function(
     tau += J.T @ force
     outputs["tau"] = tau
     return ca.Function(
-        "brogliato_state_force_law" if state_force else "brogliato_law",
+        _law_name(state_force),
         list(inputs.values()),
         list(outputs.values()),
         list(inputs),
@@ -749,6 +785,8 @@ def _state_force(
         The force term :math:`-\lambda_d + K_f(\lambda - \lambda_d)` and
         :math:`\lambda_d`, on the task rows (m,), in [N].
     """
+    import casadi as ca  # imported to build the law (a compile-cache miss)
+
     M, J, dJ_v, ddq_r, dissipation = closed_loop
     held, active = inputs["held"], inputs["active"]
     J_active = ca.diag(active) @ J
@@ -780,6 +818,8 @@ def _reference_terms(
 
 def _cross(a: ca.SX, b: ca.SX) -> ca.SX:
     """Cross product of 3-vectors in the operations of Eigen's ``cross``."""
+    import casadi as ca  # imported to build the law (a compile-cache miss)
+
     return ca.vertcat(
         a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
     )

@@ -12,8 +12,12 @@ the fall of :math:`\lambda_d` to 0 at the takeoff time :math:`t_d` and the takeo
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import pickle
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
@@ -46,6 +50,11 @@ Vector = NDArray[np.float64]
 PATH_TOLERANCE = 1e-6
 #: Samples per period used to check the nominal path against the obstacles.
 PATH_SAMPLES = 4000
+#: Nominal paths whose samples :meth:`DesiredCycle.check` keeps (least recently used out).
+PATH_SAMPLES_KEPT = 16
+#: The samples of the nominal paths checked so far, by SHA-256 of the pickled path and times.
+_path_samples: OrderedDict[str, NDArray[np.float64]] = OrderedDict()
+_path_samples_lock = threading.Lock()
 #: The values of ``DesiredCycle.force_profile``.
 FORCE_PROFILES = ("state", "time")
 #: The values of ``DesiredCycle.reference_after_impact``.
@@ -273,6 +282,10 @@ class DesiredCycle:
     def check(self, task: TaskCoordinates) -> None:
         """Check the cycle against the task: known contacts, no path through an obstacle.
 
+        The path is sampled at :data:`PATH_SAMPLES` times over a period; the samples are kept
+        per path content (:func:`sampled_positions`), so that an equal path (a controller built
+        again from the same table) is not sampled again.
+
         Raises:
             NotFoundError: A contact phase names a contact that is not a task constraint.
             PathThroughSurfaceError: The nominal path enters an obstacle deeper than
@@ -283,7 +296,7 @@ class DesiredCycle:
             if phase.contact not in gap_names:
                 raise NotFoundError("contact", phase.contact, gap_names)
         t = np.linspace(0.0, self.period, PATH_SAMPLES, endpoint=False)
-        X = np.array([task.of_point(self.path(float(time))[0]) for time in t])
+        X = sampled_positions(self.path, t) @ task.A.T - task.b  # task.of_point of each sample
         for i, name in enumerate(gap_names):
             inside = X[:, i] < -PATH_TOLERANCE
             for phase in self.contact_phases:
@@ -292,6 +305,36 @@ class DesiredCycle:
             if inside.any():
                 worst = int(np.argmin(np.where(inside, X[:, i], math.inf)))
                 raise PathThroughSurfaceError(name, float(t[worst]), float(X[worst, i]))
+
+
+def sampled_positions(path: NominalPath, t: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Positions in [m] of ``path`` at the times ``t`` [s], shape (len(t), 3).
+
+    Kept per path content and times: a path equal to one sampled before (the same pickled
+    form: its class and every attribute, arrays bit for bit) reuses its samples, so that the
+    controllers a campaign builds run after run from one scene table sample their cycle once
+    per process (at most :data:`PATH_SAMPLES_KEPT` paths kept, the least recently used out).
+    The array returned is read-only. A path that cannot be pickled is sampled at every call.
+    """
+    try:
+        content = pickle.dumps(path, protocol=pickle.HIGHEST_PROTOCOL)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        key = None
+    else:
+        key = hashlib.sha256(content + t.tobytes()).hexdigest()
+        with _path_samples_lock:
+            found = _path_samples.get(key)
+            if found is not None:
+                _path_samples.move_to_end(key)
+                return found
+    positions = np.array([path(float(time))[0] for time in t], dtype=float).reshape(t.size, 3)
+    positions.flags.writeable = False
+    if key is not None:
+        with _path_samples_lock:
+            _path_samples[key] = positions
+            while len(_path_samples) > PATH_SAMPLES_KEPT:
+                _path_samples.popitem(last=False)
+    return positions
 
 
 def read_designed_cycle(path: str | Path) -> tuple[SplinePath, ContactPhase]:

@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.integrators import step_stages
 from ucontrol.integrators.step_stages import (
     ArrayOps,
     gains_energy,
@@ -68,6 +69,19 @@ if TYPE_CHECKING:
 
 Vector = NDArray[np.float64]
 
+#: The modules whose code writes the compiled call (part of its definition key).
+_GENERATED_BY = (
+    "ucontrol.integrators.compiled_free_step",
+    "ucontrol.integrators.step_stages",
+    "ucontrol.model.compiled_function",
+)
+#: The constants of :mod:`~ucontrol.integrators.step_stages` (part of the definition key).
+_STAGE_CONSTANTS = (
+    "ENERGY_GAIN_TOLERANCE",
+    "START_GAP_TOLERANCE",
+    "IMPACT_VELOCITY_THRESHOLD",
+    "HELD_IMPACT_VELOCITY",
+)
 #: The inputs written (or bound) at every step, in this order.
 _STEP_INPUTS = ("q", "v", "tau", "J_t", "gap", "u")
 
@@ -106,68 +120,28 @@ class CompiledFreeStep:
         rules: ImpactRules,
         single_rows: bool = False,
     ) -> None:
-        import casadi as ca  # imported only for the steps that use it
-
+        from ucontrol.model.compile_cache import definition_key
         from ucontrol.model.compiled_function import CompiledFunction
 
         nv = data_nle.size
         size = nv if flexible is None else nv + flexible.nf
         W0, Kq, F = _constant_terms(nv, size, dt, theta, flexible, viscous)
-        q, v, tau = ca.SX.sym("q", size), ca.SX.sym("v", size), ca.SX.sym("tau", size)
-        M_upper, nle = ca.SX.sym("M", nv, nv), ca.SX.sym("nle", nv)
-        # The rows as ConstraintRows writes them, row by row: the columns of Jᵀ (nv, n).
-        rows_t, gap, velocity = ca.SX.sym("J_t", nv, n), ca.SX.sym("gap", n), ca.SX.sym("u", n)
-        rows = rows_t.T
-        W0_s, Kq_s, F_s = (ca.SX.sym(name, size, size) for name in ("W0", "Kq", "F"))
-        scalars = ca.SX.sym("scalars", 3)  # h, θ, γh
-        h, th, gh = scalars[0], scalars[1], scalars[2]
-        M = ca.triu(M_upper) + ca.triu(M_upper, False).T
-        W = W0_s + ca.diagcat(M, ca.SX.zeros(size - nv, size - nv))
-        force = tau - ca.vertcat(nle, ca.SX.zeros(size - nv)) - Kq_s @ q - F_s @ v
-        J = ca.horzcat(rows, ca.SX.zeros(n, size - nv))
-        R = ca.chol(W)  # W = RᵀR, R upper triangular: two triangular solves
-        v_free = v + ca.solve(R, ca.solve(R.T, h * force))
-        Winv_Jt = ca.solve(R, ca.solve(R.T, J.T))
-        delassus = J @ Winv_Jt
-        activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
         restitution = np.asarray(rules.restitution, dtype=float)
-        # An input, not constants: one library serves every restitution (Monte Carlo draws).
-        restitution_s = ca.SX.sym("restitution", n)
-        offsets = newton_offsets(
-            _casadi_ops(),
-            gap,
-            velocity,
-            restitution_s,
-            activation > 0.0,
-            h,
-            rules.threshold,
-            rules.newton_law == "siconos",
-            not restitution.any(),
-        )  # the impact law of every row, each as if active
-        parts = [
-            v_free,
-            q + theta_displacement(v, v_free, h, th),
-            predicted_gaps(gap, velocity, gh),
-            ca.vec(Winv_Jt),
-            ca.vec(delassus),
-            *offsets,
-        ]
-        inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
-        inputs += [activation, kinetic, restitution_s]
-        names = ["q", "v", "tau", "M", "nle", "J_t", "gap", "u", "W0", "Kq", "F", "scalars"]
-        names += ["activation", "kinetic", "restitution"]
-        if single_rows:
-            for i in range(n):
-                parts.append(
-                    _single_row_step(
-                        i, rules, q, v, J, v_free, Winv_Jt, delassus, offsets[0][i],
-                        offsets[1][i], kinetic, h, th,
-                    )
-                )  # fmt: skip
-        function = ca.Function("free_step", inputs, [ca.vertcat(*parts)], names, ["terms"])
-        self.function = CompiledFunction(function)
+        elastic = bool(restitution.any())
+        # What the Function is built from: casadi is imported only to build it (a cache miss).
+        # (with the shared stages' tolerances as they are now: constants of the Function)
+        definition = definition_key(
+            ["free_step", nv, size, n, float(rules.threshold), rules.newton_law, elastic,
+             single_rows, *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
+            _GENERATED_BY,
+        )  # fmt: skip
+        self.function = CompiledFunction.cached(
+            "free_step",
+            definition,
+            lambda: _free_step_function(nv, size, n, rules, elastic, single_rows),
+        )
         self.compiled = self.function.compiled
-        index = function.index_in  # inputs bound by name
+        index = self.function.index_in  # inputs bound by name
         if self.compiled:
             self.function.bind_input(index("M"), data_M)
             self.function.bind_input(index("nle"), data_nle)
@@ -237,7 +211,7 @@ class CompiledFreeStep:
         n, nv = self._sizes[1], q.size
         if self._sizes[0] != nv:
             raise ValueError(f"rows of nv = {nv} for a step of size {self._sizes[0]}")
-        function, index = self.function, self.function.function.index_in
+        function, index = self.function, self.function.index_in
         for name, buffer in (
             ("q", q), ("v", v), ("J_t", out[2 * n :]), ("gap", out[:n]), ("u", out[n : 2 * n])
         ):  # fmt: skip
@@ -310,6 +284,69 @@ class ImpactRules(NamedTuple):
     restitution: Vector
     threshold: float
     newton_law: str
+
+
+def _free_step_function(
+    nv: int, size: int, n: int, rules: ImpactRules, elastic: bool, single_rows: bool
+) -> Any:
+    """The casadi Function of :class:`CompiledFreeStep` (the module docstring's terms).
+
+    ``elastic``: whether some restitution is non-zero (else the impact law's rebound terms are
+    left out).
+    """
+    import casadi as ca  # imported only for the steps that use it, and only to build
+
+    q, v, tau = ca.SX.sym("q", size), ca.SX.sym("v", size), ca.SX.sym("tau", size)
+    M_upper, nle = ca.SX.sym("M", nv, nv), ca.SX.sym("nle", nv)
+    # The rows as ConstraintRows writes them, row by row: the columns of Jᵀ (nv, n).
+    rows_t, gap, velocity = ca.SX.sym("J_t", nv, n), ca.SX.sym("gap", n), ca.SX.sym("u", n)
+    rows = rows_t.T
+    W0_s, Kq_s, F_s = (ca.SX.sym(name, size, size) for name in ("W0", "Kq", "F"))
+    scalars = ca.SX.sym("scalars", 3)  # h, θ, γh
+    h, th, gh = scalars[0], scalars[1], scalars[2]
+    M = ca.triu(M_upper) + ca.triu(M_upper, False).T
+    W = W0_s + ca.diagcat(M, ca.SX.zeros(size - nv, size - nv))
+    force = tau - ca.vertcat(nle, ca.SX.zeros(size - nv)) - Kq_s @ q - F_s @ v
+    J = ca.horzcat(rows, ca.SX.zeros(n, size - nv))
+    R = ca.chol(W)  # W = RᵀR, R upper triangular: two triangular solves
+    v_free = v + ca.solve(R, ca.solve(R.T, h * force))
+    Winv_Jt = ca.solve(R, ca.solve(R.T, J.T))
+    delassus = J @ Winv_Jt
+    activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
+    # An input, not constants: one library serves every restitution (Monte Carlo draws).
+    restitution_s = ca.SX.sym("restitution", n)
+    offsets = newton_offsets(
+        _casadi_ops(),
+        gap,
+        velocity,
+        restitution_s,
+        activation > 0.0,
+        h,
+        rules.threshold,
+        rules.newton_law == "siconos",
+        not elastic,
+    )  # the impact law of every row, each as if active
+    parts = [
+        v_free,
+        q + theta_displacement(v, v_free, h, th),
+        predicted_gaps(gap, velocity, gh),
+        ca.vec(Winv_Jt),
+        ca.vec(delassus),
+        *offsets,
+    ]
+    inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
+    inputs += [activation, kinetic, restitution_s]
+    names = ["q", "v", "tau", "M", "nle", "J_t", "gap", "u", "W0", "Kq", "F", "scalars"]
+    names += ["activation", "kinetic", "restitution"]
+    if single_rows:
+        for i in range(n):
+            parts.append(
+                _single_row_step(
+                    i, rules, q, v, J, v_free, Winv_Jt, delassus, offsets[0][i],
+                    offsets[1][i], kinetic, h, th,
+                )
+            )  # fmt: skip
+    return ca.Function("free_step", inputs, [ca.vertcat(*parts)], names, ["terms"])
 
 
 def _single_row_step(

@@ -13,6 +13,13 @@ Shared by :mod:`ucontrol.model.compiled_function` (one library per casadi Functi
 - Concurrency: the build of an entry holds an exclusive ``fcntl`` lock on its lock file, and
   the library is written under a temporary name then renamed (atomic on POSIX): concurrent
   processes (tests, dask workers) build it once and never load a partial file.
+- Definitions: a library may also be recorded under a *definition key*, what its Function is
+  built from (:func:`definition_key`: the inputs of the code that writes the Function, the
+  sources of that code, casadi's installed files), as a second name (a hard link) of the
+  same file. A later process finds it by that key (:func:`find_library`) without building
+  the Function, so without importing casadi: it loads the library and reads the Function's
+  signature from it (``ucontrol.model.compiled_function``). A miss builds the Function as
+  before.
 - Size: at most :data:`MAX_LIBRARIES` libraries, the least recently used removed after a build
   (a library's modification time is its last use: each lookup that finds it touches it). A
   process that has loaded a removed library keeps it; a later lookup builds it again.
@@ -20,15 +27,18 @@ Shared by :mod:`ucontrol.model.compiled_function` (one library per casadi Functi
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
+import functools
 import hashlib
+import importlib.util
 import os
 import shlex
 import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 #: Overrides the cache directory.
@@ -76,13 +86,9 @@ def build_library(
         OSError: No C compiler.
         subprocess.SubprocessError: The compilation failed or timed out.
     """
-    compiler = compiler_command()
-    digest = hashlib.sha256((key + " ".join([*compiler, *CFLAGS, *flags])).encode()).hexdigest()[
-        :24
-    ]
-    directory = cache_dir()
+    library = library_path(stem, key, flags)
+    directory = library.parent
     directory.mkdir(parents=True, exist_ok=True)
-    library = directory / f"{stem}_{digest}.so"
     if _touch(library):
         return library
     with open(directory / f"{library.name}.lock", "w") as lock:
@@ -95,7 +101,7 @@ def build_library(
             path.write_text(source if isinstance(source, str) else source())
             target = Path(work) / library.name
             subprocess.run(
-                [*compiler, *CFLAGS, *flags, "-o", str(target), str(path), "-lm"],
+                [*compiler_command(), *CFLAGS, *flags, "-o", str(target), str(path), "-lm"],
                 check=True,
                 capture_output=True,
                 timeout=BUILD_TIMEOUT_S,
@@ -103,6 +109,96 @@ def build_library(
             os.replace(target, library)  # atomic: readers see no partial library
     _remove_least_recently_used(directory, library)
     return library
+
+
+def library_path(stem: str, key: str, flags: tuple[str, ...] = ()) -> Path:
+    """Where the library of ``stem`` and ``key`` compiled with ``flags`` is (or would be) cached.
+
+    Raises:
+        OSError: No C compiler.
+    """
+    compiler = compiler_command()
+    digest = hashlib.sha256((key + " ".join([*compiler, *CFLAGS, *flags])).encode()).hexdigest()
+    return cache_dir() / f"{stem}_{digest[:24]}.so"
+
+
+def definition_key(parts: Iterable[object], modules: Iterable[str]) -> str:
+    """A definition key: ``parts`` (their reprs), the sources of ``modules`` and casadi's files.
+
+    Args:
+        parts: What the Function is built from besides code (sizes, options, a robot model's
+            serialized form); each part's ``repr`` is hashed, so floats are exact.
+        modules: The modules whose code writes the Function (their source files are hashed,
+            read without importing them).
+
+    The installed casadi is named by its extension module's path, size and modification time
+    (a reinstall changes them), read without importing casadi. Both are read once per process
+    (the code a process runs is the code it loaded).
+
+    Raises:
+        OSError: A module's or casadi's file cannot be found or read.
+    """
+    digest = hashlib.sha256()
+    for part in parts:
+        digest.update(repr(part).encode() + b"\0")
+    for module in modules:
+        digest.update(_source_digest(module))
+    digest.update(_casadi_files())
+    return "definition:" + digest.hexdigest()
+
+
+@functools.cache
+def _source_digest(module: str) -> bytes:
+    """SHA-256 of ``module``'s source file, read once per process without importing it.
+
+    Raises:
+        OSError: The module has no source file.
+    """
+    spec = importlib.util.find_spec(module)  # (imports its package, not the module)
+    if spec is None or spec.origin is None:
+        raise OSError(f"no source file for module {module}")
+    return hashlib.sha256(Path(spec.origin).read_bytes()).digest()
+
+
+@functools.cache
+def _casadi_files() -> bytes:
+    """The installed casadi's extension module: path, size and modification time (once).
+
+    Raises:
+        OSError: casadi or its extension module is missing.
+    """
+    spec = importlib.util.find_spec("casadi")
+    if spec is None or not spec.submodule_search_locations:
+        raise OSError("casadi is not installed")
+    core = next(Path(spec.submodule_search_locations[0]).glob("_casadi*"), None)
+    if core is None:
+        raise OSError("casadi's extension module is missing")
+    info = core.stat()
+    return f"{core}:{info.st_size}:{info.st_mtime_ns}".encode()
+
+
+def find_library(stem: str, key: str) -> Path | None:
+    """The cached library recorded under ``key`` (:func:`record_library`), or None.
+
+    A library found has its use recorded (as in :func:`build_library`). None also without a C
+    compiler (nothing compiled can be used then).
+    """
+    try:
+        library = library_path(stem, key)
+    except OSError:
+        return None
+    return library if _touch(library) else None
+
+
+def record_library(stem: str, key: str, library: Path) -> None:
+    """Record the cached ``library`` under ``key`` too, for :func:`find_library`.
+
+    A second name of the same file (a hard link, made atomically); where the file system has
+    no hard links, nothing is recorded and later lookups by ``key`` miss.
+    """
+    # An existing name was recorded by another process meanwhile (the same definition).
+    with contextlib.suppress(OSError):
+        os.link(library, library_path(stem, key))
 
 
 def _touch(library: Path) -> bool:

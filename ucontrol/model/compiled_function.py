@@ -12,6 +12,11 @@ docs/benchmarks.md, "Compiled laws: cache and fallback").
   by the SHA-256 of the Function's serialized form, the casadi version and the compiler
   command, so a changed law is rebuilt and an unchanged one never is; built once by
   concurrent processes, never loaded partial.
+- Definitions: :meth:`CompiledFunction.cached` looks the library up by what the Function is
+  built from (a definition key of :mod:`ucontrol.model.compile_cache`); found, it is loaded
+  and its signature (names, shapes, work sizes) read from the library's own exports, without
+  building the Function or importing casadi. Not found, the Function is built, compiled (or
+  found by its serialized form) and recorded under the definition.
 - Fallback: without a C compiler, when compilation or loading fails, or with the environment
   variable ``UCONTROL_NO_COMPILE=1``, the same interface calls the casadi Function itself
   (same results to round-off; slower). ``$CC`` chooses the compiler (default ``cc``).
@@ -29,13 +34,18 @@ import os
 import subprocess
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.exceptions import CompiledCallError
-from ucontrol.model.compile_cache import build_library, compiler_command
+from ucontrol.model.compile_cache import (
+    build_library,
+    compiler_command,
+    find_library,
+    record_library,
+)
 from ucontrol.model.native_call import native_runner
 
 if TYPE_CHECKING:  # casadi is imported by the functions that build (compilation_possible: not)
@@ -77,26 +87,15 @@ class CompiledFunction:
         compile: Try to compile it (default: unless ``UCONTROL_NO_COMPILE`` is set).
 
     Attributes:
-        function: The casadi Function (outputs densified).
         compiled: Whether calls run the compiled library (False: casadi's virtual machine).
         library_path: The shared library used, or None.
     """
 
     def __init__(self, function: ca.Function, *, compile: bool | None = None) -> None:
-        self.function = _densified(function)
-        self.name = self.function.name()
-        f = self.function
-        self._in_sizes = [f.nnz_in(i) for i in range(f.n_in())]
-        self._out_sizes = [f.nnz_out(i) for i in range(f.n_out())]
-        self._outputs = [np.zeros(n) for n in self._out_sizes]
-        self._results = tuple(self._outputs)  # what every call returns
-        self._output_owners: list[NDArray[np.float64]] = []  # arrays of bind_output
-        self._in_buffers = [np.zeros(n) for n in self._in_sizes]
-        self._in_shapes = [f.size_in(i) for i in range(f.n_in())]
-        self._in_views = [  # column-major views of the buffers in the inputs' shapes
-            buffer if shape[1] == 1 else buffer.reshape(shape, order="F")
-            for buffer, shape in zip(self._in_buffers, self._in_shapes, strict=True)
-        ]
+        self._function: ca.Function | None = _densified(function)
+        self._build_function: Callable[[], ca.Function] | None = None
+        f = self._function
+        self._setup(_Signature.of_function(f))
         self.compiled = False
         self.library_path: Path | None = None
         if compile is None:
@@ -104,10 +103,89 @@ class CompiledFunction:
         if compile:
             try:
                 self.library_path = _build(f)
-                self._bind(self.library_path)
+                self._bind(ctypes.CDLL(str(self.library_path)))
                 self.compiled = True
             except (OSError, RuntimeError, subprocess.SubprocessError) as error:
                 _logger.info("casadi function %s not compiled (%s): fallback", self.name, error)
+
+    @classmethod
+    def cached(
+        cls, name: str, definition: str, build: Callable[[], ca.Function]
+    ) -> CompiledFunction:
+        """The Function ``build()`` returns, compiled, found by its ``definition`` if cached.
+
+        Args:
+            name: The Function's name (``build().name()``).
+            definition: What the Function is built from
+                (:func:`~ucontrol.model.compile_cache.definition_key`): equal definitions
+                must build equal Functions.
+            build: Builds the Function; called on a miss, or when :attr:`function` is read.
+
+        A library recorded under ``definition`` is loaded without calling ``build`` (nor
+        importing casadi); otherwise ``CompiledFunction(build())``, whose library is recorded
+        under ``definition`` for later processes.
+        """
+        if not compilation_disabled():
+            library = find_library(name, definition)
+            if library is not None:
+                try:
+                    return cls._loaded(library, name, build)
+                except (OSError, AttributeError, ValueError) as error:  # not our library
+                    _logger.info("library %s not loaded (%s): built again", library, error)
+        made = cls(build())
+        if made.library_path is not None:
+            record_library(name, definition, made.library_path)
+        return made
+
+    @classmethod
+    def _loaded(
+        cls, library: Path, name: str, build: Callable[[], ca.Function]
+    ) -> CompiledFunction:
+        """The compiled Function ``name`` of ``library``, its signature read from the library."""
+        made = cls.__new__(cls)
+        loaded = ctypes.CDLL(str(library))
+        made._function, made._build_function = None, build
+        made._setup(_Signature.of_library(loaded, name))
+        made.library_path, made.compiled = library, True
+        made._bind(loaded)
+        return made
+
+    @property
+    def function(self) -> ca.Function:
+        """The casadi Function (outputs densified); built on first read for a loaded library."""
+        if self._function is None:
+            assert self._build_function is not None
+            self._function = _densified(self._build_function())
+        return self._function
+
+    def names_in(self) -> list[str]:
+        """The inputs' names, in order."""
+        return list(self._in_names)
+
+    def index_in(self, name: str) -> int:
+        """Index of the input called ``name``."""
+        return self._in_names.index(name)
+
+    def index_out(self, name: str) -> int:
+        """Index of the output called ``name``."""
+        return self._out_names.index(name)
+
+    def _setup(self, signature: _Signature) -> None:
+        """The buffers of a Function of ``signature``."""
+        self.name = signature.name
+        self._signature = signature
+        self._in_names, self._out_names = signature.in_names, signature.out_names
+        self._in_sizes = list(signature.in_sizes)
+        self._out_sizes = list(signature.out_sizes)
+        self._outputs = [np.zeros(n) for n in self._out_sizes]
+        self._results = tuple(self._outputs)  # what every call returns
+        self._output_owners: list[NDArray[np.float64]] = []  # arrays of bind_output
+        self._in_buffers = [np.zeros(n) for n in self._in_sizes]
+        self._in_shapes = list(signature.in_shapes)
+        self._in_views = [  # column-major views of the buffers in the inputs' shapes
+            buffer if shape[1] == 1 else buffer.reshape(shape, order="F")
+            for buffer, shape in zip(self._in_buffers, self._in_shapes, strict=True)
+        ]
 
     def __call__(self, *inputs: Vector | None) -> tuple[Vector, ...]:
         """Outputs, each a dense vector of shape (nnz,), for ``inputs``.
@@ -229,22 +307,21 @@ class CompiledFunction:
         """:meth:`input_buffer` ``i`` in the input's shape (a column-major view of it)."""
         return self._in_views[i]
 
-    def _bind(self, path: Path) -> None:
-        library = ctypes.CDLL(str(path))
+    def _bind(self, library: ctypes.CDLL) -> None:
         call = getattr(library, self.name)
         call.restype = ctypes.c_int
         self._entry = int(ctypes.cast(call, ctypes.c_void_p).value or 0)  # the entry's address
-        f = self.function
+        sz_arg, sz_res, sz_iw, sz_w = self._signature.work
         double_p = ctypes.POINTER(ctypes.c_double)
         self._library = library  # keeps it loaded
-        self._arg = (double_p * max(f.sz_arg(), 1))()
+        self._arg = (double_p * max(sz_arg, 1))()
         for i, buffer in enumerate(self._in_buffers):
             self._arg[i] = buffer.ctypes.data_as(double_p)
-        self._res = (double_p * max(f.sz_res(), 1))()
+        self._res = (double_p * max(sz_res, 1))()
         for i, out in enumerate(self._outputs):
             self._res[i] = out.ctypes.data_as(double_p)
-        self._iw_buffer = np.zeros(max(f.sz_iw(), 1), dtype=np.int64)
-        self._w_buffer = np.zeros(max(f.sz_w(), 1))
+        self._iw_buffer = np.zeros(max(sz_iw, 1), dtype=np.int64)
+        self._w_buffer = np.zeros(max(sz_w, 1))
         self._iw = self._iw_buffer.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong))
         self._w = self._w_buffer.ctypes.data_as(double_p)
         # No argtypes: ctypes passes the pointer arrays as they are and 0 as a C int
@@ -254,6 +331,77 @@ class CompiledFunction:
         self._run_bound = self._bound_runner(owner=None)  # owned by self: no cycle
 
 
+class _Signature(NamedTuple):
+    """What a call needs of a Function: names, shapes and work sizes (inputs dense)."""
+
+    name: str
+    in_names: list[str]
+    out_names: list[str]
+    in_shapes: list[tuple[int, int]]
+    in_sizes: list[int]  # non-zeros
+    out_sizes: list[int]
+    work: tuple[int, int, int, int]  # sz_arg, sz_res, sz_iw, sz_w
+
+    @classmethod
+    def of_function(cls, f: ca.Function) -> _Signature:
+        """The signature of casadi Function ``f``."""
+        return cls(
+            f.name(),
+            list(f.name_in()),
+            list(f.name_out()),
+            [f.size_in(i) for i in range(f.n_in())],
+            [f.nnz_in(i) for i in range(f.n_in())],
+            [f.nnz_out(i) for i in range(f.n_out())],
+            (f.sz_arg(), f.sz_res(), f.sz_iw(), f.sz_w()),
+        )
+
+    @classmethod
+    def of_library(cls, library: ctypes.CDLL, name: str) -> _Signature:
+        """The signature of Function ``name`` from the exports of its generated C code.
+
+        Raises:
+            AttributeError: The library does not export ``name``'s functions.
+            ValueError: An input or output is not dense (casadi's compact form
+                ``(rows, columns, 1)``), or ``casadi_int`` is not 64 bits.
+        """
+        integer = ctypes.c_longlong
+        if getattr(library, f"{name}_casadi_int_size")() != ctypes.sizeof(integer):
+            raise ValueError(f"{name}: casadi_int is not {ctypes.sizeof(integer)} bytes")
+        pointer = ctypes.POINTER(integer)
+        exported = {}
+        for suffix, restype in (
+            ("n_in", integer), ("n_out", integer), ("name_in", ctypes.c_char_p),
+            ("name_out", ctypes.c_char_p), ("sparsity_in", pointer), ("sparsity_out", pointer),
+        ):  # fmt: skip
+            function = getattr(library, f"{name}_{suffix}")
+            function.restype = restype
+            function.argtypes = [] if suffix.startswith("n_") else [integer]
+            exported[suffix] = function
+
+        def shape(suffix: str, i: int) -> tuple[int, int]:
+            pattern = exported[suffix](i)
+            rows, columns, dense = pattern[0], pattern[1], pattern[2]
+            if dense != 1:
+                raise ValueError(f"{name}: {suffix} {i} is not dense")
+            return int(rows), int(columns)
+
+        n_in, n_out = int(exported["n_in"]()), int(exported["n_out"]())
+        work = (integer * 4)()
+        size = ctypes.sizeof(integer)
+        getattr(library, f"{name}_work")(*(ctypes.byref(work, size * k) for k in range(4)))
+        in_shapes = [shape("sparsity_in", i) for i in range(n_in)]
+        out_shapes = [shape("sparsity_out", i) for i in range(n_out)]
+        return cls(
+            name,
+            [exported["name_in"](i).decode() for i in range(n_in)],
+            [exported["name_out"](i).decode() for i in range(n_out)],
+            in_shapes,
+            [rows * columns for rows, columns in in_shapes],
+            [rows * columns for rows, columns in out_shapes],
+            (work[0], work[1], work[2], work[3]),
+        )
+
+
 def _check(name: str, status: int) -> None:
     """A compiled call's casadi status: 0, or a :class:`CompiledCallError`."""
     if status != 0:
@@ -261,14 +409,14 @@ def _check(name: str, status: int) -> None:
 
 
 def _densified(function: ca.Function) -> ca.Function:
-    """``function`` with dense outputs (SX or MX Functions)."""
+    """``function`` with dense outputs (SX or MX Functions), its inputs' and outputs' names kept."""
     import casadi as ca
 
     if all(function.sparsity_out(i).is_dense() for i in range(function.n_out())):
         return function
     symbols: Any = function.sx_in() if function.is_a("SXFunction") else function.mx_in()
-    outputs = function.call(symbols)
-    return ca.Function(function.name(), symbols, [ca.densify(o) for o in outputs])
+    outputs = [ca.densify(o) for o in function.call(symbols)]
+    return ca.Function(function.name(), symbols, outputs, function.name_in(), function.name_out())
 
 
 def _build(function: ca.Function) -> Path:

@@ -21,6 +21,12 @@ from ucontrol.exceptions import (
 
 Vector = NDArray[np.float64]
 
+#: Largest nv for which the compiled symbolic terms (M, C, h, a frame's kinematics) of
+#: :mod:`ucontrol.model.symbolic_model` beat Pinocchio's recursive algorithms: measured faster
+#: at nv = 2 and slower at nv = 7, where the Christoffel terms, which grow as nv³ in the C
+#: code, dominate (docs/benchmarks.md, sixth round). Here, not there, so that choosing a path
+#: by it needs no casadi.
+SMALL_ROBOT_MAX_NV = 3
 
 #: The frame taken where several share a name, in order of preference.
 _FRAME_PREFERENCE = (
@@ -450,3 +456,16 @@ def _set_gravity(model: pin.Model, gravity: NDArray[np.float64] | None) -> None:
     """Set the model's gravity in [m/s²] (Pinocchio's default (0, 0, -9.81) when None)."""
     if gravity is not None:
         model.gravity.linear = as_vector("gravity", gravity, 3)
+
+
+def inertia_parameters(model: pin.Model) -> np.ndarray:
+    """The ``inertia`` input of :class:`~ucontrol.model.symbolic_model.SymbolicModel` for ``model``.
+
+    Per body (joint 1 to njoints - 1): mass [kg], centre of mass in the joint frame (3,) [m],
+    rotational inertia about it (xx, xy, xz, yy, yz, zz) [kg m²]; shape (10 (njoints - 1),).
+    """
+    values = []
+    for inertia in model.inertias[1:]:
+        I_c = np.asarray(inertia.inertia)
+        values += [inertia.mass, *inertia.lever, *I_c[0], *I_c[1, 1:], I_c[2, 2]]
+    return np.asarray(values, dtype=float)

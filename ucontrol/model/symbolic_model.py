@@ -51,13 +51,9 @@ import numpy as np
 import pinocchio as pin
 
 from ucontrol.exceptions import InvalidParameterError
+from ucontrol.model.robot_model import SMALL_ROBOT_MAX_NV as SMALL_ROBOT_MAX_NV  # its home before
 from ucontrol.model.robot_model import RobotModel
-
-#: Largest nv for which the compiled symbolic terms (M, C, h, a frame's kinematics) beat
-#: Pinocchio's recursive algorithms: measured faster at nv = 2 and slower at nv = 7, where the
-#: Christoffel terms, which grow as nv³ in the C code, dominate (docs/benchmarks.md, sixth
-#: round).
-SMALL_ROBOT_MAX_NV = 3
+from ucontrol.model.robot_model import inertia_parameters as inertia_parameters  # its home before
 
 #: Numbers per body in the ``inertia`` input (:func:`inertia_parameters`): the mass in [kg], the
 #: centre of mass in the joint frame (3,) in [m], the rotational inertia about it in [kg m²] as
@@ -310,16 +306,3 @@ def _rotation(axis: np.ndarray, angle: ca.SX) -> ca.SX:
     """
     skew = ca.DM([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     return ca.DM.eye(3) + ca.sin(angle) * skew + (1.0 - ca.cos(angle)) * (skew @ skew)
-
-
-def inertia_parameters(model: pin.Model) -> np.ndarray:
-    """The ``inertia`` input of :class:`SymbolicModel` for ``model``'s bodies.
-
-    Per body (joint 1 to njoints - 1): mass [kg], centre of mass in the joint frame (3,) [m],
-    rotational inertia about it (xx, xy, xz, yy, yz, zz) [kg m²]; shape (10 (njoints - 1),).
-    """
-    values = []
-    for inertia in model.inertias[1:]:
-        I_c = np.asarray(inertia.inertia)
-        values += [inertia.mass, *inertia.lever, *I_c[0], *I_c[1, 1:], I_c[2, 2]]
-    return np.asarray(values, dtype=float)

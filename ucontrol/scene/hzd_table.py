@@ -6,9 +6,9 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import check_keys, require_key
-from ucontrol.control.hzd_controller import HZDController, HZDSettings, legs_from_names
 
 if TYPE_CHECKING:
+    from ucontrol.control.hzd_controller import HZDController
     from ucontrol.scene.scene_data import SceneData
 
 _REQUIRED = ("bezier", "theta_plus", "theta_minus", "kp", "kd")
@@ -34,6 +34,8 @@ def hzd_from_table(scene: SceneData, table: Mapping[str, Any]) -> HZDController:
             robot whose actuated joints are not the hips and knees.
         JointNotFoundError: A joint the robot lacks.
     """
+    from ucontrol.control.hzd_controller import HZDController, HZDSettings, legs_from_names
+
     check_keys("[controller]", table, HZD_KEYS)
     settings = HZDSettings(
         **{key: require_key(table, "[controller]", key) for key in _REQUIRED},

@@ -7,12 +7,11 @@ from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import check_keys, require_key
 from ucontrol.control.controller_table import tracked_contacts
-from ucontrol.control.impedance_controller import ImpedanceController, ImpedanceGains
-from ucontrol.control.path_reach import check_reach
 from ucontrol.control.path_table import cycle_from_table
 from ucontrol.exceptions import InvalidParameterError
 
 if TYPE_CHECKING:
+    from ucontrol.control.impedance_controller import ImpedanceController
     from ucontrol.scene.scene_data import SceneData
 
 _GAIN_KEYS = ("stiffness", "damping", "joint_damping", "posture_stiffness", "posture_damping")
@@ -59,6 +58,8 @@ def impedance_from_table(scene: SceneData, table: Mapping[str, Any]) -> Impedanc
         PathOutOfReachError: The path leaves the frame's workspace.
         PathThroughSurfaceError: The path crosses a surface outside its contact phase.
     """
+    from ucontrol.control.impedance_controller import ImpedanceController
+
     check_keys("[controller]", table, IMPEDANCE_KEYS)
     return ImpedanceController(**impedance_arguments(scene, table))
 
@@ -69,6 +70,9 @@ def impedance_arguments(scene: SceneData, table: Mapping[str, Any]) -> dict[str,
     Shared by the task-space laws built on it (``impedance``, ``reference_spreading``); the
     keys and errors are those of :func:`impedance_from_table`, whose caller checked the keys.
     """
+    from ucontrol.control.impedance_controller import ImpedanceGains
+    from ucontrol.control.path_reach import check_reach
+
     section = "[controller]"
     if scene.flexible is not None:
         raise InvalidParameterError(

@@ -6,14 +6,10 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import as_float, check_keys, require_key
-from ucontrol.control.juggling_controller import (
-    ArmJugglingController,
-    JugglingController,
-    JugglingSettings,
-)
 from ucontrol.exceptions import NotFoundError
 
 if TYPE_CHECKING:
+    from ucontrol.control.juggling_controller import JugglingController
     from ucontrol.scene.scene_data import SceneData
 
 #: Keys of a ``[controller] type = "juggling"`` table.
@@ -51,6 +47,12 @@ def juggling_from_table(scene: SceneData, table: Mapping[str, Any]) -> JugglingC
         NotFoundError: The contact is not one of the scene's constraints.
         InvalidParameterError: A bad value, or an apex out of reach.
     """
+    from ucontrol.control.juggling_controller import (
+        ArmJugglingController,
+        JugglingController,
+        JugglingSettings,
+    )
+
     check_keys("[controller]", table, JUGGLING_KEYS)
     constraints = scene.constraints
     name = str(table.get("contact", constraints.names[0]))

@@ -6,10 +6,10 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import check_keys, require_key
-from ucontrol.control.raibert_controller import RaibertController, RaibertSettings
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
 
 if TYPE_CHECKING:
+    from ucontrol.control.raibert_controller import RaibertController
     from ucontrol.scene.scene_data import SceneData
 
 _SETTING_KEYS = (
@@ -45,6 +45,8 @@ def raibert_from_table(scene: SceneData, table: Mapping[str, Any]) -> RaibertCon
         InvalidParameterError: A bad value (``joints`` not five names); the hip or the leg
             passive.
     """
+    from ucontrol.control.raibert_controller import RaibertController, RaibertSettings
+
     check_keys("[controller]", table, RAIBERT_KEYS)
     names = scene.constraints.names
     name = str(table.get("contact", names[0] if names else ""))
