@@ -5,7 +5,9 @@
 - its residual and marginal flag against :meth:`CoulombProblem.residual` and the solver's
   ``_marginal``, including contacts built to be marginal;
 - no result where J is singular (redundant contacts), and none generated beyond ``MAX_ROWS``;
-- the solver with and without it on warm-started sequences: both solved, same impulses.
+- the solver with and without it on warm-started sequences: both solved, same impulses;
+- the ctypes call (no extension) bitwise the builtin's, and a failed build leaving the numpy
+  polish alone.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 import pytest
 
 from ucontrol.model.compiled_function import compilation_possible
-from ucontrol.solvers import ProxsuiteCoulombSolver
+from ucontrol.solvers import ProxsuiteCoulombSolver, compiled_coulomb_newton
 from ucontrol.solvers.alart_curnier import AlartCurnier, solve_square
 from ucontrol.solvers.compiled_coulomb_newton import (
     MAX_ROWS,
@@ -51,7 +53,6 @@ def _numpy_step(problem: CoulombProblem, P: np.ndarray) -> np.ndarray:
 def test_one_step_is_the_numpy_newton_step(tangents: tuple[int, ...]) -> None:
     rng = np.random.default_rng(30)
     newton = CompiledCoulombNewton(tangents)
-    assert newton.compiled
     worst = 0.0
     for _ in range(100):
         problem = _problem(rng, tangents, dofs=18)
@@ -169,3 +170,32 @@ def test_solver_with_and_without_it_agree_on_warm_sequences(
         assert a.residual <= 1e-8
         np.testing.assert_allclose(a.impulses, r.impulses, rtol=0, atol=1e-7)
     assert sum(solved_fast) >= 30  # most steps solved by the compiled Newton
+
+
+def test_ctypes_call_where_the_extension_is_missing(monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(35)
+    problem = _problem(rng, (2, 1), dofs=18)
+    P = rng.standard_normal(problem.size)
+    native = CompiledCoulombNewton((2, 1)).polish(problem, P, 3, 0.0, 1e-8)
+    monkeypatch.setattr(compiled_coulomb_newton, "native_runner", lambda *args: None)
+    through_ctypes = CompiledCoulombNewton((2, 1)).polish(problem, P, 3, 0.0, 1e-8)
+    assert native is not None and through_ctypes is not None
+    np.testing.assert_array_equal(native[0], through_ctypes[0])
+    assert native[2] == through_ctypes[2]
+
+
+def test_failed_build_leaves_the_numpy_polish(monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken(tangents: tuple[int, ...]) -> None:
+        raise OSError("no compiler here")
+
+    monkeypatch.setattr(compiled_coulomb_newton, "_library", broken)
+    compiled_newton.cache_clear()
+    try:
+        assert compiled_newton(np.array([2, 0], dtype=np.intp).tobytes(), 0) is None
+        rng = np.random.default_rng(36)
+        solver = ProxsuiteCoulombSolver()
+        for _ in range(3):  # warm-started solves of one layout: the numpy polish alone
+            solution = solver.solve_coulomb(_problem(rng, (2, 0), dofs=18))
+            assert solution.status == "solved"
+    finally:
+        compiled_newton.cache_clear()

@@ -5,9 +5,10 @@ of a contact layout is a close start (:mod:`ucontrol.solvers.proxsuite_coulomb`,
 From there, on a problem of a few contacts (Solo's four feet: 12 rows), the numpy polish spends
 its time in Python and numpy's fixed costs per call, not in arithmetic. Here the same
 semismooth Newton step of :mod:`ucontrol.solvers.alart_curnier` is written once as a casadi
-expression for each row layout, and compiled to C
-(:class:`~ucontrol.model.compiled_function.CompiledFunction`: cached on disk, casadi's virtual
-machine without a compiler). One call computes, from impulses :math:`P`,
+expression for each row layout, compiled to C into the compile cache
+(:mod:`ucontrol.model.compile_cache`) and called as a builtin
+(:mod:`ucontrol.model.native_call`); without a C compiler the numpy polish runs alone. One
+call computes, from impulses :math:`P`,
 
 1. the Alart–Curnier function :math:`F(P)` and an element of its generalized Jacobian by
    casadi's automatic differentiation (the branches of :math:`\max` and of the projection on
@@ -36,13 +37,22 @@ solve").
 
 from __future__ import annotations
 
+import ctypes
 import functools
+import hashlib
+import logging
+import subprocess
+from importlib import metadata
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol.model.compiled_function import CompiledFunction, compilation_possible
+from ucontrol.exceptions import CompiledCallError
+from ucontrol.model.compile_cache import build_library
+from ucontrol.model.compiled_function import compilation_possible
+from ucontrol.model.native_call import native_runner
 from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION
 from ucontrol.solvers.coulomb_problem import CoulombProblem
 
@@ -56,6 +66,8 @@ MAX_ROWS = 12
 #: Relative distance to the cone's boundary within which a slow contact is marginal (as
 #: :data:`ucontrol.solvers.proxsuite_coulomb.MARGIN`, which re-exports it).
 MARGIN = 1e-9
+_logger = logging.getLogger(__name__)
+
 #: Floor of squared norms under a square root or a division (0 / 0 and its derivative).
 _TINY = 1e-300
 
@@ -63,21 +75,61 @@ _TINY = 1e-300
 class CompiledCoulombNewton:
     """The compiled Alart–Curnier Newton step of one row layout (module docstring).
 
+    The library is found in the compile cache by the layout, casadi's version and this
+    module's source, so that a process whose cache holds it neither imports casadi nor builds
+    the expression (the expression is built, and compiled, only for a missing library).
+
     Args:
         tangents: Tangential rows of each contact (0, 1 or 2), shape (m,); no bilateral row.
 
-    Attributes:
-        compiled: Whether the step runs compiled code (False: casadi's virtual machine).
+    Raises:
+        OSError: No C compiler, or the library does not load.
+        subprocess.SubprocessError: The compilation failed.
     """
 
     def __init__(self, tangents: tuple[int, ...]) -> None:
-        self._function = CompiledFunction(newton_step_function(tangents))
-        self.compiled = self._function.compiled
-        self._run = self._function.runner()
-        inputs = [self._function.input_view(i) for i in range(5)]
-        self._D, self._b, self._mu, self._P, self._tolerance = inputs
-        outputs = [self._function.output_buffer(i) for i in range(5)]
-        self._next, self._candidate, self._velocity, self._residual, self._marginal = outputs
+        m = len(tangents)
+        size = m + sum(tangents)
+        name = _name(tangents)
+        library = ctypes.CDLL(str(_library(tangents)))
+        entry, work = getattr(library, name), getattr(library, f"{name}_work")
+        sizes = [ctypes.c_longlong() for _ in range(4)]  # casadi_int: arguments, results, iw, w
+        if work(*(ctypes.byref(value) for value in sizes)) != 0:
+            raise OSError(f"{name}: its work sizes are not readable")
+        n_arg, n_res, n_iw, n_w = (max(int(value.value), 5) for value in sizes)
+        self._library = library  # keeps it loaded
+        self._inputs = [np.zeros(n) for n in (size * size, size, m, size, 1)]
+        self._outputs = [np.zeros(n) for n in (size, size, size, 1, 1)]
+        double_p = ctypes.POINTER(ctypes.c_double)
+        self._arg = (double_p * n_arg)(*(x.ctypes.data_as(double_p) for x in self._inputs))
+        self._res = (double_p * n_res)(*(x.ctypes.data_as(double_p) for x in self._outputs))
+        self._iw = np.zeros(n_iw, dtype=np.int64)
+        self._w = np.zeros(n_w)
+        address = int(ctypes.cast(entry, ctypes.c_void_p).value or 0)
+        runner = native_runner(
+            address,
+            ctypes.addressof(self._arg),
+            ctypes.addressof(self._res),
+            self._iw.ctypes.data,
+            self._w.ctypes.data,
+            self,
+            name,
+        )
+        if runner is None:  # the extension not built: ctypes
+            entry.restype = ctypes.c_int
+            iw = self._iw.ctypes.data_as(ctypes.POINTER(ctypes.c_longlong))
+            call = functools.partial(
+                entry, self._arg, self._res, iw, self._w.ctypes.data_as(double_p), 0
+            )
+
+            def runner() -> None:
+                if call() != 0:
+                    raise CompiledCallError(name, "returned a non-zero status")
+
+        self._run = runner
+        self._D = self._inputs[0].reshape(size, size)  # D is symmetric: either order
+        self._b, self._mu, self._P, self._tolerance = self._inputs[1:]
+        self._next, self._candidate, self._velocity, self._residual, self._marginal = self._outputs
 
     def polish(
         self, problem: CoulombProblem, P: Vector, iterations: int, target: float, tolerance: float
@@ -95,12 +147,15 @@ class CompiledCoulombNewton:
             The best impulses (r,) (normal ones >= 0), their velocities (r,), natural-map
             residual in [m/s], and whether a contact of them is marginal; None where no step
             was finite and lowered the residual.
+
+        Raises:
+            CompiledCallError: The compiled step returned a non-zero status.
         """
-        self._D[...] = problem.D
-        self._b[...] = problem.b
-        self._mu[...] = problem.mu
-        self._P[...] = P
-        self._tolerance[...] = tolerance
+        self._D.T[...] = problem.D  # column-major, as casadi reads it
+        self._b[:] = problem.b
+        self._mu[:] = problem.mu
+        self._P[:] = P
+        self._tolerance[0] = tolerance
         run, residual = self._run, self._residual
         best: tuple[Vector, Vector, float, bool] | None = None
         best_residual = np.inf
@@ -113,17 +168,17 @@ class CompiledCoulombNewton:
             best = (self._candidate.copy(), self._velocity.copy(), value, self._marginal[0] > 0)
             if value <= target:
                 break
-            self._P[...] = self._next
+            self._P[:] = self._next
         return best
 
 
 @functools.lru_cache(maxsize=16)
 def compiled_newton(tangents: bytes, equalities: int) -> CompiledCoulombNewton | None:
-    """The compiled Newton step of a layout, or None where none is generated.
+    """The compiled Newton step of a layout, or None where none is available.
 
-    None for bilateral rows, more than :data:`MAX_ROWS` rows, or where nothing would be
-    compiled (no C compiler, or ``UCONTROL_NO_COMPILE``: casadi's virtual machine is slower
-    than the numpy polish).
+    None for bilateral rows, more than :data:`MAX_ROWS` rows, or where nothing compiles (no
+    C compiler, ``UCONTROL_NO_COMPILE``, a failed build: casadi's virtual machine would be
+    slower than the numpy polish).
 
     Args:
         tangents: The bytes of the tangent counts (an intp array, as
@@ -133,8 +188,36 @@ def compiled_newton(tangents: bytes, equalities: int) -> CompiledCoulombNewton |
     counts = tuple(int(k) for k in np.frombuffer(tangents, dtype=np.intp))
     if equalities or len(counts) + sum(counts) > MAX_ROWS or not compilation_possible():
         return None
-    newton = CompiledCoulombNewton(counts)
-    return newton if newton.compiled else None
+    try:
+        return CompiledCoulombNewton(counts)
+    except (OSError, AttributeError, subprocess.SubprocessError) as error:
+        _logger.info("Newton step of layout %s not compiled (%s): numpy polish", counts, error)
+        return None
+
+
+def _name(tangents: tuple[int, ...]) -> str:
+    """The C name of the Newton step of the layout ``tangents``."""
+    return "coulomb_newton_" + "".join(str(k) for k in tangents)
+
+
+def _library(tangents: tuple[int, ...]) -> Path:
+    """The compiled library of the layout ``tangents``, built (once) if absent."""
+
+    def source() -> str:
+        import casadi as ca
+
+        generator = ca.CodeGenerator(f"{_name(tangents)}.c", {"with_header": False})
+        generator.add(newton_step_function(tangents))
+        return str(generator.dump())
+
+    key = f"{_name(tangents)} casadi {metadata.version('casadi')} {_source_digest()}"
+    return build_library(_name(tangents), key, source)
+
+
+@functools.cache
+def _source_digest() -> str:
+    """SHA-256 of this module's source: a changed expression is compiled again."""
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
 
 
 def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
@@ -190,9 +273,9 @@ def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
     )
     residual = ca.if_else(regular, residual, np.inf)
     return ca.Function(
-        "coulomb_newton_" + "".join(str(k) for k in tangents),
+        _name(tangents),
         [D, b, mu, P, tolerance],
-        [P_next, candidate, velocity, residual, marginal],
+        [ca.densify(x) for x in (P_next, candidate, velocity, residual, marginal)],
         ["D", "b", "mu", "P", "tolerance"],
         ["next", "candidate", "velocity", "residual", "marginal"],
     )
