@@ -30,9 +30,9 @@ the residual (or is not finite), it stops and the caller goes on with the numpy 
 readable reference, which has both.
 
 Only layouts of at most :data:`MAX_ROWS` rows without bilateral rows are generated: the
-symbolic QR grows as the cube of the rows, and at 24 rows its compiled step was slower than
-LAPACK's from numpy and took a minute to compile (docs/benchmarks.md, "Frictional contact
-solve").
+symbolic QR grows as the cube of the rows, and twice as many rows made the compiled step
+slower than LAPACK's from numpy, and long to compile (docs/benchmarks.md, "Issue 30, item 1:
+the Newton step of a few contacts compiled").
 """
 
 from __future__ import annotations
