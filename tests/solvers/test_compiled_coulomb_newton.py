@@ -184,9 +184,12 @@ def test_ctypes_call_where_the_extension_is_missing(monkeypatch: pytest.MonkeyPa
     assert native[2] == through_ctypes[2]
 
 
-def test_failed_build_leaves_the_numpy_polish(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("failure", [OSError("no compiler here"), ImportError("no casadi")])
+def test_failed_build_leaves_the_numpy_polish(
+    monkeypatch: pytest.MonkeyPatch, failure: Exception
+) -> None:
     def broken(tangents: tuple[int, ...]) -> None:
-        raise OSError("no compiler here")
+        raise failure
 
     monkeypatch.setattr(compiled_coulomb_newton, "_library", broken)
     compiled_newton.cache_clear()

@@ -190,7 +190,7 @@ def compiled_newton(tangents: bytes, equalities: int) -> CompiledCoulombNewton |
         return None
     try:
         return CompiledCoulombNewton(counts)
-    except (OSError, AttributeError, subprocess.SubprocessError) as error:
+    except (OSError, ImportError, AttributeError, subprocess.SubprocessError) as error:
         _logger.info("Newton step of layout %s not compiled (%s): numpy polish", counts, error)
         return None
 
