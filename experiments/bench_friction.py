@@ -6,9 +6,10 @@ and in turn, by :class:`~ucontrol.solvers.ProxsuiteCoulombSolver` (one solver ob
 starts carry from problem to problem as in the run) and by Pinocchio 4.1's
 ``ADMMConstraintSolver`` and ``PGSConstraintSolver`` through
 :class:`~ucontrol.solvers.PinocchioContactSolver` (warm-started the same way, PGS swept until
-our residual tolerance is met). Reported per scene and solver: the CPU time per solve (median of
-``--rounds`` interleaved rounds), the largest natural-map residual in [m/s], the solves left
-above the tolerance, and for ours the solves settled without a QP.
+our residual tolerance is met), and by ours without the compiled Newton step
+(``compiled_newton=False``: the numpy polish alone). Reported per scene and solver: the CPU
+time per solve (median of ``--rounds`` interleaved rounds), the largest natural-map residual in
+[m/s], the solves left above the tolerance, and for ours the solves settled without a QP.
 
 Run: ``python experiments/bench_friction.py`` (about 2 min);
 ``--scenes panda_table_friction --limit 200`` for a smoke run.
@@ -28,7 +29,9 @@ from ucontrol.simulate import simulate
 from ucontrol.solvers import CoulombProblem, PinocchioContactSolver, ProxsuiteCoulombSolver
 
 SCENES = ("panda_table_friction", "block_incline_spatial", "block_incline", "painleve_rod")
-SOLVERS = ("ucontrol", "pin ADMM", "pin PGS")
+#: Ours (compiled Newton from the warm start where the layout has one), ours with the numpy
+#: polish alone (``compiled_newton=False``), Pinocchio's two.
+SOLVERS = ("ucontrol", "ucontrol numpy", "pin ADMM", "pin PGS")
 TOLERANCE = 1e-8  # [m/s], natural-map residual accepted as solved
 
 
@@ -58,8 +61,9 @@ def recorded_problems(scene_name: str, duration: float | None) -> list[CoulombPr
 
 
 def _solver(name: str) -> Any:
-    if name == "ucontrol":
-        return ProxsuiteCoulombSolver(residual_tolerance=TOLERANCE)
+    if name.startswith("ucontrol"):
+        compiled = name == "ucontrol"
+        return ProxsuiteCoulombSolver(residual_tolerance=TOLERANCE, compiled_newton=compiled)
     kind = "admm" if name == "pin ADMM" else "pgs"
     return PinocchioContactSolver(kind, residual_tolerance=TOLERANCE)
 
@@ -96,7 +100,7 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, Any]]:
         + " | ".join(f"{name} [µs/solve]" for name in SOLVERS)
         + " | "
         + " | ".join(f"{name} max residual [m/s]" for name in SOLVERS)
-        + " | unsolved (ours, ADMM, PGS) | ours without a QP |"
+        + f" | unsolved ({', '.join(SOLVERS)}) | ours without a QP |"
     )
     print("|:---|---:|---:|" + "---:|" * (2 * len(SOLVERS) + 2))
     results = []

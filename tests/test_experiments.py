@@ -115,6 +115,7 @@ def test_bench_friction_runs(capsys: pytest.CaptureFixture[str]) -> None:
         assert result["solves"] > 0
         assert result["ucontrol"]["residual"] <= bench.TOLERANCE
         assert result["ucontrol"]["unsolved"] == 0
+        assert result["ucontrol numpy"]["residual"] <= bench.TOLERANCE
         assert result["pin ADMM"]["residual"] >= 0.0  # ran (PGS may stall on the rod)
     spatial = results[0]
     assert spatial["ucontrol"]["qp_free"] == spatial["solves"] - 1  # warm starts after the first

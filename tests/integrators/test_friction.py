@@ -185,7 +185,10 @@ def test_unsolved_step_raises_or_warns_with_its_residual(cases) -> None:
         warnings.simplefilter("ignore", ContactSolveWarning)
         result = simulate(warned, duration=0.02)
     unsolved = int(np.sum(result.log.solver_status == UNSOLVED))
-    assert unsolved > 10  # (a residual of exactly 0 is solved)
+    # Exactly the steps above 1e-30 m/s are unsolved (a residual of exactly 0 is solved: the
+    # compiled Newton steps, kept down to round-off, reach it on some steps).
+    assert unsolved > 0
+    assert unsolved == int(np.sum(result.log.complementarity_residual > 1e-30))
     assert result.summary["n_unsolved_contact_solves"] == unsolved
     raising = dataclasses.replace(scene, integrator=settings)
     with pytest.raises(SimulationError, match="proxsuite-tresca failed"):

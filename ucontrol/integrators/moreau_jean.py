@@ -1099,10 +1099,15 @@ def _add_friction_impulses(
         directions: World direction of each tangential row, shape (sum(tangents), 3).
         solution: The step's contact solution (normal rows, then the tangential ones).
     """
+    rows = solution.impulses[indices.size : indices.size + directions.shape[0], None]
+    count = int(tangents[0])
+    if count and rows.shape[0] == count * indices.size:  # the same count on every constraint
+        # Each constraint's impulse along its tangents, summed over them in order.
+        per_constraint = (rows * directions).reshape(indices.size, count, 3)
+        friction_impulse[indices] = per_constraint.sum(axis=1)
+        return
     frictional = tangents > 0
     first_rows = np.cumsum(tangents[frictional]) - tangents[frictional]  # of each owner
-    rows = solution.impulses[indices.size : indices.size + directions.shape[0], None]
-    # Each constraint's impulse along its tangents, summed over them in order.
     friction_impulse[indices[frictional]] = np.add.reduceat(rows * directions, first_rows)
 
 

@@ -17,7 +17,10 @@ ends on the disk itself, not on the polygon; the polish (below) then makes it ex
 0. **Warm start, no QP.** From the second solve of a contact layout on, the last solution is
    polished first (step 3) on the new problem: successive steps of a time-stepping run change
    the problem little, and the polish reaches the residual tolerance from there in one or two
-   exact solves or Newton iterations, without a QP. The solve ends there unless it left a
+   exact solves or Newton iterations, without a QP. On layouts of a few contacts (at most
+   :data:`~ucontrol.solvers.compiled_coulomb_newton.MAX_ROWS` rows) the Newton steps run
+   compiled first (:mod:`ucontrol.solvers.compiled_coulomb_newton`); the numpy polish follows
+   only where they leave the residual above the tolerance. The solve ends there unless it left a
    contact at its friction bound sliding slower than the tolerance (a block at the friction
    angle: sliding at that speed also satisfies Coulomb's law, and a warm start would keep the
    creep of round-off going step after step), which the fixed point below solves again.
@@ -67,6 +70,7 @@ from numpy.typing import NDArray
 from ucontrol._validation import as_positive
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.solvers.alart_curnier import AlartCurnier, solve_square
+from ucontrol.solvers.compiled_coulomb_newton import MARGIN, compiled_newton
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.coulomb_problem import CoulombProblem, tangential_norms
 from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD
@@ -84,9 +88,6 @@ NEWTON_ITERATIONS = 20
 #: The polish stops at a natural-map residual of this times the largest entry of b in
 #: absolute value (or at POLISH_THRESHOLD, the smaller).
 ROUND_OFF = 1e-14
-#: Relative distance to the cone's boundary within which a contact that slides slower than
-#: the residual tolerance is marginal (module docstring, step 0).
-MARGIN = 1e-9
 
 
 class ProxsuiteCoulombSolver:
@@ -101,6 +102,10 @@ class ProxsuiteCoulombSolver:
         facets: Facets of the polygon that stands for the friction disk of spatial contacts.
         polish: Refine each iterate by exact solves on the contact statuses it suggests and
             semismooth Newton iterations (step 3 of the module docstring).
+        compiled_newton: Polish the last solution of a small layout by the compiled Newton
+            step of :mod:`ucontrol.solvers.compiled_coulomb_newton` first (step 0 of the
+            module docstring); where it does not solve, or nothing compiles, the numpy polish
+            runs as without it.
     """
 
     name = "proxsuite-tresca"
@@ -116,6 +121,7 @@ class ProxsuiteCoulombSolver:
         qp_max_iter: int = 5000,
         facets: int = 4,
         polish: bool = True,
+        compiled_newton: bool = True,
     ) -> None:
         self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
         self.max_iter = int(as_positive("max_iter", max_iter))
@@ -123,6 +129,7 @@ class ProxsuiteCoulombSolver:
             raise InvalidParameterError("facets", facets, ">= 3")
         self.facets = int(facets)
         self.polish = polish
+        self.compiled_newton = compiled_newton
         self._qp = WarmStartedQP(eps_abs=eps_abs, max_iter=qp_max_iter, bounds_change=True)
         angles = 2.0 * np.pi * np.arange(self.facets) / self.facets
         self._facet_angles = np.column_stack((np.cos(angles), np.sin(angles)))  # (facets, 2)
@@ -149,6 +156,19 @@ class ProxsuiteCoulombSolver:
         guess = self._guesses.get(key)
         best_P, best_u, best = np.zeros(problem.size), problem.b, np.inf
         qp_iterations, polished, status, outer = 0, False, "", 0
+        newton = (
+            compiled_newton(problem.tangents.tobytes(), problem.equalities)
+            if self.polish and self.compiled_newton
+            else None
+        )
+        if newton is not None and guess is not None:  # step 0, compiled: Newton from the guess
+            # Down to the round-off floor (target 0: until a step no longer lowers the residual),
+            # below the numpy polish's residuals on Solo-12's feet (docs/benchmarks.md).
+            fast = newton.polish(problem, guess, NEWTON_ITERATIONS, 0.0, self.residual_tolerance)
+            if fast is not None and fast[2] <= self.residual_tolerance and not fast[3]:
+                self._guesses[key] = fast[0]
+                elapsed = time.perf_counter() - start
+                return ContactSolution(fast[0], fast[1], "solved", 0, fast[2], elapsed, True)
         if guess is not None and self.polish:  # step 0: polish the last solution, no QP
             best_u = problem.velocity(guess)
             best_P, best = guess, problem.residual(guess, best_u)
@@ -301,7 +321,7 @@ def _polish(
         whether the polish improved on ``P``.
     """
     improved = False
-    target = min(POLISH_THRESHOLD, ROUND_OFF * float(np.abs(problem.b).max(initial=0.0)))
+    target = _polish_target(problem)
     for _ in range(STATUS_PASSES):
         candidate = _solve_on_statuses(problem, P, u)
         if candidate is None:
@@ -317,6 +337,11 @@ def _polish(
         P, u, residual, NEWTON_ITERATIONS, target
     )
     return P, u, residual, improved or newton_improved
+
+
+def _polish_target(problem: CoulombProblem) -> float:
+    """Natural-map residual in [m/s] at which a polish stops (:data:`ROUND_OFF`)."""
+    return min(POLISH_THRESHOLD, ROUND_OFF * float(np.abs(problem.b).max(initial=0.0)))
 
 
 def _solve_on_statuses(problem: CoulombProblem, P: Vector, u: Vector) -> Vector | None:
