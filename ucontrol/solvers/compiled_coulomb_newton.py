@@ -39,10 +39,8 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import hashlib
 import logging
 import subprocess
-from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -50,7 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.exceptions import CompiledCallError
-from ucontrol.model.compile_cache import build_library
+from ucontrol.model.compile_cache import build_library, definition_key
 from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.model.native_call import native_runner
 from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION
@@ -75,8 +73,8 @@ _TINY = 1e-300
 class CompiledCoulombNewton:
     """The compiled Alart–Curnier Newton step of one row layout (module docstring).
 
-    The library is found in the compile cache by the layout, casadi's version and this
-    module's source, so that a process whose cache holds it neither imports casadi nor builds
+    The library is found in the compile cache by its definition key (the layout, this module's
+    source and the installed casadi: :func:`~ucontrol.model.compile_cache.definition_key`), so that a process whose cache holds it neither imports casadi nor builds
     the expression (the expression is built, and compiled, only for a missing library).
 
     Args:
@@ -210,14 +208,8 @@ def _library(tangents: tuple[int, ...]) -> Path:
         generator.add(newton_step_function(tangents))
         return str(generator.dump())
 
-    key = f"{_name(tangents)} casadi {metadata.version('casadi')} {_source_digest()}"
+    key = definition_key([_name(tangents)], [__name__])
     return build_library(_name(tangents), key, source)
-
-
-@functools.cache
-def _source_digest() -> str:
-    """SHA-256 of this module's source: a changed expression is compiled again."""
-    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
 
 
 def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
