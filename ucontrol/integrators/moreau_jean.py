@@ -469,8 +469,15 @@ class MoreauJean:
             self._coulomb_bounds = self.dt * friction.coulomb[index]
 
     def reset(self) -> None:
-        """Start a new run: forget the memory of the last step (:attr:`memory`)."""
+        """Start a new run as a new integrator would: no step memory, no warm starts.
+
+        Renews :attr:`memory` and resets the contact solvers, which start each solve from the
+        last one's solution.
+        """
         self.memory = fresh_memory(self.constraints.size)
+        self.solver.reset()
+        if self.friction_solver is not None:
+            self.friction_solver.reset()
 
     def _compiled_free_step(self) -> CompiledFreeStep | None:
         """The free part of the step as one compiled call, where the step allows it.

@@ -81,6 +81,10 @@ class ProxsuiteLCPSolver:
         self._bounds: dict[int, tuple[NDArray[np.float64], ...]] = {}
         self._mixed_bounds: dict[tuple[int, int], tuple[NDArray[np.float64], ...]] = {}
 
+    def reset(self) -> None:
+        """Forget the warm starts: the next solves start as a new solver's."""
+        self._qp.reset()
+
     def solve(self, D: NDArray[np.float64], b: NDArray[np.float64]) -> ContactSolution:
         """Impulses P >= 0 with D P + b >= 0 and P · (D P + b) = 0.
 
