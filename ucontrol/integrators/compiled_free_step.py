@@ -28,7 +28,9 @@ applies the impact law (:func:`~ucontrol.integrators.step_stages.newton_offsets`
 symbols) to every row as if it were active, with the rows held by the step memory's
 activation: the contact problem of the step reads the active rows' terms (:meth:`offsets`).
 The restitutions are an input of the call, written once at construction, not constants of its
-C: one library serves every restitution (a Monte Carlo over restitution compiles it once).
+C: one library serves every restitution (a Monte Carlo over restitution compiles it once). Only
+the rows without restitution (joint stops, plastic contacts) read a constant 0, so that their
+rebound and the energy guard of their one-row steps are not evaluated at every call.
 
 With ``single_rows``, the call also solves, for each constraint i in parallel, the step in
 which i alone is active, as the closed form of the one-row LCP
@@ -132,12 +134,17 @@ class CompiledFreeStep:
         activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
         restitution = np.asarray(rules.restitution, dtype=float)
         # An input, not constants: one library serves every restitution (Monte Carlo draws).
+        # The rows without restitution (stops, plastic contacts) read a constant 0 instead, so
+        # that their rebound and the one-row steps' energy guard fold away.
         restitution_s = ca.SX.sym("restitution", n)
+        law_restitution = ca.vertcat(
+            *(restitution_s[i] if e else ca.SX(0.0) for i, e in enumerate(restitution.tolist()))
+        )
         offsets = newton_offsets(
             _casadi_ops(),
             gap,
             velocity,
-            restitution_s,
+            law_restitution,
             activation > 0.0,
             h,
             rules.threshold,
@@ -205,9 +212,10 @@ class CompiledFreeStep:
         other outputs.
         """
         self._kinetic[0] = state.kinetic_energy
-        if activation is not self._activation_source or activation.flags.writeable:
+        if activation is not self._activation_source:  # (a writeable one is never kept)
             self._activation[:] = activation
-            self._activation_source = activation  # a read-only array: unchanged until replaced
+            # A read-only array is unchanged until replaced: the next call need not copy it.
+            self._activation_source = None if activation.flags.writeable else activation
         q, v, tau_in, J, gap, velocity = self._inputs
         source = self._source
         if source is not None and state.normal_rows is source.last_rows:
