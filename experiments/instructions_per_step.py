@@ -9,7 +9,7 @@ are subtracted, so that the run's own set-up cancels: the result is the cost of 
 the closed loop (controller, plant, log), the interpreter included.
 ``OPENBLAS_NUM_THREADS=1`` keeps OpenBLAS's idle worker threads, whose spinning callgrind
 would count, out of the figures, and ``PYTHONHASHSEED=0`` fixes the interpreter's hashing;
-the same tree measured twice then agrees to about 0.2 % (docs/benchmarks.md).
+the same tree measured twice then agrees to about 0.3 % (docs/benchmarks.md).
 
 ``--python`` chooses the interpreter, hence the ucontrol tree it imports (a checkout's
 virtual environment), ``--tree`` the folder whose ``robots/`` holds the scenes.
