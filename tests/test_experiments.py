@@ -212,3 +212,16 @@ def test_bench_alternating_runs(capsys: pytest.CaptureFixture[str]) -> None:
         smallest, median = row["after"]
         assert 0.0 < smallest <= median  # two rounds of two runs each
     assert "| beads:2 |" in capsys.readouterr().out
+
+
+def test_instructions_per_step_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    import shutil
+
+    if shutil.which("valgrind") is None or shutil.which("callgrind_control") is None:
+        pytest.skip("valgrind's callgrind is not installed")
+    flags = "--scenes two_link_drop --duration 0.004".split()
+    [(name, instructions)] = _load("instructions_per_step").main(flags)
+    # A step of the two-link arm in free fall: the plant and the log's Python calls, at least
+    # tens of thousands of instructions (about 170 000 measured), never the set-up's millions.
+    assert name == "two_link_drop" and 1e4 < instructions < 1e6
+    assert "| two_link_drop |" in capsys.readouterr().out

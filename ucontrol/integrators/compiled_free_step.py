@@ -28,7 +28,9 @@ applies the impact law (:func:`~ucontrol.integrators.step_stages.newton_offsets`
 symbols) to every row as if it were active, with the rows held by the step memory's
 activation: the contact problem of the step reads the active rows' terms (:meth:`offsets`).
 The restitutions are an input of the call, written once at construction, not constants of its
-C: one library serves every restitution (a Monte Carlo over restitution compiles it once).
+C: one library serves every restitution (a Monte Carlo over restitution compiles it once). Only
+the rows without restitution (joint stops, plastic contacts) read a constant 0, so that their
+rebound and the energy guard of their one-row steps are not evaluated at every call.
 
 With ``single_rows``, the call also solves, for each constraint i in parallel, the step in
 which i alone is active, as the closed form of the one-row LCP
@@ -127,7 +129,7 @@ class CompiledFreeStep:
         size = nv if flexible is None else nv + flexible.nf
         W0, Kq, F = _constant_terms(nv, size, dt, theta, flexible, viscous)
         restitution = np.asarray(rules.restitution, dtype=float)
-        elastic = bool(restitution.any())
+        elastic = tuple(bool(e) for e in restitution.tolist())  # the rows with a rebound
         # What the Function is built from: casadi is imported only to build it (a cache miss).
         # (with the shared stages' tolerances as they are now: constants of the Function)
         definition = definition_key(
@@ -179,9 +181,10 @@ class CompiledFreeStep:
         other outputs.
         """
         self._kinetic[0] = state.kinetic_energy
-        if activation is not self._activation_source or activation.flags.writeable:
+        if activation is not self._activation_source:  # (a writeable one is never kept)
             self._activation[:] = activation
-            self._activation_source = activation  # a read-only array: unchanged until replaced
+            # A read-only array is unchanged until replaced: the next call need not copy it.
+            self._activation_source = None if activation.flags.writeable else activation
         q, v, tau_in, J, gap, velocity = self._inputs
         source = self._source
         if source is not None and state.normal_rows is source.last_rows:
@@ -287,12 +290,12 @@ class ImpactRules(NamedTuple):
 
 
 def _free_step_function(
-    nv: int, size: int, n: int, rules: ImpactRules, elastic: bool, single_rows: bool
+    nv: int, size: int, n: int, rules: ImpactRules, elastic: tuple[bool, ...], single_rows: bool
 ) -> Any:
     """The casadi Function of :class:`CompiledFreeStep` (the module docstring's terms).
 
-    ``elastic``: whether some restitution is non-zero (else the impact law's rebound terms are
-    left out).
+    ``elastic``: whether each row's restitution is non-zero (n,); the others read a constant 0
+    (their rebound terms fold away).
     """
     import casadi as ca  # imported only for the steps that use it, and only to build
 
@@ -315,16 +318,19 @@ def _free_step_function(
     activation, kinetic = ca.SX.sym("activation", n), ca.SX.sym("kinetic", 1)
     # An input, not constants: one library serves every restitution (Monte Carlo draws).
     restitution_s = ca.SX.sym("restitution", n)
+    law_restitution = ca.vertcat(
+        *(restitution_s[i] if rebound else ca.SX(0.0) for i, rebound in enumerate(elastic))
+    )
     offsets = newton_offsets(
         _casadi_ops(),
         gap,
         velocity,
-        restitution_s,
+        law_restitution,
         activation > 0.0,
         h,
         rules.threshold,
         rules.newton_law == "siconos",
-        not elastic,
+        not any(elastic),
     )  # the impact law of every row, each as if active
     parts = [
         v_free,

@@ -479,8 +479,15 @@ class MoreauJean:
             self._coulomb_bounds = self.dt * friction.coulomb[index]
 
     def reset(self) -> None:
-        """Start a new run: forget the memory of the last step (:attr:`memory`)."""
+        """Start a new run as a new integrator would: no step memory, no warm starts.
+
+        Renews :attr:`memory` and resets the contact solvers, which start each solve from the
+        last one's solution.
+        """
         self.memory = fresh_memory(self.constraints.size)
+        self.solver.reset()
+        if self.friction_solver is not None:
+            self.friction_solver.reset()
 
     def _compiled_free_step(self) -> CompiledFreeStep | None:
         """The free part of the step as one compiled call, where the step allows it.
@@ -599,17 +606,16 @@ class MoreauJean:
             predicted = self._barred(state, predicted, memory)
         active, activation = active_set(memory, state.gap, predicted, self._release)
         count = np.count_nonzero(active)
-        rows = count + self._problem_rows
-        if not rows:  # no contact problem: nothing held next
+        if not count and not self._problem_rows:  # no contact problem: nothing held next
             self.memory = self._free_memory
             q_next = self._advance_theta(state, v_free) if q_free is None else q_free
             return StepOutcome(
                 q_next, v_free, self._no_impulse, active, None, 0, False,
                 self._no_friction_impulse,
             )  # fmt: skip
-        if count == rows == 1 and free_step is not None and free_step.single_rows:
-            if not memory.first:
-                return self._single_row_outcome(free_step, active, int(active.argmax()), state)
+        # One active row, the whole problem (a free step has no joint or bilateral rows).
+        if count == 1 and free_step is not None and free_step.single_rows and not memory.first:
+            return self._single_row_outcome(free_step, active, int(active.argmax()), state)
         indices = active.nonzero()[0]
         return self._contact_outcome(state, v_free, inverse_inertia, active, indices, activation)
 

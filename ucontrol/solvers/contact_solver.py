@@ -43,6 +43,10 @@ class LCPSolver(Protocol):
         """Impulses (m,) for the Delassus matrix D (m, m) [m/s per N s] and b (m,) [m/s]."""
         ...
 
+    def reset(self) -> None:
+        """Forget what earlier solves left (warm starts): solve as a new solver would."""
+        ...
+
 
 class CoulombSolver(Protocol):
     """Solves contact problems with Coulomb friction (:class:`CoulombProblem`).
@@ -61,4 +65,8 @@ class CoulombSolver(Protocol):
 
     def solve_coulomb(self, problem: CoulombProblem) -> ContactSolution:
         """Stacked impulses (r,) of ``problem``: normal then tangential."""
+        ...
+
+    def reset(self) -> None:
+        """Forget what earlier solves left (warm starts): solve as a new solver would."""
         ...

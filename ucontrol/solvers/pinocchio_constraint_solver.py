@@ -226,6 +226,10 @@ class PinocchioContactSolver:
         self._empty_model = pin.Model()
         self._problems: dict[tuple[int, bool], tuple[Any, ...]] = {}
 
+    def reset(self) -> None:
+        """Drop the backends and their results: the next solves start as a new solver's."""
+        self._problems.clear()
+
     def _problem(self, m: int, friction: bool = False) -> tuple[Any, ...]:
         """Constraint models, datas, backend and buffers for m contacts.
 

@@ -135,6 +135,11 @@ class ProxsuiteCoulombSolver:
         self._facet_angles = np.column_stack((np.cos(angles), np.sin(angles)))  # (facets, 2)
         self._guesses: dict[bytes, Vector] = {}
 
+    def reset(self) -> None:
+        """Forget the warm starts (the QPs' and the last solutions): solve as a new solver."""
+        self._qp.reset()
+        self._guesses.clear()
+
     def solve_coulomb(self, problem: CoulombProblem) -> ContactSolution:
         """Impulses solving ``problem`` to ``residual_tolerance``, if it is reached.
 

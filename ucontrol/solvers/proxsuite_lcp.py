@@ -87,6 +87,10 @@ class ProxsuiteLCPSolver:
         self._bounds: dict[int, tuple[NDArray[np.float64], ...]] = {}
         self._mixed_bounds: dict[tuple[int, int], tuple[NDArray[np.float64], ...]] = {}
 
+    def reset(self) -> None:
+        """Forget the warm starts: the next solves start as a new solver's."""
+        self._qp.reset()
+
     def solve(
         self,
         D: NDArray[np.float64],

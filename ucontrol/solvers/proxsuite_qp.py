@@ -73,6 +73,10 @@ class WarmStartedQP:
         self.fixed_constraints = fixed_constraints
         self._qps: dict[tuple[int, int, bool], Any] = {}
 
+    def reset(self) -> None:
+        """Drop the QP objects: the next solve of each shape starts cold, as a new one's."""
+        self._qps.clear()
+
     def solve(
         self,
         H: Vector,

@@ -62,6 +62,9 @@ class QpsolversLCPSolver:
         self.options = options
         self._sparse = solver in qpsolvers.sparse_solvers and solver not in qpsolvers.dense_solvers
 
+    def reset(self) -> None:
+        """Nothing to forget: each solve is independent of the others (no warm start)."""
+
     def solve(self, D: NDArray[np.float64], b: NDArray[np.float64]) -> ContactSolution:
         """Impulses P >= 0 with D P + b >= 0 and P · (D P + b) = 0.
 
