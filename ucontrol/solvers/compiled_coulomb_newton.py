@@ -74,8 +74,9 @@ class CompiledCoulombNewton:
     """The compiled Alart–Curnier Newton step of one row layout (module docstring).
 
     The library is found in the compile cache by its definition key (the layout, this module's
-    source and the installed casadi: :func:`~ucontrol.model.compile_cache.definition_key`), so that a process whose cache holds it neither imports casadi nor builds
-    the expression (the expression is built, and compiled, only for a missing library).
+    source and the installed casadi: :func:`~ucontrol.model.compile_cache.definition_key`), so
+    that a process whose cache holds it neither imports casadi nor builds the expression (the
+    expression is built, and compiled, only for a missing library).
 
     Args:
         tangents: Tangential rows of each contact (0, 1 or 2), shape (m,); no bilateral row.
