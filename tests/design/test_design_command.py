@@ -104,3 +104,42 @@ def test_report_words_for_timed_and_soft_landings() -> None:
         "2.5e-09 s; not timed (soft landing at 0.0001 m/s, below 0.001 m/s)"
     )
     assert _timed(replay.impact_time_errors) == [2.5e-9, None]  # JSON null, not NaN
+
+
+#: Loaded by the figures (matplotlib), the replay (scipy's integrators) and the designed
+#: cycle's path (scipy.interpolate), never by ``--no-figures --no-replay``.
+_NOT_WITHOUT_FIGURES_AND_REPLAY = ("matplotlib", "scipy", "ucontrol.control.spline_path")
+
+_PROGRAM = """
+import sys
+from ucontrol.cli import main
+
+code = main(["design", sys.argv[1], "--out", sys.argv[2], "--no-figures", "--no-replay"])
+print("exit", code)
+print("modules", " ".join(sorted(sys.modules)))
+"""
+
+
+@pytest.mark.slow
+def test_design_without_figures_and_replay_imports_neither(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    task = _write_task(tmp_path / "task.toml")
+    completed = subprocess.run(
+        [sys.executable, "-c", _PROGRAM, str(task), str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    lines = dict(line.split(" ", 1) for line in completed.stdout.splitlines() if " " in line)
+    assert lines["exit"] == "0"
+    modules = set(lines["modules"].split())
+    assert "casadi" in modules and (tmp_path / "out" / "cycle.npz").is_file()  # it designed
+    loaded = sorted(
+        m
+        for m in modules
+        if any(m == h or m.startswith(h + ".") for h in _NOT_WITHOUT_FIGURES_AND_REPLAY)
+    )
+    assert loaded == []
