@@ -110,13 +110,16 @@ def test_report_words_for_timed_and_soft_landings() -> None:
 #: cycle's path (scipy.interpolate), never by ``--no-figures --no-replay``.
 _NOT_WITHOUT_FIGURES_AND_REPLAY = ("matplotlib", "scipy", "ucontrol.control.spline_path")
 
+#: Designs in a fresh interpreter, then prints its exit status and the modules it loaded from
+#: ``sys.argv[3:]`` (a package's submodules included) as one JSON line.
 _PROGRAM = """
-import sys
+import json, sys
 from ucontrol.cli import main
 
 code = main(["design", sys.argv[1], "--out", sys.argv[2], "--no-figures", "--no-replay"])
-print("exit", code)
-print("modules", " ".join(sorted(sys.modules)))
+names = sys.argv[3:]
+found = [m for m in sys.modules if any(m == n or m.startswith(n + ".") for n in names)]
+print(json.dumps({"exit": code, "casadi": "casadi" in sys.modules, "loaded": sorted(found)}))
 """
 
 
@@ -125,21 +128,12 @@ def test_design_without_figures_and_replay_imports_neither(tmp_path: Path) -> No
     import subprocess
     import sys
 
-    task = _write_task(tmp_path / "task.toml")
+    task, out = _write_task(tmp_path / "task.toml"), tmp_path / "out"
+    command = [sys.executable, "-c", _PROGRAM, str(task), str(out)]
     completed = subprocess.run(
-        [sys.executable, "-c", _PROGRAM, str(task), str(tmp_path / "out")],
-        capture_output=True,
-        text=True,
-        timeout=300,
+        [*command, *_NOT_WITHOUT_FIGURES_AND_REPLAY], capture_output=True, text=True, timeout=300
     )
     assert completed.returncode == 0, completed.stdout + completed.stderr
-    lines = dict(line.split(" ", 1) for line in completed.stdout.splitlines() if " " in line)
-    assert lines["exit"] == "0"
-    modules = set(lines["modules"].split())
-    assert "casadi" in modules and (tmp_path / "out" / "cycle.npz").is_file()  # it designed
-    loaded = sorted(
-        m
-        for m in modules
-        if any(m == h or m.startswith(h + ".") for h in _NOT_WITHOUT_FIGURES_AND_REPLAY)
-    )
-    assert loaded == []
+    result = json.loads(completed.stdout.splitlines()[-1])
+    assert result["exit"] == 0 and result["casadi"] and (out / "cycle.npz").is_file()  # designed
+    assert result["loaded"] == []
