@@ -104,3 +104,36 @@ def test_report_words_for_timed_and_soft_landings() -> None:
         "2.5e-09 s; not timed (soft landing at 0.0001 m/s, below 0.001 m/s)"
     )
     assert _timed(replay.impact_time_errors) == [2.5e-9, None]  # JSON null, not NaN
+
+
+#: Loaded by the figures (matplotlib), the replay (scipy's integrators) and the designed
+#: cycle's path (scipy.interpolate), never by ``--no-figures --no-replay``.
+_NOT_WITHOUT_FIGURES_AND_REPLAY = ("matplotlib", "scipy", "ucontrol.control.spline_path")
+
+#: Designs in a fresh interpreter, then prints its exit status and the modules it loaded from
+#: ``sys.argv[3:]`` (a package's submodules included) as one JSON line.
+_PROGRAM = """
+import json, sys
+from ucontrol.cli import main
+
+code = main(["design", sys.argv[1], "--out", sys.argv[2], "--no-figures", "--no-replay"])
+names = sys.argv[3:]
+found = [m for m in sys.modules if any(m == n or m.startswith(n + ".") for n in names)]
+print(json.dumps({"exit": code, "casadi": "casadi" in sys.modules, "loaded": sorted(found)}))
+"""
+
+
+@pytest.mark.slow
+def test_design_without_figures_and_replay_imports_neither(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    task, out = _write_task(tmp_path / "task.toml"), tmp_path / "out"
+    command = [sys.executable, "-c", _PROGRAM, str(task), str(out)]
+    completed = subprocess.run(
+        [*command, *_NOT_WITHOUT_FIGURES_AND_REPLAY], capture_output=True, text=True, timeout=300
+    )
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    result = json.loads(completed.stdout.splitlines()[-1])
+    assert result["exit"] == 0 and result["casadi"] and (out / "cycle.npz").is_file()  # designed
+    assert result["loaded"] == []

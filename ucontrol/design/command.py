@@ -44,11 +44,10 @@ def add_design_parser(commands: argparse._SubParsersAction) -> argparse.Argument
 
 def run_design(args: argparse.Namespace) -> int:
     """Run ``ucontrol design``; returns the exit status (0 designed, 1 infeasible)."""
-    # casadi and matplotlib load with these, for this command only
+    # casadi loads with these, for this command only; matplotlib and scipy's integrators
+    # only for the figures and the replay, when asked
     from ucontrol.design.cycle_transcription import design_cycle
-    from ucontrol.design.design_figures import save_design_figures
     from ucontrol.design.design_task import DesignTask
-    from ucontrol.design.open_loop_replay import replay_open_loop
 
     if _is_gait_task(args.task):
         from ucontrol.design.gait_command import run_gait_design
@@ -79,6 +78,8 @@ def run_design(args: argparse.Namespace) -> int:
     cycle.save(out / "cycle")
     table = report.to_dict()
     if args.replay and cycle.friction == 0.0:
+        from ucontrol.design.open_loop_replay import replay_open_loop
+
         replay = replay_open_loop(task, cycle, restart=True)
         run = replay_open_loop(task, cycle)  # one open-loop run over the whole cycle
         table["replay"] = {
@@ -101,6 +102,8 @@ def run_design(args: argparse.Namespace) -> int:
         )
     (out / "report.md").write_text(markdown)
     if args.figures:
+        from ucontrol.design.design_figures import save_design_figures
+
         save_design_figures(cycle, task.torque_limit, task.scene.robot.joint_names, out)
     print(
         f"designed cycle: {report.status} after {report.iterations} iterations, cost "

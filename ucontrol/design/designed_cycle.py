@@ -10,14 +10,16 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.control.desired_cycle import ContactPhase, DesiredCycle
-from ucontrol.control.spline_path import SplinePath
 from ucontrol.exceptions import SceneError
+
+if TYPE_CHECKING:  # scipy.interpolate loads with it, when a path is asked for
+    from ucontrol.control.spline_path import SplinePath
 
 Vector = NDArray[np.float64]
 _ARRAYS = ("t", "q", "v", "tau", "force", "position", "velocity")
@@ -118,6 +120,8 @@ class DesignedCycle:
         scene's ``designed_cycle`` key gives the controllers
         (:func:`ucontrol.control.desired_cycle.read_designed_cycle`).
         """
+        from ucontrol.control.spline_path import SplinePath
+
         times, positions = self.nodes()
         return SplinePath(waypoints=positions, times=times - times[0], period=self.period)
 
