@@ -50,6 +50,10 @@ simulate(scene, duration=float(sys.argv[2]), progress=False)
 """
 
 
+#: Longest wait for the instrumented child (start-up, the switch, the measured run), in [s].
+TIMEOUT_S = 900.0
+
+
 def count(python: str, scene: Path, duration: float, workdir: Path) -> int:
     """Instructions callgrind collects over one run of ``duration`` [s] of ``scene``."""
     ready, go, out = workdir / "ready", workdir / "go", workdir / "callgrind.out"
@@ -60,14 +64,20 @@ def count(python: str, scene: Path, duration: float, workdir: Path) -> int:
     command += [f"--callgrind-out-file={out}", python, "-c", CHILD]
     command += [str(scene), repr(duration), str(ready), str(go)]
     process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    while not ready.exists():
-        if process.poll() is not None:
-            raise RuntimeError(f"the run of {scene} ended before its measured part")
-        time.sleep(0.2)
-    subprocess.run(["callgrind_control", "-i", "on", str(process.pid)], check=True,
-                   capture_output=True)  # fmt: skip
-    go.touch()
-    output = process.communicate()[0].decode()
+    try:  # the child waits for `go`: never left behind, whatever fails here
+        deadline = time.monotonic() + TIMEOUT_S
+        while not ready.exists():
+            if process.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"the run of {scene} ended or hung before its measured part")
+            time.sleep(0.2)
+        subprocess.run(["callgrind_control", "-i", "on", str(process.pid)], check=True,
+                       capture_output=True, timeout=TIMEOUT_S)  # fmt: skip
+        go.touch()
+        output = process.communicate(timeout=TIMEOUT_S)[0].decode()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
     if process.returncode:
         raise RuntimeError(f"the run of {scene} failed:\n{output[-2000:]}")
     collected = re.findall(r"Collected : (\d+)", output)
