@@ -369,8 +369,10 @@ class PronkingController:
         }
         # The state both read (copied in at each call), and the forces from one to the other.
         self._q_in, self._v_in = np.zeros(model.nq), np.zeros(model.nv)
-        law.bind_input(forces.index_in("v"), self._v_in)
-        torque_law.bind_input(torques.index_in("v"), self._v_in)
+        self._gaps_in = np.zeros(n)
+        for function, compiled in ((forces, law), (torques, torque_law)):
+            compiled.bind_input(function.index_in("v"), self._v_in)
+            compiled.bind_input(function.index_in("gaps"), self._gaps_in)
         torque_law.bind_input(torques.index_in("q"), self._q_in)
         force_out = law.output_buffer(forces.index_out("forces"))
         torque_law.bind_input(torques.index_in("forces"), force_out)
@@ -378,7 +380,7 @@ class PronkingController:
         self._forces_view = force_out.reshape(n, 3)  # the feet's forces, rows [N]
         self._A = law.output_buffer(forces.index_out("A")).reshape((6, 3 * n), order="F")
         self._wrench_out = law.output_buffer(forces.index_out("wrench"))
-        self._height_out = law.output_buffer(forces.index_out("height"))
+        self._measures_out = law.output_buffer(forces.index_out("measures"))
         self._feasible_out = law.output_buffer(forces.index_out("feasible"))
         self._tau_out = torque_law.output_buffer(torques.index_out("tau"))
         # Constant inputs.
@@ -397,18 +399,17 @@ class PronkingController:
             self.touchdown_height,
             _REGULARIZATION,
             _MIN_STROKE,
+            s.contact_gap,
         ]
         law_in["up"][:] = self.up
         law_in["attitude"][...] = self._R_d
         for i in range(n):  # foot i's five rows on its three columns
             law_in["pyramids"][:, 3 * i : 3 * i + 3] = self._C[5 * i : 5 * i + 5, 3 * i : 3 * i + 3]
         law_in["lower"][:], law_in["upper"][:] = self._lower, self._upper
-        torque_in["gains"][:] = [s.kp, s.kd]
+        torque_in["gains"][:] = [s.kp, s.kd, s.contact_gap]
         torque_in["posture"][:] = self.posture
         # Inputs written at each call.
-        self._inertia_in, self._state_in = law_in["inertia"], law_in["state"]
-        self._gaps_in, self._touching_in = law_in["gaps"], law_in["touching"]
-        self._stance_in, self._supported_in = torque_in["stance"], torque_in["supported"]
+        self._state_in, self._supported_in = law_in["state"], torque_in["supported"]
         self._run_law, self._run_torques = law.runner(), torque_law.runner()
         self._law_state: tuple[Phase | None, float] | None = None
         self._plant_data = False
@@ -421,6 +422,7 @@ class PronkingController:
         law.bind_input(law_index("com"), data.com[0])
         law.bind_input(law_index("momentum"), data.hg.linear)
         law.bind_input(law_index("rotation"), data.oMi[1].rotation)
+        law.bind_input(law_index("Ag"), data.Ag)
         torque_law.bind_input(torque_index("J"), data.J)
         torque_law.bind_input(torque_index("g"), data.g)
         for i, frame in enumerate(self._frames):
@@ -435,7 +437,7 @@ class PronkingController:
         For the closed loop (:func:`ucontrol.simulate`), when the controller sees the plant's
         own state and model: ``data`` is the plant's Pinocchio data of this controller's
         model, filled by ``pin.computeAllTerms`` at the very (q, v) of each following call,
-        which holds the centre of mass, the centroidal momentum and inertia, the joints'
+        which holds the centre of mass, the centroidal momentum and its matrix, the joints'
         Jacobians and the generalized gravity the law reads. Each call then runs only the
         frame placements on it (the feet's positions): four Pinocchio passes fewer, the same
         law to round-off (the gravity and the momentum of ``computeAllTerms`` rather than of
@@ -463,31 +465,25 @@ class PronkingController:
             pin.computeGeneralizedGravity(model, data, q)
         self._q_in[:] = q
         self._v_in[:] = v
-        self._inertia_in[...] = data.Ig.inertia
-        gaps = contacts.gap[self._contacts]
-        touching = gaps <= self.settings.contact_gap
-        self._gaps_in[:] = gaps
-        self._touching_in[:] = touching
-        any_touching = bool(touching.any())
+        self._gaps_in[:] = contacts.gap[self._contacts]
         if self._c0 is None:
             self._c0 = data.com[0].copy()
         self._write_law_state()
         self._run_law()
-        h, h_dot = float(self._height_out[0]), float(self._height_out[1])
-        self._update_phase(h, h_dot, any_touching)
+        h, h_dot, touching = self._measures_out.tolist()  # [m], [m/s], number of feet
+        self._update_phase(h, h_dot, touching > 0.0)
         if self._write_law_state():  # a new phase, or thrust's energy: the law again
             self._run_law()
         self._height = h
         supported = self.phase != Phase.FREE
-        if supported and any_touching:
+        if supported and touching > 0.0:
             if self._feasible_out[0] < 0.5:
-                self._force_out[:] = self._constrained_forces(
-                    self._A, self._wrench_out, np.repeat(touching, 3)
-                ).ravel()
+                columns = np.repeat(self._gaps_in <= self.settings.contact_gap, 3)
+                forces = self._constrained_forces(self._A, self._wrench_out, columns)
+                self._force_out[:] = forces.ravel()
         else:
             self._force_out[:] = 0.0
         self._forces = self._forces_view
-        self._stance_in[:] = touching if supported else 0.0
         self._supported_in[0] = supported
         self._run_torques()
         return self._tau_out.copy()

@@ -7,10 +7,10 @@ buffers bound to the Pinocchio data the controller reads (``tests/control/test_p
 checks one against the other). Most of the reference's time per call is the Python overhead of
 some hundred small numpy operations; here each stage is one compiled call.
 
-- :func:`force_law_function` (``"pronk_forces"``): the height h and its rate :math:`\dot h`,
-  the desired centroidal wrench (F, T) of the module docstring of
-  :mod:`~ucontrol.control.pronking_controller`, its matrix A over all the feet, and the
-  unconstrained optimum of the force QP on the feet in contact,
+- :func:`force_law_function` (``"pronk_forces"``): the height h, its rate :math:`\dot h` and
+  the number of feet in contact (gap at most ``contact_gap``), the desired centroidal wrench
+  (F, T) of the module docstring of :mod:`~ucontrol.control.pronking_controller`, its matrix
+  A over all the feet, and the unconstrained optimum of the force QP on the feet in contact,
 
   .. math::
 
@@ -49,14 +49,13 @@ _LOG3_TAYLOR = 1e-4
 FORCE_LAW_INPUTS = (
     "com",  # centre of mass c [m], (3,)
     "momentum",  # linear momentum m ċ [kg m/s], (3,)
-    "inertia",  # centroidal rotational inertia I_c [kg m²], (3, 3)
+    "Ag",  # centroidal momentum matrix (6, nv): I_c = Ag[3:6, 3:6] R^T [kg m²]
     "rotation",  # base orientation R (world from base), (3, 3)
     "v",  # velocity, (nv,); v[3:6] the base's angular velocity in its frame [rad/s]
-    "gaps",  # the feet's gaps [m], (n_feet,)
-    "touching",  # 1 for a foot in contact, else 0, (n_feet,)
+    "gaps",  # the feet's gaps [m], (n_feet,): a foot is in contact at most contact_gap
     "state",  # c_0 (3) [m], 1 in thrust (phase TAKEOFF) else 0, v_to [m/s]
     "gains",  # k_xy, d_xy, k_R, d_R, k_h, d_h
-    "constants",  # m [kg], |g| [m/s²], h_s [m], h_td [m], ε, the least stroke [m]
+    "constants",  # m [kg], |g| [m/s²], h_s [m], h_td [m], ε, the least stroke [m], contact_gap
     "up",  # upward unit vector (3,)
     "attitude",  # desired orientation R_d, (3, 3)
     "pyramids",  # each foot's rows (t1 - μn, -t1 - μn, t2 - μn, -t2 - μn, n), (5, 3 n_feet)
@@ -64,9 +63,9 @@ FORCE_LAW_INPUTS = (
     "upper",  # upper bounds of the rows, (5 n_feet,)
 )
 #: Outputs of "pronk_forces".
-FORCE_LAW_OUTPUTS = ("height", "wrench", "A", "forces", "feasible")
+FORCE_LAW_OUTPUTS = ("measures", "wrench", "A", "forces", "feasible")
 #: Inputs of "pronk_torques" besides the feet ("foot_0", ...).
-TORQUE_INPUTS = ("forces", "J", "g", "q", "v", "stance", "supported", "gains", "posture")
+TORQUE_INPUTS = ("forces", "J", "g", "q", "v", "gaps", "supported", "gains", "posture")
 
 
 def foot_inputs(n_feet: int) -> list[str]:
@@ -82,16 +81,17 @@ def force_law_function(n_feet: int, nv: int) -> Any:
         nv: Velocity dimension of the robot.
     """
     sym = ca.SX.sym
-    c, momentum, inertia = sym("com", 3), sym("momentum", 3), sym("inertia", 3, 3)
+    c, momentum, Ag = sym("com", 3), sym("momentum", 3), sym("Ag", 6, nv)
     R, v = sym("rotation", 3, 3), sym("v", nv)
-    gaps, touching, state = sym("gaps", n_feet), sym("touching", n_feet), sym("state", 5)
-    gains, constants, up = sym("gains", 6), sym("constants", 6), sym("up", 3)
+    gaps, state = sym("gaps", n_feet), sym("state", 5)
+    gains, constants, up = sym("gains", 6), sym("constants", 7), sym("up", 3)
     R_d, pyramids = sym("attitude", 3, 3), sym("pyramids", 5, 3 * n_feet)
     lower, upper = sym("lower", 5 * n_feet), sym("upper", 5 * n_feet)
     feet = [sym(name, 3) for name in foot_inputs(n_feet)]
     k_xy, d_xy, k_R, d_R, k_h, d_h = (gains[i] for i in range(6))
-    mass, g, h_s, h_td, eps, min_stroke = (constants[i] for i in range(6))
+    mass, g, h_s, h_td, eps, min_stroke, contact_gap = (constants[i] for i in range(7))
     c0, takeoff, v_to = state[:3], state[3], state[4]
+    touching = gaps <= contact_gap  # 1 or 0 per foot
 
     c_dot = momentum / mass  # [m/s]
     ground = sum(ca.dot(p, up) - gaps[i] for i, p in enumerate(feet)) / n_feet  # [m]
@@ -103,6 +103,7 @@ def force_law_function(n_feet: int, nv: int) -> Any:
     horizontal = horizontal - ca.dot(horizontal, up) * up
     force = mass * (h_ddot * up + horizontal + g * up)  # [N]
     omega = R @ v[3:6]  # [rad/s], world
+    inertia = Ag[3:6, 3:6] @ R.T  # [kg m²], the angular momentum of the base's rotation
     torque = inertia @ (-k_R * _log3(R @ R_d.T) - d_R * omega)  # [N m]
     wrench = ca.vertcat(force, torque)
 
@@ -114,12 +115,12 @@ def force_law_function(n_feet: int, nv: int) -> Any:
         *(pyramids[:, 3 * i : 3 * i + 3] @ f[3 * i : 3 * i + 3] for i in range(n_feet))
     )
     feasible = ca.mmin(ca.vertcat(rows - lower, upper - rows)) >= 0.0  # 1 or 0
-    inputs = [c, momentum, inertia, R, v, gaps, touching, state, gains, constants, up, R_d]
+    inputs = [c, momentum, Ag, R, v, gaps, state, gains, constants, up, R_d]
     inputs += [pyramids, lower, upper, *feet]
     return ca.Function(
         "pronk_forces",
         inputs,
-        [ca.vertcat(h, h_dot), wrench, A, f, feasible],
+        [ca.vertcat(h, h_dot, ca.sum1(touching)), wrench, A, f, feasible],
         [*FORCE_LAW_INPUTS, *foot_inputs(n_feet)],
         list(FORCE_LAW_OUTPUTS),
     )
@@ -146,10 +147,10 @@ def torque_function(
     sym = ca.SX.sym
     n_feet = len(legs)
     forces, J, g = sym("forces", 3 * n_feet), sym("J", 6, nv), sym("g", nv)
-    q, v, stance, supported = sym("q", nq), sym("v", nv), sym("stance", n_feet), sym("s", 1)
-    gains, posture = sym("gains", 2), sym("posture", nq)
+    q, v, gaps, supported = sym("q", nq), sym("v", nv), sym("gaps", n_feet), sym("s", 1)
+    gains, posture = sym("gains", 3), sym("posture", nq)
     feet = [sym(name, 3) for name in foot_inputs(n_feet)]
-    kp, kd = gains[0], gains[1]
+    kp, kd, contact_gap = gains[0], gains[1], gains[2]
 
     def hold(joints: Index) -> Any:
         rows = [int(r) for r in q_of_v[joints]]
@@ -162,11 +163,12 @@ def torque_function(
         J_leg = J[:3, cols] - ca.skew(feet[i]) @ J[3:, cols]  # [m/rad], LOCAL_WORLD_ALIGNED
         pushing = g[cols] - J_leg.T @ forces[3 * i : 3 * i + 3]  # [N m]
         free = ca.if_else(supported > 0.5, hold(leg) + g[cols], hold(leg))
-        tau[cols] = ca.if_else(stance[i] > 0.5, pushing, free)
+        stance = ca.logic_and(supported > 0.5, gaps[i] <= contact_gap)
+        tau[cols] = ca.if_else(stance, pushing, free)
     if len(others):
         cols = [int(j) for j in others]
         tau[cols] = hold(others) + g[cols]
-    inputs = [forces, J, g, q, v, stance, supported, gains, posture, *feet]
+    inputs = [forces, J, g, q, v, gaps, supported, gains, posture, *feet]
     return ca.Function(
         "pronk_torques",
         inputs,
