@@ -333,9 +333,16 @@ def test_solo_lands_with_a_sideways_speed_and_a_tumble():
 @pytest.mark.slow
 def test_experiment_runs_briefly(tmp_path: Path) -> None:
     """experiments/solo_pronk.py's table and figure, on 0.4 s of each scene."""
-    load_experiment("solo_pronk").main(["--duration", "0.4", "--out", str(tmp_path)])
+    experiment = load_experiment("solo_pronk")
+    experiment.main(["--duration", "0.4", "--out", str(tmp_path)])
     rows = (tmp_path / "solo_pronk.md").read_text().splitlines()
-    assert [row.split("|")[1].strip() for row in rows[2:]] == ["solo_landing", "solo_pronk"]
+    assert [row.split("|")[1].strip() for row in rows[2:4]] == ["solo_landing", "solo_pronk"]
+    speed = [row.split("|") for row in rows[9:]]  # the CPU time per step
+    assert [row[1].strip() for row in speed] == ["solo_landing", "solo_pronk", experiment.STAND]
+    for row in speed:  # step = controller's part + rest [µs]
+        step, controller, rest = (float(cell) for cell in row[3:6])
+        assert step == pytest.approx(controller + rest, abs=0.2)
+        assert 0.0 < controller < step
     assert (tmp_path / "solo_pronk.png").stat().st_size > 10_000
 
 
