@@ -49,6 +49,11 @@ with H the commanded apex; the thrust ends at :math:`h \ge h_\text{td}` (phase F
 After each flight the measured apex :math:`H_k` corrects the energy of the next thrust,
 :math:`\delta_{k+1} = \delta_k + 2 g\, k_a (H - H_k)` (``apex_gain`` :math:`k_a`; 0 disables).
 Touchdown (phase CONSTRAINED again): a foot in contact while :math:`\dot h < 0`.
+
+**Paths.** The numpy code below is the law's readable reference (``compiled=False``); calls run
+the same law compiled to C (:mod:`~ucontrol.control.pronking_law`) where a C compiler is found,
+and in the closed loop read the plant's evaluation (:meth:`PronkingController.use_plant_data`).
+The phase machine and the QP beyond the pyramids are shared by both paths.
 """
 
 from __future__ import annotations
