@@ -21,6 +21,13 @@ foot is in contact, the feet's positions come from the logged configurations):
 
 Run: ``python experiments/solo_pronk.py`` (about 20 s; ``--repeat 5`` about a minute); writes
 ``docs/figures/legged/solo_pronk.md`` and ``solo_pronk.png`` (``--out``).
+
+``--replay MODE`` only replays the controller on the states of the first 2 s of solo_pronk
+(each state's plant evaluation first, as the closed loop does), for instruction counts that a
+loaded machine does not change: ``valgrind --tool=callgrind python experiments/solo_pronk.py
+--replay MODE`` for MODE ``none`` (no controller), ``reference``, ``compiled-own`` (its own
+Pinocchio passes) and ``compiled`` (on the plant's evaluation); each mode's count less that of
+``none``, over the 2000 calls, is the controller's per call.
 """
 
 from __future__ import annotations
@@ -30,12 +37,13 @@ import time
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 from matplotlib.figure import Figure
 
-from ucontrol.control.controller import ContactState
+from ucontrol.control.controller import ContactState, Controller
 from ucontrol.control.pronking_controller import PronkingController
 from ucontrol.log import Log
 from ucontrol.scene import Scene
@@ -136,8 +144,8 @@ class _TimedController:
     (``use_plant_data``), so that the controller runs as in a user's run.
     """
 
-    def __init__(self, controller: PronkingController) -> None:
-        self.controller = controller
+    def __init__(self, controller: Controller) -> None:
+        self.controller: Any = controller
         self.robot = getattr(controller, "robot", None)
         self.cpu_time = 0.0
 
@@ -184,9 +192,9 @@ def run(name: str, dt: float, duration: float | None = None) -> tuple[Scene, Log
     summary = dict(result.summary)
     summary["cpu_time_s"] = time.process_time() - start
     summary["controller_cpu_time_s"] = controller.cpu_time
-    summary["controller_law"] = {True: "compiled", False: "numpy reference"}.get(
-        getattr(built, "compiled", None), type(built).__name__
-    )
+    compiled = getattr(built, "compiled", None)
+    law = {True: "compiled", False: "numpy reference"}
+    summary["controller_law"] = type(built).__name__ if compiled is None else law[compiled]
     return scene, result.log, summary
 
 
@@ -235,6 +243,53 @@ def figure(log: Log, apex: float, stand: float) -> Figure:
     return fig
 
 
+#: What ``--replay`` runs: the controller of each mode (None: the plant evaluations alone).
+REPLAY_MODES = ("none", "reference", "compiled-own", "compiled")
+
+
+def replay(mode: str, duration: float = 2.0) -> int:
+    """Replay the pronking controller of ``mode`` on the states of solo_pronk's first seconds.
+
+    Every mode records the same states and builds every controller, so that the instruction
+    counts of two modes differ by the calls of the controller alone. Returns the calls made.
+    """
+    scene = load("solo_pronk")
+    states: list[tuple[float, np.ndarray, np.ndarray, ContactState]] = []
+    built = scene.build_controller()
+    assert isinstance(built, PronkingController)
+
+    def recording(t: float, q: np.ndarray, v: np.ndarray, contacts: ContactState):
+        states.append((t, q.copy(), v.copy(), contacts._replace(gap=contacts.gap.copy())))
+        return built(t, q, v, contacts)
+
+    simulate(scene, recording, duration=duration, progress=False)
+    model = scene.robot.model
+    data = pin.Data(model)  # the plant's evaluation of each state
+    frames = [pair.frame for pair in scene.contacts]
+    controllers = {
+        name: PronkingController(
+            built.robot,
+            feet=built.feet,
+            contacts=[frames.index(foot) for foot in built.feet],
+            normals=np.array(
+                [scene.contacts[frames.index(foot)].surface.normal for foot in built.feet]
+            ),
+            posture=built.posture,
+            settings=built.settings,
+            compiled=name != "reference",
+        )
+        for name in REPLAY_MODES[1:]
+    }
+    controllers["compiled"].use_plant_data(data)
+    controller = controllers.get(mode)
+    for t, q, v, contacts in states:
+        pin.computeAllTerms(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        if controller is not None:
+            controller(t, q, v, contacts)
+    return 0 if controller is None else len(states)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--dt", type=float, default=1e-3, help="time step [s]")
@@ -245,7 +300,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--repeat", type=int, default=1, help="runs of each scene for the CPU times per step"
     )
+    parser.add_argument(
+        "--replay", choices=REPLAY_MODES, help="only replay a controller (for callgrind)"
+    )
     args = parser.parse_args(argv)
+    if args.replay is not None:
+        print(f"{args.replay}: {replay(args.replay)} controller calls")
+        return
     args.out.mkdir(parents=True, exist_ok=True)
     lines = [
         "| scene | hops | apex [m] | worst slip [mm] | lowest base [m] | "

@@ -437,3 +437,10 @@ def test_compiled_law_is_the_reference_law_on_random_states(pronk_scene, seed):
         np.testing.assert_allclose(tau_fast, tau_reference, rtol=0.0, atol=_PATH_TOLERANCE)
         np.testing.assert_allclose(fast.forces, reference.forces, rtol=0.0, atol=_PATH_TOLERANCE)
     assert compared > 20
+
+
+def test_experiment_replays_each_controller():
+    """experiments/solo_pronk.py --replay: every mode replays the same recorded calls."""
+    experiment = load_experiment("solo_pronk")
+    calls = {mode: experiment.replay(mode, duration=0.05) for mode in experiment.REPLAY_MODES}
+    assert calls == {"none": 0, "reference": 50, "compiled-own": 50, "compiled": 50}
