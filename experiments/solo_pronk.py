@@ -11,24 +11,39 @@ foot is in contact, the feet's positions come from the logged configurations):
 - no fall: the lowest base height and the largest base tilt;
 - the real-time factor of each run (simulated time over wall time, and over the process's CPU
   time: the machine may be shared) and the controller's share of the CPU time;
-- a figure of the centre of mass height and the feet's normal forces over the ten hops.
+- a figure of the centre of mass height and the feet's normal forces over the ten hops;
+- the CPU time per step [µs] of the controller and of the rest of the step (the plant's
+  evaluation and step, the log), each the least over ``--repeat`` runs, on both scenes and on
+  a standing Solo with friction (``quadruped_stand.toml`` with μ = 0.7 on its four feet, under
+  its joint PD). ``UCONTROL_NO_COMPILE=1`` runs the pronking controller's numpy reference
+  instead of its compiled law (and nothing else changes for these scenes: their plant has no
+  compiled path).
 
-Run: ``python experiments/solo_pronk.py`` (about 20 s); writes
+Run: ``python experiments/solo_pronk.py`` (about 20 s; ``--repeat 5`` about a minute); writes
 ``docs/figures/legged/solo_pronk.md`` and ``solo_pronk.png`` (``--out``).
+
+``--replay MODE`` only replays the controller on the states of the first 2 s of solo_pronk
+(each state's plant evaluation first, as the closed loop does), for instruction counts that a
+loaded machine does not change: ``valgrind --tool=callgrind python experiments/solo_pronk.py
+--replay MODE`` for MODE ``none`` (no controller), ``reference``, ``compiled-own`` (its own
+Pinocchio passes) and ``compiled`` (on the plant's evaluation); each mode's count less that of
+``none``, over the 2000 calls, is the controller's per call.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 from matplotlib.figure import Figure
 
-from ucontrol.control.controller import ContactState
+from ucontrol.control.controller import ContactState, Controller
 from ucontrol.control.pronking_controller import PronkingController
 from ucontrol.log import Log
 from ucontrol.scene import Scene
@@ -37,6 +52,9 @@ from ucontrol.simulate import simulate
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures" / "legged"
 SCENES = ("solo_landing", "solo_pronk")
+#: The standing Solo of the speed table: quadruped_stand.toml with this friction on its feet.
+STAND_FRICTION = 0.7
+STAND = "quadruped_stand (mu = 0.7)"
 
 
 @dataclass(frozen=True)
@@ -120,17 +138,30 @@ def tilt(log: Log) -> np.ndarray:
 
 
 class _TimedController:
-    """The scene's controller, with the CPU time [s] its calls take."""
+    """The scene's controller, with the CPU time [s] its calls take.
 
-    def __init__(self, controller: PronkingController) -> None:
-        self.controller = controller
+    It passes the closed loop's offer of the plant's evaluation on to the controller
+    (``use_plant_data``), so that the controller runs as in a user's run.
+    """
+
+    def __init__(self, controller: Controller) -> None:
+        self.controller: Any = controller
+        self.robot = getattr(controller, "robot", None)
         self.cpu_time = 0.0
+
+    def use_plant_data(self, data: pin.Data | None) -> bool:
+        use = getattr(self.controller, "use_plant_data", None)
+        return False if use is None else bool(use(data))
 
     def __call__(self, t: float, q: np.ndarray, v: np.ndarray, contacts: ContactState):
         start = time.process_time()
         torque = self.controller(t, q, v, contacts)
         self.cpu_time += time.process_time() - start
         return torque
+
+
+class _TimedLoggingController(_TimedController):
+    """A timed controller that writes fields of its own to the log."""
 
     def prepare_log(self, log: Log) -> None:
         self.controller.prepare_log(log)
@@ -139,17 +170,55 @@ class _TimedController:
         self.controller.record(log)
 
 
+def load(name: str) -> Scene:
+    """A scene of ``robots/``, or :data:`STAND`: quadruped_stand with friction on its feet."""
+    if name != STAND:
+        return Scene.from_toml(ROOT / "robots" / f"{name}.toml")
+    table = tomllib.loads((ROOT / "robots" / "quadruped_stand.toml").read_text())
+    for contact in table["contacts"]:
+        contact["friction"] = STAND_FRICTION
+    return Scene.from_dict(table, base_dir=ROOT / "robots", default_name="quadruped_stand")
+
+
 def run(name: str, dt: float, duration: float | None = None) -> tuple[Scene, Log, dict]:
     """The scene's run and its summary, with ``cpu_time_s`` and ``controller_cpu_time_s``."""
-    scene = Scene.from_toml(ROOT / "robots" / f"{name}.toml")
-    controller = _TimedController(scene.build_controller())
+    scene = load(name)
+    built = scene.build_controller()
+    timed = _TimedLoggingController if hasattr(built, "prepare_log") else _TimedController
+    controller = timed(built)
     scene.build_integrator(dt)  # its first build imports the friction solver: not timed
     start = time.process_time()
     result = simulate(scene, controller, duration=duration, dt=dt, progress=False)
     summary = dict(result.summary)
     summary["cpu_time_s"] = time.process_time() - start
     summary["controller_cpu_time_s"] = controller.cpu_time
+    compiled = getattr(built, "compiled", None)
+    law = {True: "compiled", False: "numpy reference"}
+    summary["controller_law"] = type(built).__name__ if compiled is None else law[compiled]
     return scene, result.log, summary
+
+
+def speed(name: str, dt: float, duration: float | None, repeat: int) -> dict[str, float | str]:
+    """CPU time per step [µs], each the least over ``repeat`` runs of scene ``name``.
+
+    Keys: ``step`` (the closed loop's step), ``controller``, ``rest`` (the step less the
+    controller: the plant's evaluation and step, contact solves included, and the log),
+    ``factor`` (simulated time over the least CPU time) and ``law``. (The solver times its
+    solves on the wall clock, ``summary.json``'s ``contact_solve_time_s``: on a loaded machine
+    that is not comparable with these CPU times.)
+    """
+    best: dict[str, float | str] = {}
+    for _ in range(repeat):
+        _, log, summary = run(name, dt, duration)
+        steps = len(log) - 1
+        step = 1e6 * summary["cpu_time_s"] / steps  # [µs]
+        controller = 1e6 * summary["controller_cpu_time_s"] / steps  # [µs]
+        figures = {"step": step, "controller": controller, "rest": step - controller}
+        for key, value in figures.items():
+            best[key] = min(float(best.get(key, np.inf)), value)
+        best["factor"] = float(log.t[-1]) / (1e-6 * float(best["step"]) * steps)
+        best["law"] = summary["controller_law"]
+    return best
 
 
 def figure(log: Log, apex: float, stand: float) -> Figure:
@@ -174,6 +243,53 @@ def figure(log: Log, apex: float, stand: float) -> Figure:
     return fig
 
 
+#: What ``--replay`` runs: the controller of each mode (None: the plant evaluations alone).
+REPLAY_MODES = ("none", "reference", "compiled-own", "compiled")
+
+
+def replay(mode: str, duration: float = 2.0) -> int:
+    """Replay the pronking controller of ``mode`` on the states of solo_pronk's first seconds.
+
+    Every mode records the same states and builds every controller, so that the instruction
+    counts of two modes differ by the calls of the controller alone. Returns the calls made.
+    """
+    scene = load("solo_pronk")
+    states: list[tuple[float, np.ndarray, np.ndarray, ContactState]] = []
+    built = scene.build_controller()
+    assert isinstance(built, PronkingController)
+
+    def recording(t: float, q: np.ndarray, v: np.ndarray, contacts: ContactState):
+        states.append((t, q.copy(), v.copy(), contacts._replace(gap=contacts.gap.copy())))
+        return built(t, q, v, contacts)
+
+    simulate(scene, recording, duration=duration, progress=False)
+    model = scene.robot.model
+    data = pin.Data(model)  # the plant's evaluation of each state
+    frames = [pair.frame for pair in scene.contacts]
+    controllers = {
+        name: PronkingController(
+            built.robot,
+            feet=built.feet,
+            contacts=[frames.index(foot) for foot in built.feet],
+            normals=np.array(
+                [scene.contacts[frames.index(foot)].surface.normal for foot in built.feet]
+            ),
+            posture=built.posture,
+            settings=built.settings,
+            compiled=name != "reference",
+        )
+        for name in REPLAY_MODES[1:]
+    }
+    controllers["compiled"].use_plant_data(data)
+    controller = controllers.get(mode)
+    for t, q, v, contacts in states:
+        pin.computeAllTerms(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        if controller is not None:
+            controller(t, q, v, contacts)
+    return 0 if controller is None else len(states)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--dt", type=float, default=1e-3, help="time step [s]")
@@ -181,7 +297,16 @@ def main(argv: list[str] | None = None) -> None:
         "--duration", type=float, default=None, help="simulated time [s] (default the scenes')"
     )
     parser.add_argument("--out", type=Path, default=FIGURES, help="output folder")
+    parser.add_argument(
+        "--repeat", type=int, default=1, help="runs of each scene for the CPU times per step"
+    )
+    parser.add_argument(
+        "--replay", choices=REPLAY_MODES, help="only replay a controller (for callgrind)"
+    )
     args = parser.parse_args(argv)
+    if args.replay is not None:
+        print(f"{args.replay}: {replay(args.replay)} controller calls")
+        return
     args.out.mkdir(parents=True, exist_ok=True)
     lines = [
         "| scene | hops | apex [m] | worst slip [mm] | lowest base [m] | "
@@ -206,6 +331,20 @@ def main(argv: list[str] | None = None) -> None:
             figure(log, table["apex"], table["stand_height"]).savefig(
                 args.out / "solo_pronk.png", dpi=120
             )
+    lines += [
+        "",
+        f"CPU time per step [µs], the least of {args.repeat} run(s) at dt = {args.dt:g} s:",
+        "",
+        "| scene | controller | step | controller's part | rest of the step | "
+        "real-time factor (CPU) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name in (*SCENES, STAND):
+        best = speed(name, args.dt, args.duration, max(args.repeat, 1))
+        lines.append(
+            f"| {name} | {best['law']} | {best['step']:.1f} | {best['controller']:.1f} | "
+            f"{best['rest']:.1f} | {best['factor']:.2f} |"
+        )
     text = "\n".join(lines) + "\n"
     (args.out / "solo_pronk.md").write_text(text)
     print(text)

@@ -49,6 +49,11 @@ with H the commanded apex; the thrust ends at :math:`h \ge h_\text{td}` (phase F
 After each flight the measured apex :math:`H_k` corrects the energy of the next thrust,
 :math:`\delta_{k+1} = \delta_k + 2 g\, k_a (H - H_k)` (``apex_gain`` :math:`k_a`; 0 disables).
 Touchdown (phase CONSTRAINED again): a foot in contact while :math:`\dot h < 0`.
+
+**Paths.** The numpy code below is the law's readable reference (``compiled=False``); calls run
+the same law compiled to C (:mod:`~ucontrol.control.pronking_law`) where a C compiler is found,
+and in the closed loop read the plant's evaluation (:meth:`PronkingController.use_plant_data`).
+The phase machine and the QP beyond the pyramids are shared by both paths.
 """
 
 from __future__ import annotations
@@ -63,13 +68,16 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_float, as_int, as_non_negative, as_positive, as_vector
+from ucontrol.contact.tangent_basis import tangent_basis
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.phase import Phase
 from ucontrol.exceptions import InvalidParameterError
+from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.solvers.proxsuite_qp import INFINITY, WarmStartedQP
 
 if TYPE_CHECKING:
     from ucontrol.log import Log
+    from ucontrol.model.compiled_function import CompiledFunction
     from ucontrol.model.robot_model import RobotModel
 
 Mask = NDArray[np.bool_]
@@ -151,6 +159,12 @@ class PronkingController:
         posture: Touchdown posture, shape (nq,): the legs' joints hold it in the air, its base
             orientation is the attitude R_d held in stance.
         settings: Heights, hops and gains.
+        compiled: Run the law compiled to C (:mod:`~ucontrol.control.pronking_law`); False
+            runs the numpy reference below; None (default) compiles where a C compiler is
+            found and ``UCONTROL_NO_COMPILE`` is not set.
+
+    Attributes:
+        compiled: Whether the calls run the compiled law.
 
     Raises:
         InvalidParameterError: A robot without a free-flyer base, feet and contacts of
@@ -168,6 +182,7 @@ class PronkingController:
         normals: Vector,
         posture: Vector,
         settings: PronkSettings,
+        compiled: bool | None = None,
     ) -> None:
         model = robot.model
         if model.njoints < 2 or model.joints[1].shortname() != "JointModelFreeFlyer":
@@ -184,7 +199,7 @@ class PronkingController:
         self._contacts = np.array(contacts, dtype=np.int64)
         normals = np.asarray(normals, dtype=float).reshape(len(feet), 3)
         self._normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
-        self._tangents = np.array([_tangent_basis(n) for n in self._normals])  # (n_feet, 2, 3)
+        self._tangents = tangent_basis(self._normals)  # (n_feet, 2, 3)
         self.posture = as_vector("posture", posture, robot.nq)
         self._actuated = robot.actuated
         self._legs = [self._leg(frame, name) for frame, name in zip(self._frames, feet)]
@@ -214,6 +229,9 @@ class PronkingController:
         self._c0: Vector | None = None
         self._forces = np.zeros((len(feet), 3))
         self._height = math.nan
+        self.compiled = compilation_possible() if compiled is None else bool(compiled)
+        if self.compiled:
+            self._build_law()
 
     def _leg(self, frame: int, name: str) -> Index:
         """Actuated velocity indices of the joints between the base and a foot."""
@@ -298,6 +316,8 @@ class PronkingController:
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Joint torques, shape (nu,)."""
+        if self.compiled:
+            return self._compiled_call(q, v, contacts)
         model, data, s = self._model, self._data, self.settings
         pin.ccrba(model, data, q, v)  # centre of mass, centroidal inertia and momentum
         c = data.com[0].copy()
@@ -334,6 +354,156 @@ class PronkingController:
         if self._others.size:
             tau[self._others] = self._hold(q, v, self._others) + gravity[self._others]
         return tau[self._actuated]
+
+    def _build_law(self) -> None:
+        """Build the compiled law (:mod:`~ucontrol.control.pronking_law`), bind it by name."""
+        from ucontrol.control import pronking_law
+        from ucontrol.model.compiled_function import CompiledFunction
+
+        model, s, n = self._model, self.settings, len(self._frames)
+        forces = pronking_law.force_law_function(n, model.nv)
+        torques = pronking_law.torque_function(
+            model.nq, model.nv, self._legs, self._others, self._q_of_v, self._actuated
+        )
+        law, torque_law = CompiledFunction(forces), CompiledFunction(torques)
+        self._laws: tuple[CompiledFunction, CompiledFunction] = (law, torque_law)
+        self._law_index = (forces.index_in, torques.index_in)
+        law_in = {name: law.input_view(forces.index_in(name)) for name in forces.name_in()}
+        torque_in = {
+            name: torque_law.input_view(torques.index_in(name)) for name in torques.name_in()
+        }
+        # The state both read (copied in at each call), and the forces from one to the other.
+        self._q_in, self._v_in = np.zeros(model.nq), np.zeros(model.nv)
+        self._gaps_in = np.zeros(n)
+        for function, compiled in ((forces, law), (torques, torque_law)):
+            compiled.bind_input(function.index_in("v"), self._v_in)
+            compiled.bind_input(function.index_in("gaps"), self._gaps_in)
+        torque_law.bind_input(torques.index_in("q"), self._q_in)
+        force_out = law.output_buffer(forces.index_out("forces"))
+        torque_law.bind_input(torques.index_in("forces"), force_out)
+        self._force_out = force_out
+        self._forces_view = force_out.reshape(n, 3)  # the feet's forces, rows [N]
+        self._A = law.output_buffer(forces.index_out("A")).reshape((6, 3 * n), order="F")
+        self._wrench_out = law.output_buffer(forces.index_out("wrench"))
+        self._measures_out = law.output_buffer(forces.index_out("measures"))
+        self._feasible_out = law.output_buffer(forces.index_out("feasible"))
+        self._tau_out = torque_law.output_buffer(torques.index_out("tau"))
+        # Constant inputs.
+        law_in["gains"][:] = [
+            s.horizontal_stiffness,
+            s.horizontal_damping,
+            s.attitude_stiffness,
+            s.attitude_damping,
+            s.height_stiffness,
+            s.height_damping,
+        ]
+        law_in["constants"][:] = [
+            self.mass,
+            self.g,
+            s.stand_height,
+            self.touchdown_height,
+            _REGULARIZATION,
+            _MIN_STROKE,
+            s.contact_gap,
+        ]
+        law_in["up"][:] = self.up
+        law_in["attitude"][...] = self._R_d
+        for i in range(n):  # foot i's five rows on its three columns
+            law_in["pyramids"][:, 3 * i : 3 * i + 3] = self._C[5 * i : 5 * i + 5, 3 * i : 3 * i + 3]
+        law_in["lower"][:], law_in["upper"][:] = self._lower, self._upper
+        torque_in["gains"][:] = [s.kp, s.kd, s.contact_gap]
+        torque_in["posture"][:] = self.posture
+        # Inputs written at each call.
+        self._state_in, self._supported_in = law_in["state"], torque_in["supported"]
+        self._run_law, self._run_torques = law.runner(), torque_law.runner()
+        self._law_state: tuple[Phase | None, float] | None = None
+        self._plant_data = False
+        self._bind_data(self._data)
+
+    def _bind_data(self, data: pin.Data) -> None:
+        """Bind the compiled law's kinematic and dynamic inputs, by name, to ``data``'s views."""
+        law, torque_law = self._laws
+        law_index, torque_index = self._law_index
+        law.bind_input(law_index("com"), data.com[0])
+        law.bind_input(law_index("momentum"), data.hg.linear)
+        law.bind_input(law_index("rotation"), data.oMi[1].rotation)
+        law.bind_input(law_index("Ag"), data.Ag)
+        torque_law.bind_input(torque_index("J"), data.J)
+        torque_law.bind_input(torque_index("g"), data.g)
+        for i, frame in enumerate(self._frames):
+            name = f"foot_{i}"
+            law.bind_input(law_index(name), data.oMf[frame].translation)
+            torque_law.bind_input(torque_index(name), data.oMf[frame].translation)
+        self._law_data = data
+
+    def use_plant_data(self, data: pin.Data | None) -> bool:
+        """Read the plant's evaluation instead of running Pinocchio's passes (compiled law).
+
+        For the closed loop (:func:`ucontrol.simulate`), when the controller sees the plant's
+        own state and model: ``data`` is the plant's Pinocchio data of this controller's
+        model, filled by ``pin.computeAllTerms`` at the very (q, v) of each following call,
+        which holds the centre of mass, the centroidal momentum and its matrix, the joints'
+        Jacobians and the generalized gravity the law reads. Each call then runs only the
+        frame placements on it (the feet's positions): four Pinocchio passes fewer, the same
+        law to round-off (the gravity and the momentum of ``computeAllTerms`` rather than of
+        ``computeGeneralizedGravity`` and ``ccrba``, about 1e-15 apart). None goes back to
+        the controller's own data.
+
+        Returns:
+            Whether the plant's data is used (not by the numpy reference, ``compiled=False``).
+        """
+        if not self.compiled:
+            return False
+        self._bind_data(self._data if data is None else data)
+        self._plant_data = data is not None
+        return self._plant_data
+
+    def _compiled_call(self, q: Vector, v: Vector, contacts: ContactState) -> Vector:
+        """:meth:`__call__` by the compiled law: the same law as the reference, to round-off."""
+        model, data = self._model, self._law_data
+        if self._plant_data:
+            pin.updateFramePlacements(model, data)
+        else:
+            pin.ccrba(model, data, q, v)
+            pin.computeJointJacobians(model, data, q)
+            pin.updateFramePlacements(model, data)
+            pin.computeGeneralizedGravity(model, data, q)
+        self._q_in[:] = q
+        self._v_in[:] = v
+        self._gaps_in[:] = contacts.gap[self._contacts]
+        if self._c0 is None:
+            self._c0 = data.com[0].copy()
+        self._write_law_state()
+        self._run_law()
+        h, h_dot, touching = self._measures_out.tolist()  # [m], [m/s], number of feet
+        self._update_phase(h, h_dot, touching > 0.0)
+        if self._write_law_state():  # a new phase, or thrust's energy: the law again
+            self._run_law()
+        self._height = h
+        supported = self.phase != Phase.FREE
+        if supported and touching > 0.0:
+            if self._feasible_out[0] < 0.5:
+                columns = np.repeat(self._gaps_in <= self.settings.contact_gap, 3)
+                forces = self._constrained_forces(self._A, self._wrench_out, columns)
+                self._force_out[:] = forces.ravel()
+        else:
+            self._force_out[:] = 0.0
+        self._forces = self._forces_view
+        self._supported_in[0] = supported
+        self._run_torques()
+        return self._tau_out.copy()
+
+    def _write_law_state(self) -> bool:
+        """Write c_0, the thrust flag and v_to into the law's ``state``; whether they changed."""
+        key = (self.phase, self._energy_correction)
+        if key == self._law_state:
+            return False
+        self._law_state = key
+        assert self._c0 is not None
+        self._state_in[:3] = self._c0
+        self._state_in[3] = self.phase == Phase.TAKEOFF
+        self._state_in[4] = self.takeoff_speed()
+        return True
 
     def _hold(self, q: Vector, v: Vector, joints: Index) -> Vector:
         """Joint PD toward the posture on velocity indices ``joints``, shape (len(joints),)."""
@@ -416,6 +586,16 @@ class PronkingController:
             forces = np.zeros(A.shape[1])
             forces[columns] = f
             return forces.reshape(-1, 3)
+        return self._constrained_forces(A, wrench, columns)
+
+    def _constrained_forces(self, A: Vector, wrench: Vector, columns: Mask) -> Vector:
+        """The force QP's solution by proxsuite (its optimum is outside the pyramids), (n_feet, 3).
+
+        Args:
+            A: The wrench matrix of all the feet, shape (6, 3 n_feet).
+            wrench: The desired wrench (F [N], T [N m]), shape (6,).
+            columns: The force columns of the feet in contact, shape (3 n_feet,).
+        """
         H = A.T @ A
         H.flat[:: H.shape[0] + 1] += _REGULARIZATION
         box = np.where(columns, INFINITY, 0.0)
@@ -437,14 +617,6 @@ class PronkingController:
         log.record_extra("hops", self.hops_done)
         log.record_extra("com_height", self._height)
         log.record_extra("foot_force_command", self._forces)
-
-
-def _tangent_basis(normal: Vector) -> Vector:
-    """Two unit tangents orthogonal to ``normal`` and to each other, shape (2, 3)."""
-    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
-    t1 = np.cross(normal, helper)
-    t1 /= np.linalg.norm(t1)
-    return np.array([t1, np.cross(normal, t1)])
 
 
 def _configuration_index(model: pin.Model) -> Index:
