@@ -3,10 +3,10 @@
 The contact solvers start each solve from the last one's solution (proxsuite's QP objects, the
 Coulomb fixed point's last impulses), which changes the last bits of the next solves. On the
 quadruped standing on four feet (frictionless, four-row QPs: the reference stages, whose every
-multi-row step solves its QP; the compiled path's active-set start skips most) and the block on an incline with
-spatial friction (four frictional corners), a second run after renewing the step memory alone
-differs from a new integrator's by up to 2.3e-12 rad in (q, v) and 8.9e-16 (measured); after
-:meth:`MoreauJean.reset` it is equal bit for bit.
+multi-row step solves its QP; the compiled path's active-set start skips most) and the block on
+an incline with spatial friction (four frictional corners), a second run after renewing the step
+memory alone differs from a new integrator's by up to 2.3e-12 rad in (q, v) and 8.9e-16
+(measured); after :meth:`MoreauJean.reset` it is equal bit for bit.
 """
 
 from __future__ import annotations
