@@ -9,6 +9,7 @@ bit for bit), nor without a compiled path (``UCONTROL_NO_COMPILE=1``).
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
@@ -18,13 +19,15 @@ import numpy as np
 import pytest
 from conftest import needs_compiled_code
 
+from ucontrol.cli import _parser
+
 from ucontrol.model.compile_cache import CACHE_ENV
 from ucontrol.model.compiled_function import NO_COMPILE_ENV
 
-#: Imported by other commands (convergence, design, sweep, plot, view) or by scenes with a
-#: Brogliato, walking, impedance, juggling or hopping controller or a spline path, never by a
-#: plain run of the default scene; the campaign package's runner and spec (dask's side), which
-#: the parser of ``ucontrol sweep`` and ``--set`` need not load.
+#: Imported by other commands (convergence, design, sweep, plot, view; their parsers too) or
+#: by scenes with a Brogliato, walking, impedance, juggling or hopping controller or a path,
+#: never by a plain run of the default scene; the campaign package's runner and spec (dask's
+#: side), which ``--set`` need not load.
 HEAVY = (
     "scipy",
     "ucontrol.convergence",
@@ -32,6 +35,14 @@ HEAVY = (
     "ucontrol.campaign.runner",
     "ucontrol.campaign.spec",
     "ucontrol.campaign.build_cache",
+    "ucontrol.campaign.command",
+    "ucontrol.campaign.figures",
+    "ucontrol.campaign.table",
+    "ucontrol.design",
+    "ucontrol.control.path_table",
+    "ucontrol.control.circle_path",
+    "ucontrol.control.polyline_path",
+    "ucontrol.control.segment_path",
     "ucontrol.control.brogliato_controller",
     "ucontrol.control.spline_path",
     "ucontrol.design.cycle_transcription",
@@ -118,3 +129,20 @@ def _assert_same_logs(first: Path, second: Path) -> None:
         for key in a.files:
             if key not in TIMINGS:
                 np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+#: Every command of ``ucontrol``.
+COMMANDS = ("scenes", "run", "check", "convergence", "bench", "view", "plot", "sweep", "design")
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_parser_of_a_command_holds_that_command(command: str) -> None:
+    """The parser built for a command line knows its command; without one, it knows them all."""
+    assert command in _commands(_parser([command, "--help"]))
+    assert _commands(_parser([])) == set(COMMANDS)
+    assert _commands(_parser(["--version"])) == set(COMMANDS)
+
+
+def _commands(parser: argparse.ArgumentParser) -> set[str]:
+    (subparsers,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return set(subparsers.choices)
