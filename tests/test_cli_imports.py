@@ -20,7 +20,6 @@ import pytest
 from conftest import needs_compiled_code
 
 from ucontrol.cli import _parser
-
 from ucontrol.model.compile_cache import CACHE_ENV
 from ucontrol.model.compiled_function import NO_COMPILE_ENV
 
