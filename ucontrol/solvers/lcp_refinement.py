@@ -34,6 +34,7 @@ from ucontrol.solvers.contact_solution import (
     natural_map_residual,
     velocity_scale,
 )
+from ucontrol.solvers.lapack_routines import lapack_routine
 from ucontrol.solvers.lemke import solve_lcp_lemke
 
 #: QP solutions with a complementarity residual above this, in [m/s], are polished: Newton's
@@ -222,7 +223,6 @@ def _lapack() -> Any:
     """LAPACK's ``dsyev``, loaded by the first exact solve.
 
     Called directly: numpy's ``eigh`` wrapper costs more than the decomposition of a few rows.
+    Loaded without ``scipy.linalg``'s package (:mod:`ucontrol.solvers.lapack_routines`).
     """
-    from scipy.linalg.lapack import dsyev
-
-    return dsyev
+    return lapack_routine("dsyev")
