@@ -58,11 +58,7 @@ def test_loading_a_routine_imports_no_scipy_package() -> None:
         "assert info == 0 and w.tolist() == [1.0, 2.0], (w, info)\n"
         "print(' '.join(m for m in sys.modules if m == 'scipy' or m.startswith('scipy.')))\n"
     )
-    completed = subprocess.run(
-        [sys.executable, "-c", program], capture_output=True, text=True, timeout=60
-    )
-    assert completed.returncode == 0, completed.stderr
-    assert completed.stdout.split() == [lapack_routines.FLAPACK]
+    assert _printed(program) == [lapack_routines.FLAPACK]
 
 
 def test_scipy_linalg_imported_later_takes_the_loaded_module() -> None:
@@ -72,8 +68,13 @@ def test_scipy_linalg_imported_later_takes_the_loaded_module() -> None:
         "import scipy.linalg.lapack\n"
         "print(scipy.linalg.lapack.dsyev is dsyev)\n"
     )
+    assert _printed(program) == ["True"]
+
+
+def _printed(program: str) -> list[str]:
+    """The words ``program`` printed, run in a new process."""
     completed = subprocess.run(
         [sys.executable, "-c", program], capture_output=True, text=True, timeout=60
     )
     assert completed.returncode == 0, completed.stderr
-    assert completed.stdout.split() == ["True"]
+    return completed.stdout.split()
