@@ -9,6 +9,7 @@ bit for bit), nor without a compiled path (``UCONTROL_NO_COMPILE=1``).
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
@@ -18,13 +19,15 @@ import numpy as np
 import pytest
 from conftest import needs_compiled_code
 
+from ucontrol.cli import _parser
 from ucontrol.model.compile_cache import CACHE_ENV
 from ucontrol.model.compiled_function import NO_COMPILE_ENV
+from ucontrol.solvers.lapack_routines import FLAPACK
 
-#: Imported by other commands (convergence, design, sweep, plot, view) or by scenes with a
-#: Brogliato, walking, impedance, juggling or hopping controller or a spline path, never by a
-#: plain run of the default scene; the campaign package's runner and spec (dask's side), which
-#: the parser of ``ucontrol sweep`` and ``--set`` need not load.
+#: Imported by other commands (convergence, design, sweep, plot, view; their parsers too) or
+#: by scenes with a Brogliato, walking, impedance, juggling or hopping controller or a path,
+#: never by a plain run of the default scene; the campaign package's runner and spec (dask's
+#: side), which ``--set`` need not load.
 HEAVY = (
     "scipy",
     "ucontrol.convergence",
@@ -32,6 +35,14 @@ HEAVY = (
     "ucontrol.campaign.runner",
     "ucontrol.campaign.spec",
     "ucontrol.campaign.build_cache",
+    "ucontrol.campaign.command",
+    "ucontrol.campaign.figures",
+    "ucontrol.campaign.table",
+    "ucontrol.design",
+    "ucontrol.control.path_table",
+    "ucontrol.control.circle_path",
+    "ucontrol.control.polyline_path",
+    "ucontrol.control.segment_path",
     "ucontrol.control.brogliato_controller",
     "ucontrol.control.spline_path",
     "ucontrol.design.cycle_transcription",
@@ -49,20 +60,28 @@ PROGRAM = """
 import sys
 from ucontrol.cli import main
 
-code = main(["run", *sys.argv[2:], "--out", sys.argv[1], "--duration", "0.05", "--no-progress"])
+out, duration, *scene = sys.argv[1:]
+code = main(["run", *scene, "--out", out, "--duration", duration, "--no-progress"])
 print("exit", code)
 print("modules", " ".join(sorted(sys.modules)))
 """
 
 
+#: Simulated time in [s] of the default scene's guarded run: the whole run, whose impacts
+#: on two contacts at once reach the exact active-set solves (LAPACK, without scipy.linalg).
+DEFAULT_DURATION = 3.0
+
 #: Log entries that are timings (they differ between any two runs).
 TIMINGS = ("solver_time",)
 
 
-def _run(out: Path, env: dict[str, str], *scene: str) -> set[str]:
-    """The command (on ``scene``, or the default) in a new process; the modules it loaded."""
+def _run(out: Path, env: dict[str, str], *scene: str, duration: float = 0.05) -> set[str]:
+    """The command (on ``scene``, or the default) in a new process; the modules it loaded.
+
+    ``duration`` in [s] of simulated time.
+    """
     completed = subprocess.run(
-        [sys.executable, "-c", PROGRAM, str(out), *scene],
+        [sys.executable, "-c", PROGRAM, str(out), str(duration), *scene],
         capture_output=True,
         text=True,
         env=env,
@@ -77,7 +96,14 @@ def _run(out: Path, env: dict[str, str], *scene: str) -> set[str]:
 
 
 def _loaded(modules: set[str], heavy: tuple[str, ...]) -> list[str]:
-    return sorted(m for m in modules if any(m == h or m.startswith(h + ".") for h in heavy))
+    """The modules of ``heavy`` (packages with their submodules) in ``modules``.
+
+    scipy's LAPACK extension module alone is not heavy: loaded without its packages
+    (:mod:`ucontrol.solvers.lapack_routines`).
+    """
+    return sorted(
+        m for m in modules - {FLAPACK} if any(m == h or m.startswith(h + ".") for h in heavy)
+    )
 
 
 @pytest.mark.parametrize(
@@ -89,9 +115,9 @@ def test_run_of_the_default_scene_imports_no_heavy_module(tmp_path: Path, cache:
     if cache == "no_compile":
         env[NO_COMPILE_ENV] = "1"
     if cache == "warm":
-        cold = _run(tmp_path / "cold", env)
+        cold = _run(tmp_path / "cold", env, duration=DEFAULT_DURATION)
         assert "casadi" in cold  # the cold run built the compiled paths' Functions
-    modules = _run(tmp_path / "run", env)
+    modules = _run(tmp_path / "run", env, duration=DEFAULT_DURATION)
     heavy = HEAVY if cache == "cold" else (*HEAVY, "casadi")
     assert _loaded(modules, heavy) == []
     if cache == "warm":
@@ -118,3 +144,20 @@ def _assert_same_logs(first: Path, second: Path) -> None:
         for key in a.files:
             if key not in TIMINGS:
                 np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+#: Every command of ``ucontrol``.
+COMMANDS = ("scenes", "run", "check", "convergence", "bench", "view", "plot", "sweep", "design")
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_parser_of_a_command_holds_that_command(command: str) -> None:
+    """The parser built for a command line knows its command; without one, it knows them all."""
+    assert command in _commands(_parser([command, "--help"]))
+    assert _commands(_parser([])) == set(COMMANDS)
+    assert _commands(_parser(["--version"])) == set(COMMANDS)
+
+
+def _commands(parser: argparse.ArgumentParser) -> set[str]:
+    (subparsers,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return set(subparsers.choices)

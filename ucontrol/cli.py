@@ -35,6 +35,8 @@ BENCH_SCENE = "table_drop"
 #: Width in characters of `ucontrol scenes` lines (longer descriptions wrap under themselves).
 _SCENES_WIDTH = 100
 _SCENE_HELP = "scene TOML file or built-in scene name (default: the built-in default scene)"
+#: The commands whose parsers this module builds (``sweep`` and ``design`` have their modules').
+_OWN_COMMANDS = ("run", "check", "convergence", "bench", "view", "plot", "scenes")
 
 if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
     from ucontrol.analysis.stability_check import StabilityCheck
@@ -44,10 +46,14 @@ if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
     from ucontrol.viz.meshcat_server import MeshcatServer
 
 
-def _parser() -> argparse.ArgumentParser:
-    # Pinocchio, scipy and dask come with these: imported once the signals are handled (main)
-    from ucontrol.campaign.command import add_sweep_parser
-    from ucontrol.design.command import add_design_parser
+def _parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The command line's parser; ``sweep`` and ``design`` only where ``argv`` may name them.
+
+    Their parsers live in their own modules (the campaign's and the design's), imported only
+    when the first word of ``argv`` (the command: the top-level options take no value) is
+    neither of this module's commands: ``ucontrol run`` builds no parser it does not use.
+    """
+    # Pinocchio comes with the scenes: imported once the signals are handled (main)
     from ucontrol.scene import INTEGRATORS
 
     parser = argparse.ArgumentParser(
@@ -268,8 +274,14 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument(
         "--out", type=Path, default=None, help="folder of the figures (default: DIR/figures)"
     )
-    add_sweep_parser(commands)
-    add_design_parser(commands)
+    words = sys.argv[1:] if argv is None else argv
+    command = next((word for word in words if not word.startswith("-")), None)
+    if command not in _OWN_COMMANDS:  # sweep, design, or a word argparse reports with them
+        from ucontrol.campaign.command import add_sweep_parser
+        from ucontrol.design.command import add_design_parser
+
+        add_sweep_parser(commands)
+        add_design_parser(commands)
     return parser
 
 
@@ -575,7 +587,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous: dict[int, Any] = {}
     try:
         _interrupt_on_signals(previous)
-        args = _parser().parse_args(argv)
+        args = _parser(argv).parse_args(argv)
         commands = {
             "run": _run,
             "check": _check,

@@ -18,7 +18,6 @@ from ucontrol.control.controller_table import CYCLE_KEYS, tracked_contacts
 from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.friction_compensation import FrictionCompensation
 from ucontrol.control.joint_pd import JointPD
-from ucontrol.control.path_table import cycle_from_table
 from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import NotFoundError, SceneError
@@ -174,6 +173,7 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
     """The ``type = "brogliato"`` controller of a scene (keys in docs/scene_format.md)."""
     # casadi comes with the Brogliato controllers: imported by the scenes that declare one
     from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+    from ucontrol.control.path_table import cycle_from_table  # the paths, for these alone
 
     section = "[controller]"
     frame = str(require_key(table, section, "frame"))

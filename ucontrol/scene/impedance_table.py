@@ -7,7 +7,6 @@ from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import check_keys, require_key
 from ucontrol.control.controller_table import tracked_contacts
-from ucontrol.control.path_table import cycle_from_table
 from ucontrol.exceptions import InvalidParameterError
 
 if TYPE_CHECKING:
@@ -72,6 +71,7 @@ def impedance_arguments(scene: SceneData, table: Mapping[str, Any]) -> dict[str,
     """
     from ucontrol.control.impedance_controller import ImpedanceGains
     from ucontrol.control.path_reach import check_reach
+    from ucontrol.control.path_table import cycle_from_table
 
     section = "[controller]"
     if scene.flexible is not None:

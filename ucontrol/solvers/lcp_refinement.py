@@ -34,6 +34,7 @@ from ucontrol.solvers.contact_solution import (
     natural_map_residual,
     velocity_scale,
 )
+from ucontrol.solvers.lapack_routines import lapack_routine
 from ucontrol.solvers.lemke import solve_lcp_lemke
 
 #: QP solutions with a complementarity residual above this, in [m/s], are polished: Newton's
@@ -185,17 +186,20 @@ def _solve_on_active_set(D: Vector, b: Vector, active: NDArray[np.bool_]) -> Vec
     if count == b.size:
         return _non_negative_solve(D, -b)
     rows = np.flatnonzero(active)
+    solution = _non_negative_solve(D.take(rows, 0).take(rows, 1), -b.take(rows))
+    if solution is None:
+        return None
     candidate = np.zeros(b.size)
-    candidate[rows] = _non_negative_solve(D.take(rows, 0).take(rows, 1), -b.take(rows))
+    candidate[rows] = solution
     return candidate
 
 
-def _non_negative_solve(A: Vector, y: Vector) -> Vector:
+def _non_negative_solve(A: Vector, y: Vector) -> Vector | None:
     """A solution x >= 0 of the consistent system ``A x = y`` (A symmetric PSD), if one exists.
 
     The minimum-norm solution from A's eigenvalues (module docstring), the unique one where A
-    is regular; redundant constraints make A singular, where it may be negative although a
-    non-negative one exists, which non-negative least squares finds.
+    is regular: None where it is negative. Redundant constraints make A singular, where it may
+    be negative although a non-negative one exists, which non-negative least squares finds.
     """
     eigenvalues, vectors, _ = _lapack()(A)  # ascending
     values = eigenvalues.tolist()
@@ -206,6 +210,8 @@ def _non_negative_solve(A: Vector, y: Vector) -> Vector:
     basis = vectors[:, dropped:]
     x: Vector = basis.dot(basis.T.dot(y) / eigenvalues[dropped:])
     if min(x.tolist()) < 0.0:
+        if not dropped:  # the unique solution
+            return None
         import scipy.optimize  # rare: loaded only when needed
 
         x = scipy.optimize.nnls(A, y)[0]
@@ -217,7 +223,6 @@ def _lapack() -> Any:
     """LAPACK's ``dsyev``, loaded by the first exact solve.
 
     Called directly: numpy's ``eigh`` wrapper costs more than the decomposition of a few rows.
+    Loaded without ``scipy.linalg``'s package (:mod:`ucontrol.solvers.lapack_routines`).
     """
-    from scipy.linalg.lapack import dsyev
-
-    return dsyev
+    return lapack_routine("dsyev")
