@@ -1062,10 +1062,10 @@ class MoreauJean:
 
 @functools.cache
 def _lapack_cholesky() -> tuple[Any, Any]:
-    """LAPACK's ``dpotrf`` and ``dpotrs``, scipy.linalg loaded by the first step needing them."""
-    from scipy.linalg.lapack import dpotrf, dpotrs
+    """LAPACK's ``dpotrf`` and ``dpotrs``, loaded by the first step needing them."""
+    from ucontrol.solvers.lapack_routines import lapack_routine
 
-    return dpotrf, dpotrs
+    return lapack_routine("dpotrf"), lapack_routine("dpotrs")
 
 
 def _upper_cholesky(W: Vector) -> Vector:

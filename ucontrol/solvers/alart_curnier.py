@@ -60,8 +60,10 @@ Pattern = tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]
 @functools.cache
 def _lapack() -> tuple[Any, Any, Any, Any, Any]:
     """LAPACK's ``dgetrf``, ``dgecon``, ``dgetrs``, ``dgelsy`` and its workspace query."""
-    from scipy.linalg.lapack import dgecon, dgelsy, dgelsy_lwork, dgetrf, dgetrs
+    from ucontrol.solvers.lapack_routines import lapack_routine
 
+    names = ("dgetrf", "dgecon", "dgetrs", "dgelsy", "dgelsy_lwork")
+    dgetrf, dgecon, dgetrs, dgelsy, dgelsy_lwork = (lapack_routine(name) for name in names)
     return dgetrf, dgecon, dgetrs, dgelsy, dgelsy_lwork
 
 
