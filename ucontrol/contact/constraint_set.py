@@ -224,6 +224,19 @@ class ConstraintSet:
             contact.radius * cross(tangents, contact.surface.normal)
             for contact, tangents in zip(self.contacts, self._plane_tangents, strict=True)
         ]
+        # Each point contact's rows as directions on its frame Jacobian (LOCAL_WORLD_ALIGNED,
+        # linear then angular part): the normal row (n, 0), then each tangent row (t, ℓ), zero
+        # past its count; read by :meth:`contact_rows` with one Jacobian per frame.
+        width = 1 + int(self.tangent_count[: self._n_point].max(initial=0))
+        self._point_linear = np.zeros((self._n_point, width, 3))
+        self._point_angular = np.zeros((self._n_point, width, 3))
+        self._point_tangential = np.zeros((self._n_point, width - 1), dtype=bool)
+        for i, count in enumerate(self.tangent_count[: self._n_point].tolist()):
+            self._point_linear[i, 0] = self._normals[i]
+            self._point_linear[i, 1 : 1 + count] = self._plane_tangents[i][:count]
+            self._point_angular[i, 1 : 1 + count] = self._plane_levers[i][:count]
+            self._point_tangential[i, :count] = True
+        self._point_jacobians = np.empty((self._n_point, 6, robot.nv))  # [m or rad per unit v]
         self._closure_rules = self._ahead_rules(robot)
         #: Whether some contact closes only ahead of another (:meth:`closure_barred`).
         self.has_closure_rules = bool(self._closure_rules)
@@ -351,17 +364,18 @@ class ConstraintSet:
         ``data`` must hold joint Jacobians and frame placements (``pin.computeAllTerms`` then
         ``pin.updateFramePlacements``).
         """
-        model = self.robot.model
+        if self._point_contacts_only(indices):
+            return self._point_rows(data, _index_list(indices))[0]
         rows = np.zeros((len(indices), self.robot.nv))
         k = self.n_contacts
         shapes: list[int] = []  # positions in indices of the collision rows
         pairs: list[int] = []  # positions in indices of the sphere-pair rows
+        points: list[int] = []  # positions in indices of the point contacts
         for row, i in enumerate(_index_list(indices)):  # Python ints: cheaper comparisons
             if self._pairs_end <= i < k:
                 shapes.append(row)
             elif i < self._n_point:
-                frame_id, normal, _ = self._contact_terms[i]
-                rows[row] = normal.dot(pin.getFrameJacobian(model, data, frame_id, _LWA)[:3])
+                points.append(row)
             elif i < k:
                 pairs.append(row)
             elif i < self._stops_end:
@@ -369,6 +383,8 @@ class ConstraintSet:
             else:
                 play = self._play[i - self._stops_end]
                 rows[row, play.v_xy] = -play.gap_normal(data)[1]
+        if points:  # as without the other constraints, to the last bit
+            rows[points] = self._point_rows(data, [int(indices[row]) for row in points])[0]
         if pairs:
             pair_ids = [int(indices[row]) - self._n_point for row in pairs]
             normals = self._pair_normals(data, pair_ids)
@@ -393,8 +409,9 @@ class ConstraintSet:
             The rows, shape (k, nv), and the unit tangent of each row in world coordinates,
             shape (k, 3).
         """
-        model = self.robot.model
         indices = _index_list(indices)
+        if self._point_contacts_only(indices):
+            return self._point_rows(data, indices)[1:]
         counts = self.tangent_count[indices].tolist()
         rows = np.empty((sum(counts), self.robot.nv))
         directions = np.empty((rows.shape[0], 3))
@@ -418,6 +435,8 @@ class ConstraintSet:
             targets = np.array(pair_starts)[:, None] + np.arange(pair_tangents.shape[1])
             rows[targets] = self._pair_rows(data, pair_ids, pair_tangents, levers)
             directions[targets] = pair_tangents
+        point_ids: list[int] = []  # the point contacts with tangential rows
+        point_targets: list[int] = []  # and the positions of their rows
         start = 0
         for i, count in zip(indices, counts, strict=True):
             if count == 0:
@@ -441,13 +460,53 @@ class ConstraintSet:
                 normal = self.collision.normals(data, [row])[0]
                 tangents = tangent_basis(normal, self.planar_axis)
                 rows[start:end] = self.collision.tangent_rows(data, [row], [tangents])
-            else:  # a point contact
-                tangents = self._plane_tangents[i]
-                J = pin.getFrameJacobian(model, data, self._frame_ids[i], _LWA)
-                rows[start:end] = tangents @ J[:3] + self._plane_levers[i] @ J[3:]
+            else:  # a point contact: below
+                point_ids.append(i)
+                point_targets.extend(range(start, end))
+                start = end
+                continue
             directions[start:end] = tangents
             start = end
+        if point_ids:  # as without the other constraints, to the last bit
+            _, rows[point_targets], directions[point_targets] = self._point_rows(data, point_ids)
         return rows, directions
+
+    def contact_rows(
+        self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]
+    ) -> tuple[Vector, Vector, Vector]:
+        r"""Normal and tangential rows of the constraints ``indices``, read together.
+
+        :meth:`jacobian` and :meth:`tangent_rows` in one call: for point contacts alone, each
+        contact frame's Jacobian is read once for both kinds of rows (the normal row is
+        :math:`n^T J_{lin}`, the tangential ones :math:`t^T J_{lin} + \ell^T J_{ang}`, as
+        one product of stacked directions with the stacked frame Jacobians). Same
+        requirements on ``data`` as :meth:`jacobian`.
+
+        Returns:
+            The normal rows, shape (len(indices), nv), the tangential rows, shape (k, nv),
+            and the unit tangent of each tangential row in world coordinates, shape (k, 3).
+        """
+        indices = _index_list(indices)
+        if self._point_contacts_only(indices):
+            return self._point_rows(data, indices)
+        return self.jacobian(data, indices), *self.tangent_rows(data, indices)
+
+    def _point_contacts_only(self, indices: Sequence[int] | NDArray[np.intp]) -> bool:
+        """Whether ``indices`` are point contacts against planes, at least one."""
+        return len(indices) > 0 and int(max(indices)) < self._n_point
+
+    def _point_rows(self, data: pin.Data, indices: list[int]) -> tuple[Vector, Vector, Vector]:
+        """:meth:`contact_rows` of point contacts ``indices``, one frame Jacobian each."""
+        model, frames, m = self.robot.model, self._frame_ids, len(indices)
+        jacobians = self._point_jacobians[:m]  # (m, 6, nv), overwritten by each call
+        for k, i in enumerate(indices):  # (reshaped: Pinocchio gives (6,) when nv = 1)
+            jacobians[k] = pin.getFrameJacobian(model, data, frames[i], _LWA).reshape(6, -1)
+        rows = (
+            self._point_linear[indices] @ jacobians[:, :3]
+            + self._point_angular[indices] @ jacobians[:, 3:]
+        )  # (m, 1 + c, nv): the normal row, then the tangential ones
+        tangential = self._point_tangential[indices]
+        return rows[:, 0], rows[:, 1:][tangential], self._point_linear[indices, 1:][tangential]
 
     def normal_drift(
         self,
