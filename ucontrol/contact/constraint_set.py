@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -25,6 +26,8 @@ _LWA = pin.LOCAL_WORLD_ALIGNED
 _PLANAR_TOLERANCE = 1e-9
 #: Relative distance to its circle within which a clearance joint's play is on it.
 _ON_CIRCLE = 1e-12
+#: Most sets of point contacts whose row selections are kept (ConstraintSet._point_selection).
+_SELECTIONS = 256
 
 
 class ConstraintSet:
@@ -227,16 +230,22 @@ class ConstraintSet:
         # Each point contact's rows as directions on its frame Jacobian (LOCAL_WORLD_ALIGNED,
         # linear then angular part): the normal row (n, 0), then each tangent row (t, ℓ), zero
         # past its count; read by :meth:`contact_rows` with one Jacobian per frame.
-        width = 1 + int(self.tangent_count[: self._n_point].max(initial=0))
-        self._point_linear = np.zeros((self._n_point, width, 3))
-        self._point_angular = np.zeros((self._n_point, width, 3))
+        counts = self.tangent_count[: self._n_point].tolist()
+        width = 1 + max(counts, default=0)
+        directions = np.zeros((self._n_point, width, 6))
         self._point_tangential = np.zeros((self._n_point, width - 1), dtype=bool)
-        for i, count in enumerate(self.tangent_count[: self._n_point].tolist()):
-            self._point_linear[i, 0] = self._normals[i]
-            self._point_linear[i, 1 : 1 + count] = self._plane_tangents[i][:count]
-            self._point_angular[i, 1 : 1 + count] = self._plane_levers[i][:count]
+        for i, count in enumerate(counts):
+            directions[i, 0, :3] = self._normals[i]
+            directions[i, 1 : 1 + count, :3] = self._plane_tangents[i][:count]
+            directions[i, 1 : 1 + count, 3:] = self._plane_levers[i][:count]
             self._point_tangential[i, :count] = True
-        self._point_jacobians = np.empty((self._n_point, 6, robot.nv))  # [m or rad per unit v]
+        self._point_directions = directions
+        # The frame Jacobians of a call, one (6, nv) block per contact read ((6,) when nv = 1,
+        # as Pinocchio gives them then), and each active set's selections (_point_selection).
+        self._point_jacobians = np.zeros((self._n_point, 6, robot.nv))
+        self._point_blocks = [block.reshape(6, -1).squeeze(1) if robot.nv == 1 else block
+                              for block in self._point_jacobians]  # fmt: skip
+        self._point_selections: dict[tuple[int, ...], tuple[Vector, Any, Vector]] = {}
         self._closure_rules = self._ahead_rules(robot)
         #: Whether some contact closes only ahead of another (:meth:`closure_barred`).
         self.has_closure_rules = bool(self._closure_rules)
@@ -364,14 +373,15 @@ class ConstraintSet:
         ``data`` must hold joint Jacobians and frame placements (``pin.computeAllTerms`` then
         ``pin.updateFramePlacements``).
         """
-        if self._point_contacts_only(indices):
-            return self._point_rows(data, _index_list(indices))[0]
+        index = _index_list(indices)
+        if self._point_contacts_only(index):
+            return self._point_rows(data, index)[0]
         rows = np.zeros((len(indices), self.robot.nv))
         k = self.n_contacts
         shapes: list[int] = []  # positions in indices of the collision rows
         pairs: list[int] = []  # positions in indices of the sphere-pair rows
         points: list[int] = []  # positions in indices of the point contacts
-        for row, i in enumerate(_index_list(indices)):  # Python ints: cheaper comparisons
+        for row, i in enumerate(index):  # Python ints: cheaper comparisons
             if self._pairs_end <= i < k:
                 shapes.append(row)
             elif i < self._n_point:
@@ -491,22 +501,43 @@ class ConstraintSet:
             return self._point_rows(data, indices)
         return self.jacobian(data, indices), *self.tangent_rows(data, indices)
 
-    def _point_contacts_only(self, indices: Sequence[int] | NDArray[np.intp]) -> bool:
+    def _point_contacts_only(self, indices: list[int]) -> bool:
         """Whether ``indices`` are point contacts against planes, at least one."""
-        return len(indices) > 0 and int(max(indices)) < self._n_point
+        return bool(indices) and max(indices) < self._n_point
 
     def _point_rows(self, data: pin.Data, indices: list[int]) -> tuple[Vector, Vector, Vector]:
-        """:meth:`contact_rows` of point contacts ``indices``, one frame Jacobian each."""
-        model, frames, m = self.robot.model, self._frame_ids, len(indices)
-        jacobians = self._point_jacobians[:m]  # (m, 6, nv), overwritten by each call
-        for k, i in enumerate(indices):  # (reshaped: Pinocchio gives (6,) when nv = 1)
-            jacobians[k] = pin.getFrameJacobian(model, data, frames[i], _LWA).reshape(6, -1)
-        rows = (
-            self._point_linear[indices] @ jacobians[:, :3]
-            + self._point_angular[indices] @ jacobians[:, 3:]
-        )  # (m, 1 + c, nv): the normal row, then the tangential ones
-        tangential = self._point_tangential[indices]
-        return rows[:, 0], rows[:, 1:][tangential], self._point_linear[indices, 1:][tangential]
+        """:meth:`contact_rows` of point contacts ``indices``, one frame Jacobian each.
+
+        The rows are one batched product of the contacts' stacked directions (normal, then
+        tangents with their levers; shape (m, 1 + c, 6)) with their frame Jacobians (m, 6, nv).
+        """
+        model, frames, blocks = self.robot.model, self._frame_ids, self._point_blocks
+        for k, i in enumerate(indices):
+            blocks[k][...] = pin.getFrameJacobian(model, data, frames[i], _LWA)
+        directions, tangential, tangents = self._point_selection(indices)
+        rows = np.matmul(directions, self._point_jacobians[: len(indices)])  # (m, 1 + c, nv)
+        if tangential is None:  # every contact's tangential rows
+            return rows[:, 0], rows[:, 1:].reshape(-1, self.robot.nv), tangents
+        return rows[:, 0], rows[:, 1:][tangential], tangents
+
+    def _point_selection(self, indices: list[int]) -> tuple[Vector, Any, Vector]:
+        """Directions (m, 1 + c, 6), tangential-row mask (m, c) or None (all) and tangents.
+
+        Of the point contacts ``indices``; kept for each set of indices met (a few active
+        sets of feet), at most :data:`_SELECTIONS` of them.
+        """
+        key = tuple(indices)
+        selection = self._point_selections.get(key)
+        if selection is None:
+            if len(self._point_selections) >= _SELECTIONS:
+                self._point_selections.clear()
+            directions = self._point_directions[indices]
+            mask = self._point_tangential[indices]
+            tangents = directions[:, 1:, :3][mask]
+            tangents.flags.writeable = False  # shared by the calls with these indices
+            selection = directions, None if mask.all() else mask, tangents
+            self._point_selections[key] = selection
+        return selection
 
     def normal_drift(
         self,
