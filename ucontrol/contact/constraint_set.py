@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -25,6 +26,8 @@ _LWA = pin.LOCAL_WORLD_ALIGNED
 _PLANAR_TOLERANCE = 1e-9
 #: Relative distance to its circle within which a clearance joint's play is on it.
 _ON_CIRCLE = 1e-12
+#: Most sets of point contacts whose row selections are kept (ConstraintSet._point_selection).
+_SELECTIONS = 256
 
 
 class ConstraintSet:
@@ -224,6 +227,25 @@ class ConstraintSet:
             contact.radius * cross(tangents, contact.surface.normal)
             for contact, tangents in zip(self.contacts, self._plane_tangents, strict=True)
         ]
+        # Each point contact's rows as directions on its frame Jacobian (LOCAL_WORLD_ALIGNED,
+        # linear then angular part): the normal row (n, 0), then each tangent row (t, ℓ), zero
+        # past its count; read by :meth:`contact_rows` with one Jacobian per frame.
+        counts = self.tangent_count[: self._n_point].tolist()
+        width = 1 + max(counts, default=0)
+        directions = np.zeros((self._n_point, width, 6))
+        self._point_tangential = np.zeros((self._n_point, width - 1), dtype=bool)
+        for i, count in enumerate(counts):
+            directions[i, 0, :3] = self._normals[i]
+            directions[i, 1 : 1 + count, :3] = self._plane_tangents[i][:count]
+            directions[i, 1 : 1 + count, 3:] = self._plane_levers[i][:count]
+            self._point_tangential[i, :count] = True
+        self._point_directions = directions
+        # The frame Jacobians of a call, one (6, nv) block per contact read ((6,) when nv = 1,
+        # as Pinocchio gives them then), and each active set's selections (_point_selection).
+        self._point_jacobians = np.zeros((self._n_point, 6, robot.nv))
+        self._point_blocks = [block.reshape(6, -1).squeeze(1) if robot.nv == 1 else block
+                              for block in self._point_jacobians]  # fmt: skip
+        self._point_selections: dict[tuple[int, ...], tuple[Vector, Any, Vector]] = {}
         self._closure_rules = self._ahead_rules(robot)
         #: Whether some contact closes only ahead of another (:meth:`closure_barred`).
         self.has_closure_rules = bool(self._closure_rules)
@@ -351,17 +373,19 @@ class ConstraintSet:
         ``data`` must hold joint Jacobians and frame placements (``pin.computeAllTerms`` then
         ``pin.updateFramePlacements``).
         """
-        model = self.robot.model
+        index = _index_list(indices)
+        if self._point_contacts_only(index):
+            return self._point_rows(data, index)[0]
         rows = np.zeros((len(indices), self.robot.nv))
         k = self.n_contacts
         shapes: list[int] = []  # positions in indices of the collision rows
         pairs: list[int] = []  # positions in indices of the sphere-pair rows
-        for row, i in enumerate(_index_list(indices)):  # Python ints: cheaper comparisons
+        points: list[int] = []  # positions in indices of the point contacts
+        for row, i in enumerate(index):  # Python ints: cheaper comparisons
             if self._pairs_end <= i < k:
                 shapes.append(row)
             elif i < self._n_point:
-                frame_id, normal, _ = self._contact_terms[i]
-                rows[row] = normal.dot(pin.getFrameJacobian(model, data, frame_id, _LWA)[:3])
+                points.append(row)
             elif i < k:
                 pairs.append(row)
             elif i < self._stops_end:
@@ -369,6 +393,8 @@ class ConstraintSet:
             else:
                 play = self._play[i - self._stops_end]
                 rows[row, play.v_xy] = -play.gap_normal(data)[1]
+        if points:  # as without the other constraints, to the last bit
+            rows[points] = self._point_rows(data, [int(indices[row]) for row in points])[0]
         if pairs:
             pair_ids = [int(indices[row]) - self._n_point for row in pairs]
             normals = self._pair_normals(data, pair_ids)
@@ -393,8 +419,9 @@ class ConstraintSet:
             The rows, shape (k, nv), and the unit tangent of each row in world coordinates,
             shape (k, 3).
         """
-        model = self.robot.model
         indices = _index_list(indices)
+        if self._point_contacts_only(indices):
+            return self._point_rows(data, indices)[1:]
         counts = self.tangent_count[indices].tolist()
         rows = np.empty((sum(counts), self.robot.nv))
         directions = np.empty((rows.shape[0], 3))
@@ -418,6 +445,8 @@ class ConstraintSet:
             targets = np.array(pair_starts)[:, None] + np.arange(pair_tangents.shape[1])
             rows[targets] = self._pair_rows(data, pair_ids, pair_tangents, levers)
             directions[targets] = pair_tangents
+        point_ids: list[int] = []  # the point contacts with tangential rows
+        point_targets: list[int] = []  # and the positions of their rows
         start = 0
         for i, count in zip(indices, counts, strict=True):
             if count == 0:
@@ -441,13 +470,74 @@ class ConstraintSet:
                 normal = self.collision.normals(data, [row])[0]
                 tangents = tangent_basis(normal, self.planar_axis)
                 rows[start:end] = self.collision.tangent_rows(data, [row], [tangents])
-            else:  # a point contact
-                tangents = self._plane_tangents[i]
-                J = pin.getFrameJacobian(model, data, self._frame_ids[i], _LWA)
-                rows[start:end] = tangents @ J[:3] + self._plane_levers[i] @ J[3:]
+            else:  # a point contact: below
+                point_ids.append(i)
+                point_targets.extend(range(start, end))
+                start = end
+                continue
             directions[start:end] = tangents
             start = end
+        if point_ids:  # as without the other constraints, to the last bit
+            _, rows[point_targets], directions[point_targets] = self._point_rows(data, point_ids)
         return rows, directions
+
+    def contact_rows(
+        self, data: pin.Data, indices: Sequence[int] | NDArray[np.intp]
+    ) -> tuple[Vector, Vector, Vector]:
+        r"""Normal and tangential rows of the constraints ``indices``, read together.
+
+        :meth:`jacobian` and :meth:`tangent_rows` in one call: for point contacts alone, each
+        contact frame's Jacobian is read once for both kinds of rows (the normal row is
+        :math:`n^T J_{lin}`, the tangential ones :math:`t^T J_{lin} + \ell^T J_{ang}`, as
+        one product of stacked directions with the stacked frame Jacobians). Same
+        requirements on ``data`` as :meth:`jacobian`.
+
+        Returns:
+            The normal rows, shape (len(indices), nv), the tangential rows, shape (k, nv),
+            and the unit tangent of each tangential row in world coordinates, shape (k, 3).
+        """
+        indices = _index_list(indices)
+        if self._point_contacts_only(indices):
+            return self._point_rows(data, indices)
+        return self.jacobian(data, indices), *self.tangent_rows(data, indices)
+
+    def _point_contacts_only(self, indices: list[int]) -> bool:
+        """Whether ``indices`` are point contacts against planes, at least one."""
+        return bool(indices) and max(indices) < self._n_point
+
+    def _point_rows(self, data: pin.Data, indices: list[int]) -> tuple[Vector, Vector, Vector]:
+        """:meth:`contact_rows` of point contacts ``indices``, one frame Jacobian each.
+
+        The rows are one batched product of the contacts' stacked directions (normal, then
+        tangents with their levers; shape (m, 1 + c, 6)) with their frame Jacobians (m, 6, nv).
+        """
+        model, frames, blocks = self.robot.model, self._frame_ids, self._point_blocks
+        for k, i in enumerate(indices):
+            blocks[k][...] = pin.getFrameJacobian(model, data, frames[i], _LWA)
+        directions, tangential, tangents = self._point_selection(indices)
+        rows = np.matmul(directions, self._point_jacobians[: len(indices)])  # (m, 1 + c, nv)
+        if tangential is None:  # every contact's tangential rows
+            return rows[:, 0], rows[:, 1:].reshape(-1, self.robot.nv), tangents
+        return rows[:, 0], rows[:, 1:][tangential], tangents
+
+    def _point_selection(self, indices: list[int]) -> tuple[Vector, Any, Vector]:
+        """Directions (m, 1 + c, 6), tangential-row mask (m, c) or None (all) and tangents.
+
+        Of the point contacts ``indices``; kept for each set of indices met (a few active
+        sets of feet), at most :data:`_SELECTIONS` of them.
+        """
+        key = tuple(indices)
+        selection = self._point_selections.get(key)
+        if selection is None:
+            if len(self._point_selections) >= _SELECTIONS:
+                self._point_selections.clear()
+            directions = self._point_directions[indices]
+            mask = self._point_tangential[indices]
+            tangents = directions[:, 1:, :3][mask]
+            tangents.flags.writeable = False  # shared by the calls with these indices
+            selection = directions, None if mask.all() else mask, tangents
+            self._point_selections[key] = selection
+        return selection
 
     def normal_drift(
         self,

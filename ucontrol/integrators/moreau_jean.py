@@ -677,16 +677,15 @@ class MoreauJean:
         """
         constraints, data, m = self.constraints, self._data, indices.size
         rows = indices.tolist()  # (Python ints: the loops over the active rows below)
-        if state.normal_rows is not None:
+        tangents: NDArray[np.intp] | None = None
+        counts = constraints.tangent_count[indices]
+        if self._friction and counts.any():  # normal and tangential rows read together
+            J, T, directions = constraints.contact_rows(data, indices)
+            J, tangents = np.vstack((J, T)), counts
+        elif state.normal_rows is not None:
             J = state.normal_rows[indices]
         else:
             J = constraints.jacobian(data, indices)
-        tangents: NDArray[np.intp] | None = None
-        if self._friction and m:
-            counts = constraints.tangent_count[indices]
-            if counts.any():
-                T, directions = constraints.tangent_rows(data, indices)
-                J, tangents = np.vstack((J, T)), counts
         if self.flexible is not None:  # constraints act on the links only
             J = np.hstack((J, np.zeros((J.shape[0], self.flexible.nf))))
         if self._coulomb_rows is not None:  # Coulomb joints' rows after the contacts'
