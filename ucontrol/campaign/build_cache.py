@@ -156,19 +156,3 @@ def reusable_integrator(integrator: Any) -> bool:
 def reusable_controller(controller: Any) -> bool:
     """Whether ``controller`` can be reset to a fresh build's state (it has ``reset()``)."""
     return callable(getattr(controller, "reset", None))
-
-
-def reset_integrator(integrator: Any, scene: Any) -> None:
-    """Bring a Moreau–Jean integrator of ``scene``'s key back to a fresh build's state.
-
-    Its step memory is renewed and its contact solvers replaced by new ones with the scene's
-    settings (as :func:`ucontrol.scene.integrator_builders.build_integrator` makes them): the
-    solvers warm-start each solve from the last, which must not carry over from a run.
-    """
-    from ucontrol.scene.integrator_builders import contact_solvers
-
-    solver, friction_solver = contact_solvers(scene)
-    integrator.solver = solver
-    if integrator.friction_solver is not None:
-        integrator.friction_solver = friction_solver
-    integrator.reset()

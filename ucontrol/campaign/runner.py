@@ -33,7 +33,6 @@ from ucontrol.campaign.build_cache import (
     BuildCache,
     controller_key,
     integrator_key,
-    reset_integrator,
     reusable_controller,
     reusable_integrator,
 )
@@ -191,7 +190,7 @@ def simulate_cached(
     if integrator is None:
         integrator, build[INTEGRATOR] = scene.build_integrator(), BUILT
     else:
-        reset_integrator(integrator, scene)
+        integrator.reset()  # no step memory, no warm starts: as a fresh build
         build[INTEGRATOR] = REUSED
     controller = cache.checkout(CONTROLLER, keys[CONTROLLER])
     if controller is None:
