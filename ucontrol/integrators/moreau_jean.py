@@ -492,13 +492,15 @@ class MoreauJean:
     def _compiled_free_step(self) -> CompiledFreeStep | None:
         """The free part of the step as one compiled call, where the step allows it.
 
-        With the compiled constraint rows (plane contacts and stops of a robot whose joints are
-        vector spaces), without midpoint Coriolis forces, Coulomb joints or bilateral
-        constraints, and where a C compiler is present. The same call solves the steps with
-        one active row when the solver's one-row solve is the closed form.
+        With the compiled constraint rows of a robot whose joints are all vector spaces (plane
+        contacts and stops; a free-flyer base has its rows alone), without midpoint Coriolis
+        forces, Coulomb joints or bilateral constraints, and where a C compiler is present.
+        The same call solves the steps with one active row when the solver's one-row solve
+        is the closed form.
         """
         if (
             self._rows is None
+            or not self._vector_space  # (a free-flyer's rows: q_free is not q + h v)
             or self.midpoint
             or self._coulomb_rows is not None
             or self._bilateral is not None
