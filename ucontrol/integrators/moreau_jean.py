@@ -492,15 +492,17 @@ class MoreauJean:
     def _compiled_free_step(self) -> CompiledFreeStep | None:
         """The free part of the step as one compiled call, where the step allows it.
 
-        With the compiled constraint rows of a robot whose joints are all vector spaces (plane
-        contacts and stops; a free-flyer base has its rows alone), without midpoint Coriolis
+        With the compiled constraint rows (plane contacts and stops), without midpoint Coriolis
         forces, Coulomb joints or bilateral constraints, and where a C compiler is present.
-        The same call solves the steps with one active row when the solver's one-row solve
-        is the closed form.
+        Where every joint is a vector space, the same call gives :math:`q^{free}` and solves
+        the steps with one active row when the solver's one-row solve is the closed form; on
+        a rigid robot with a free-flyer root it gives the velocity terms alone (the
+        configuration is advanced by :meth:`_advance`).
         """
+        vector_space = self._vector_space
         if (
             self._rows is None
-            or not self._vector_space  # (a free-flyer's rows: q_free is not q + h v)
+            or (not vector_space and self.flexible is not None)
             or self.midpoint
             or self._coulomb_rows is not None
             or self._bilateral is not None
@@ -520,7 +522,8 @@ class MoreauJean:
             rules=ImpactRules(
                 self.constraints.restitution, self.restitution_threshold, self.newton_law
             ),
-            single_rows=getattr(self.solver, "exact_single", False) is True,
+            single_rows=vector_space and getattr(self.solver, "exact_single", False) is True,
+            positions=vector_space,
         )
         return step if step.compiled else None
 
