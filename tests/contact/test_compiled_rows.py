@@ -10,6 +10,7 @@ from conftest import needs_compiled_code
 from ucontrol.contact import compiled_rows as compiled_rows_module
 from ucontrol.contact.compiled_rows import compiled_rows, qualifies
 from ucontrol.contact.constraint_set import ConstraintSet
+from ucontrol.model import RobotModel
 from ucontrol.scene import load_scene
 from ucontrol.simulate import simulate
 
@@ -20,15 +21,35 @@ def _random_state(robot, rng):  # type: ignore[no-untyped-def]
 
 
 @needs_compiled_code
-@pytest.mark.parametrize("name", ["two_link_one_constraint", "panda_table"])
+@pytest.mark.parametrize(
+    "name", ["two_link_one_constraint", "panda_table", "table_drop", "quadruped_stand"]
+)  # the last two on a free-flyer root
 def test_rows_equal_pinocchio_and_finite_differences(name: str, rng: np.random.Generator) -> None:
     scene = load_scene(name)
-    constraints = scene.constraints
+    _check_rows_against_pinocchio(scene.constraints, rng)
+
+
+@needs_compiled_code
+def test_rows_of_a_free_flyer_placed_away_from_the_origin(rng: np.random.Generator) -> None:
+    """The root joint's placement in the world moves the rows (a URDF's is the identity)."""
+    scene = load_scene("table_drop")
+    model = pin.Model(scene.robot.model)
+    rotation = pin.rpy.rpyToMatrix(0.3, -0.2, 0.5)
+    model.jointPlacements[1] = pin.SE3(rotation, np.array([0.1, -0.2, 0.3]))
+    robot = RobotModel(model, floating_base=True)
+    _check_rows_against_pinocchio(ConstraintSet(robot, scene.constraints.contacts), rng)
+    # A free-flyer's M and h are Pinocchio's: its rows never carry the dynamics.
+    assert not compiled_rows(scene.constraints, dynamics=True).dynamics
+
+
+def _check_rows_against_pinocchio(constraints: ConstraintSet, rng: np.random.Generator) -> None:
+    """Compiled gaps, velocities and rows against Pinocchio's path and finite differences."""
+    robot = constraints.robot
     rows = compiled_rows(constraints)
     assert rows is not None
-    model, data = scene.robot.model, pin.Data(scene.robot.model)
+    model, data = robot.model, pin.Data(robot.model)
     for _ in range(5):
-        q, v = _random_state(scene.robot, rng)
+        q, v = _random_state(robot, rng)
         pin.computeAllTerms(model, data, q, v)
         pin.updateFramePlacements(model, data)
         gap, velocity = constraints.evaluate(data, q, v)
@@ -38,12 +59,14 @@ def test_rows_equal_pinocchio_and_finite_differences(name: str, rng: np.random.G
         np.testing.assert_allclose(gap_c, gap, rtol=0, atol=1e-14)
         np.testing.assert_allclose(velocity_c, velocity, rtol=0, atol=1e-14)
         np.testing.assert_allclose(J_c, J, rtol=0, atol=1e-14)
-        # The rows are the derivative of the gaps (central differences, error ~ eps^2).
+        # The rows are the derivative of the gaps along v (central differences on the
+        # configuration manifold, error ~ eps^2).
         eps = 1e-6
-        for j in range(scene.robot.nv):
-            step = np.zeros(scene.robot.nv)
+        for j in range(robot.nv):
+            step = np.zeros(robot.nv)
             step[j] = eps
-            derivative = (rows(q + step, v)[0] - rows(q - step, v)[0]) / (2 * eps)
+            forward, backward = pin.integrate(model, q, step), pin.integrate(model, q, -step)
+            derivative = (rows(forward, v)[0] - rows(backward, v)[0]) / (2 * eps)
             np.testing.assert_allclose(derivative, J_c[:, j], rtol=0, atol=1e-8)
 
 
@@ -94,9 +117,9 @@ def test_sets_that_do_not_qualify_keep_the_pinocchio_path() -> None:
         stops=load_scene("two_link_one_constraint").constraints.stops,
     )
     assert not qualifies(stops_only)
-    floating = load_scene("table_drop")  # free-flyer base: no symbolic model
-    assert qualifies(floating.constraints)
-    assert compiled_rows(floating.constraints) is None
+    collision = load_scene("box_drop_collision")  # collision shapes
+    assert not qualifies(collision.constraints)
+    assert compiled_rows(collision.constraints) is None
 
 
 @pytest.mark.slow

@@ -9,9 +9,12 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from conftest import TRACKING_SCENES, needs_compiled_code
 
+from ucontrol.exceptions import InvalidParameterError
+from ucontrol.integrators.compiled_free_step import CompiledFreeStep, ImpactRules
 from ucontrol.integrators.step_stages import StepMemory
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.scene import load_scene
@@ -118,6 +121,44 @@ def test_single_row_steps_equal_the_numpy_path(
     assert seen["held"] and seen["newton"]
     if theta == 1.0 and compiled.constraints.restitution.any():
         assert seen["plastic"]  # the energy guard acted (never for one row at θ = 1/2)
+
+
+@pytest.mark.parametrize("name", ["table_drop", "quadruped_stand"])
+def test_free_flyer_steps_equal_the_numpy_path(name: str, rng: np.random.Generator) -> None:
+    """On a free-flyer root the free step gives the velocity terms (v_free, D, the impact law).
+
+    Every foot pressed into the ground by 1 mm at the lowest, so that several rows are active.
+    """
+    scene, compiled, reference = _pair(name)
+    assert "single row" not in compiled.fast_paths  # (its q would not be on SE(3))
+    model, (q0, v0) = scene.robot.model, scene.initial_state()
+    n, counts = compiled.constraints.size, set()
+    for trial in range(20):
+        q = pin.integrate(model, q0, 0.05 * rng.normal(size=v0.size))
+        q[2] -= reference.evaluate(q, v0).gap.max() + 1e-3  # [m]
+        v, tau = 0.1 * rng.normal(size=v0.size), 5.0 * rng.normal(size=v0.size)
+        for integrator in (compiled, reference):  # all held, or as predicted
+            integrator.memory = StepMemory(np.full(n, 1e9 if trial % 2 else 0.0), False)
+        a = compiled.step(compiled.evaluate(q, v), tau)
+        b = reference.step(reference.evaluate(q, v), tau)
+        np.testing.assert_array_equal(a.active, b.active)
+        counts.add(int(np.count_nonzero(a.impulse)))
+        # Measured over two seeds: v 4.4e-14 m/s, q 2.2e-16, impulses 6.5e-14 N s (the
+        # minimum-norm impulses of redundant feet carry the round-off of D's factorisation).
+        np.testing.assert_allclose(a.v, b.v, rtol=0, atol=2e-13)
+        np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(a.impulse, b.impulse, rtol=0, atol=2e-13)
+    assert max(counts) >= 3  # multi-row problems among them
+
+
+def test_a_free_step_without_positions_has_no_one_row_steps() -> None:
+    """Their q_{k+1} = q_k + h v would not be on a free-flyer's SE(3): refused."""
+    rules = ImpactRules(np.zeros(4), 0.0, "closing")
+    with pytest.raises(InvalidParameterError, match="positions"):
+        CompiledFreeStep(
+            np.zeros((6, 6)), np.zeros(6), 4, dt=1e-3, theta=0.5, horizon=5e-4, flexible=None,
+            viscous=None, rules=rules, single_rows=True, positions=False,
+        )  # fmt: skip
 
 
 def _copy(array: np.ndarray | None) -> np.ndarray | None:

@@ -3,10 +3,11 @@ r"""Gaps, normal velocities and normal Jacobian rows of every constraint in one 
 :meth:`ConstraintSet.evaluate <ucontrol.contact.constraint_set.ConstraintSet.evaluate>` and
 :meth:`~ucontrol.contact.constraint_set.ConstraintSet.jacobian` read Pinocchio's data one
 contact at a time: a frame placement, a frame velocity and a frame Jacobian per contact, three
-Python calls per contact, most of a Moreau–Jean step with a few contacts. For a fixed-base robot
-of revolute and prismatic joints whose constraints are point contacts against fixed planes and
-joint stops, :class:`ConstraintRows` writes the same quantities as one casadi Function of
-(q, v), compiled to C (:class:`~ucontrol.model.compiled_function.CompiledFunction`):
+Python calls per contact, most of a Moreau–Jean step with a few contacts. For a robot of
+revolute and prismatic joints, on a fixed base or a free-flyer root (a table on its feet, a
+quadruped), whose constraints are point contacts against fixed planes and joint stops,
+:class:`ConstraintRows` writes the same quantities as one casadi Function of (q, v), compiled
+to C (:class:`~ucontrol.model.compiled_function.CompiledFunction`):
 
 .. math::
 
@@ -15,7 +16,9 @@ joint stops, :class:`ConstraintRows` writes the same quantities as one casadi Fu
 
 for contact i (frame origin :math:`p_{F_i}`, plane normal :math:`n_i`, offset
 :math:`d_i = n_i \cdot p_0 + r_i`), and :math:`g = \sigma (q_j - b)`, :math:`J = \sigma e_j^T`
-for a stop on coordinate j with bound b (:math:`\sigma = +1` lower, :math:`-1` upper). The
+for a stop on coordinate j with bound b (:math:`\sigma = +1` lower, :math:`-1` upper); with a
+free-flyer root, J is the derivative along the velocity v (the root's twist in its own
+frame, Pinocchio's) rather than along q (:func:`_point_terms`). The
 frame positions are those of :class:`~ucontrol.model.symbolic_model.SymbolicModel`; they equal
 Pinocchio's to round-off (about 1e-16 m). The normals, offsets, signs and bounds are inputs, so
 one library serves every plane and bound of a robot's contact frames and stop coordinates.
@@ -23,16 +26,16 @@ one library serves every plane and bound of a robot's contact frames and stop co
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import InvalidParameterError
-
-if TYPE_CHECKING:
-    import pinocchio as pin
+from ucontrol.model.robot_model import RobotModel
 
 Vector = NDArray[np.float64]
 
@@ -52,8 +55,8 @@ class ConstraintRows:
     Build it with :func:`compiled_rows`, which says whether a set qualifies.
 
     Args:
-        constraints: Point contacts against fixed planes and joint stops of a fixed-base robot
-            of revolute and prismatic joints.
+        constraints: Point contacts against fixed planes and joint stops of a robot of
+            revolute and prismatic joints, on a fixed base or a free-flyer root.
         dynamics: Also compute M(q), h(q, v) and the energies in the same call, from
             :class:`~ucontrol.model.symbolic_model.SymbolicModel` (see :meth:`bind_dynamics`
             and :meth:`energies`).
@@ -132,7 +135,7 @@ class ConstraintRows:
         return out[gaps], out[velocities], self.last_rows
 
     def buffers(self) -> tuple[Vector, Vector, Vector]:
-        """The compiled call's inputs q (nv,), v (nv,) and its output, as the last call left them.
+        """The compiled call's inputs q (nq,), v (nv,) and its output, as the last call left them.
 
         The output holds the gaps (n,), the normal velocities (n,) and the rows, row by row
         (n nv,).
@@ -148,20 +151,18 @@ def _rows_function(constraints: ConstraintSet, name: str, dynamics: bool) -> Any
     """
     import casadi as ca  # imported only for the sets that qualify, and only to build
 
-    from ucontrol.model.symbolic_model import SymbolicModel
-
     robot = constraints.robot
-    model = SymbolicModel(robot)
-    nv, n_c, n = robot.nv, constraints.n_contacts, constraints.size
-    q, v = ca.SX.sym("q", nv), ca.SX.sym("v", nv)
+    nq, nv, n_c, n = robot.nq, robot.nv, constraints.n_contacts, constraints.size
+    q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
     planes = ca.SX.sym("planes", 4, n_c)  # columns (normal, offset)
     stops = ca.SX.sym("stops", 2, n - n_c)  # columns (sign, bound)
+    points = _point_terms(robot, q)
     gaps, rows = [], []
     for i, contact in enumerate(constraints.contacts):
-        position = model.frame_position(contact.frame)(q)
+        position, jacobian = points(contact.frame)
         normal = planes[:3, i]
         gaps.append(ca.dot(normal, position) - planes[3, i])
-        rows.append(normal.T @ ca.jacobian(position, q))
+        rows.append(normal.T @ jacobian)
     for k, (index_q, index_v) in enumerate(constraints.stop_coordinates):
         sign, bound = stops[0, k], stops[1, k]
         gaps.append(sign * (q[index_q] - bound))
@@ -171,11 +172,79 @@ def _rows_function(constraints: ConstraintSet, name: str, dynamics: bool) -> Any
     J = ca.vertcat(*rows)
     outputs = [ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J.T))]  # J row by row
     if dynamics:  # M, h, and the energies (T, V)
+        from ucontrol.model.symbolic_model import SymbolicModel
+
+        model = SymbolicModel(robot)
         M = model.mass_matrix(q)
         energies = ca.vertcat(0.5 * ca.dot(v, M @ v), model.potential_energy(q))
         outputs += [M, model.nonlinear_effects(q, v), energies]
     out_names = ["rows", "M", "h", "energies"][: len(outputs)]
     return ca.Function(name, [q, v, planes, stops], outputs, _IN_NAMES, out_names)
+
+
+def _point_terms(robot: RobotModel, q: Any) -> Callable[[str], tuple[Any, Any]]:
+    r"""``frame -> (p, J)``: a frame origin's world position (3,) and its Jacobian (3, nv).
+
+    For a fixed base, :math:`J = \partial p / \partial q`. With a free-flyer root (position
+    :math:`p_b`, unit quaternion of rotation :math:`R`, its velocity (linear, angular) in its
+    own frame, as Pinocchio's), the frame's position in the root's frame :math:`r(q_r)` is
+    that of the fixed-base model of the other joints, and
+
+    .. math:: p = p_b + R\, r, \qquad
+              J = R \begin{pmatrix} I & -[r]_\times & \partial r / \partial q_r \end{pmatrix},
+
+    both then moved by the root joint's placement in the world (the identity in a URDF's).
+
+    Raises:
+        InvalidParameterError: A joint :class:`SymbolicModel` does not support.
+    """
+    import casadi as ca
+
+    from ucontrol.model.symbolic_model import SymbolicModel
+
+    model = robot.model
+    if robot.nq == robot.nv or model.joints[1].shortname() != "JointModelFreeFlyer":
+        fixed = SymbolicModel(robot)  # (raises on the joints it does not support)
+
+        def fixed_point(frame: str) -> tuple[Any, Any]:
+            position = fixed.frame_position(frame)(q)
+            return position, ca.jacobian(position, q)
+
+        return fixed_point
+    # The other joints on a fixed base at the root joint's frame (locked at the identity).
+    base = pin.Model(model)
+    base.jointPlacements[1] = pin.SE3.Identity()
+    reduced = SymbolicModel(RobotModel(pin.buildReducedModel(base, [1], pin.neutral(base))))
+    q_rest = q[7:]
+    rotation = _quaternion_rotation(q[3:7])
+    placement = model.jointPlacements[1]  # of the root joint in the world, usually I
+
+    def floating_point(frame: str) -> tuple[Any, Any]:
+        r = reduced.frame_position(frame)(q_rest)  # [m], in the root joint's frame
+        local = ca.horzcat(ca.SX.eye(3), -ca.skew(r), ca.jacobian(r, q_rest))
+        position, jacobian = q[:3] + rotation @ r, rotation @ local
+        if placement.isIdentity():
+            return position, jacobian
+        R0 = ca.DM(placement.rotation)
+        return ca.DM(placement.translation) + R0 @ position, R0 @ jacobian
+
+    return floating_point
+
+
+def _quaternion_rotation(quaternion: Any) -> Any:
+    """The rotation matrix (3, 3) of a unit quaternion (x, y, z, w), as Eigen writes it."""
+    import casadi as ca
+
+    x, y, z, w = (quaternion[k] for k in range(4))
+    tx, ty, tz = 2.0 * x, 2.0 * y, 2.0 * z
+    twx, twy, twz = tx * w, ty * w, tz * w
+    txx, txy, txz = tx * x, ty * x, tz * x
+    tyy, tyz, tzz = ty * y, tz * y, tz * z
+    return ca.vertcat(
+        ca.horzcat(1.0 - (tyy + tzz), txy - twz, txz + twy),
+        ca.horzcat(txy + twz, 1.0 - (txx + tzz), tyz - twx),
+        ca.horzcat(txz - twy, tyz + twx, 1.0 - (txx + tyy)),
+    )
 
 
 def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> ConstraintRows | None:
@@ -187,10 +256,11 @@ def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> Cons
     compiled symbolic terms compute faster than Pinocchio's recursive algorithms there.
 
     They qualify with at least one point contact and nothing but point contacts against fixed
-    planes and joint stops, without friction or bilateral constraints, on a fixed-base robot
-    of revolute and prismatic joints; they compile where a C compiler is present (and
-    ``UCONTROL_NO_COMPILE`` is not set). Elsewhere the Pinocchio path of
-    :class:`ConstraintSet` is faster than casadi's virtual machine, and is used.
+    planes and joint stops, without friction or bilateral constraints, on a robot of revolute
+    and prismatic joints on a fixed base or a free-flyer root (whose rows carry no dynamics);
+    they compile where a C compiler is present (and ``UCONTROL_NO_COMPILE`` is not set).
+    Elsewhere the Pinocchio path of :class:`ConstraintSet` is faster than casadi's virtual
+    machine, and is used.
     """
     from ucontrol.model.compiled_function import compilation_possible
 
@@ -198,11 +268,13 @@ def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> Cons
         return None  # (casadi not even imported)
     from ucontrol.model.robot_model import SMALL_ROBOT_MAX_NV
 
+    robot = constraints.robot
     try:
         rows = ConstraintRows(
-            constraints, dynamics=dynamics and constraints.robot.nv <= SMALL_ROBOT_MAX_NV
+            constraints,
+            dynamics=dynamics and robot.nq == robot.nv and robot.nv <= SMALL_ROBOT_MAX_NV,
         )
-    except InvalidParameterError:  # a free-flyer base, a spherical or a continuous joint
+    except InvalidParameterError:  # a spherical or a continuous joint
         return None
     return rows if rows.compiled else None
 

@@ -45,6 +45,12 @@ the closure :math:`g_i / \mathrm{h}` of a held constraint still open, the energy
     v_{k+1} = v^{free} + W^{-1} J_i^T P_i,
 
 so that a step with one active row (the common contact step) needs no further array work.
+
+On a rigid robot with a free-flyer root (``positions=False``: q of size nq = nv + 1, on
+:math:`\mathbb{R}^3 \times SO(3)`) the call has no q and gives no :math:`q^{free}` nor one-row
+steps: the velocity-space terms above (:math:`v^{free}`, the predicted gaps, the Delassus terms
+and the impact law) are the same, and the integrator advances the configuration on its
+manifold (a table on four feet, a quadruped).
 """
 
 from __future__ import annotations
@@ -54,6 +60,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.exceptions import InvalidParameterError
 from ucontrol.integrators import step_stages
 from ucontrol.integrators.step_stages import (
     ArrayOps,
@@ -102,7 +109,14 @@ class CompiledFreeStep:
         viscous: Viscous joint friction D on the links, shape (nv,), or None.
         rules: The impact law's parameters (:class:`ImpactRules`).
         single_rows: Whether the call also solves the steps with one active row (the
-            solver's one-row solve is the closed form).
+            solver's one-row solve is the closed form); only with ``positions``.
+        positions: Whether q is a vector of the step's size (nq = nv: every joint a vector
+            space), so that the call also gives :math:`q^{free}`. Without (a free-flyer
+            root, rigid) the call has no q and gives the velocity-space terms alone: the
+            caller advances the configuration on its manifold.
+
+    Raises:
+        InvalidParameterError: ``positions`` is False with ``single_rows`` or ``flexible``.
 
     Attributes:
         compiled: Whether calls run compiled C (else the caller should not use it).
@@ -121,12 +135,17 @@ class CompiledFreeStep:
         viscous: Vector | None,
         rules: ImpactRules,
         single_rows: bool = False,
+        positions: bool = True,
     ) -> None:
         from ucontrol.model.compile_cache import definition_key
         from ucontrol.model.compiled_function import CompiledFunction
 
         nv = data_nle.size
         size = nv if flexible is None else nv + flexible.nf
+        if not positions and (single_rows or flexible is not None):
+            raise InvalidParameterError(
+                "positions", positions, "True with one-row steps or flexible joints"
+            )
         W0, Kq, F = _constant_terms(nv, size, dt, theta, flexible, viscous)
         restitution = np.asarray(rules.restitution, dtype=float)
         elastic = tuple(bool(e) for e in restitution.tolist())  # the rows with a rebound
@@ -134,13 +153,14 @@ class CompiledFreeStep:
         # (with the shared stages' tolerances as they are now: constants of the Function)
         definition = definition_key(
             ["free_step", nv, size, n, float(rules.threshold), rules.newton_law, elastic,
-             single_rows, *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
+             single_rows, positions,
+             *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
             _GENERATED_BY,
         )  # fmt: skip
         self.function = CompiledFunction.cached(
             "free_step",
             definition,
-            lambda: _free_step_function(nv, size, n, rules, elastic, single_rows),
+            lambda: _free_step_function(nv, size, n, rules, elastic, single_rows, positions),
         )
         self.compiled = self.function.compiled
         index = self.function.index_in  # inputs bound by name
@@ -152,16 +172,19 @@ class CompiledFreeStep:
         self.function.input_buffer(index("scalars"))[:] = (dt, theta, horizon)
         self.single_rows = single_rows
         self._sizes = (size, n)
-        # Ends of the outputs v_free, q_free, predicted gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ, rebound and
-        # closure terms (Python ints).
-        self._split = tuple(np.cumsum([size, size, n, size * n, n * n, n, n]).tolist())
+        # Ends of the outputs v_free, q_free (none without positions), predicted gaps, W⁻¹Jᵀ,
+        # JW⁻¹Jᵀ, rebound and closure terms (Python ints).
+        q_size = size if positions else 0
+        self._split = tuple(np.cumsum([size, q_size, n, size * n, n * n, n, n]).tolist())
+        self._positions = positions
         buffer = self.function.input_buffer
         self._kinetic, self._activation = buffer(index("kinetic")), buffer(index("activation"))
-        # The per-step inputs, written in place: q, v, tau, J (row by row), gaps, normal
-        # velocities.
+        # The per-step inputs, written in place: q (none without positions), then v, tau, J
+        # (row by row), gaps, normal velocities.
+        self._q_input = self.function.input_view(index("q")) if positions else None
         self._inputs = tuple(
             buffer(index(name)) if name == "J_t" else self.function.input_view(index(name))
-            for name in _STEP_INPUTS
+            for name in _STEP_INPUTS[1:]
         )
         self._run, self._out = self.function.runner(), self.function.output_buffer(0)
         self._last: Vector | None = None  # the last call's outputs
@@ -170,8 +193,10 @@ class CompiledFreeStep:
 
     def __call__(
         self, state: PlantEvaluation, tau: Vector, activation: Vector
-    ) -> tuple[Vector, Vector, Vector]:
-        """:math:`v^{free}`, :math:`q^{free}` (each (N,)) and the predicted gaps (n,).
+    ) -> tuple[Vector, Vector | None, Vector]:
+        """:math:`v^{free}`, :math:`q^{free}` (each (N,); None without ``positions``), gaps (n,).
+
+        The gaps are the predicted ones.
 
         ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`);
         ``activation`` (n,) is the step memory's (the impact law reads which constraints are
@@ -185,7 +210,7 @@ class CompiledFreeStep:
             self._activation[:] = activation
             # A read-only array is unchanged until replaced: the next call need not copy it.
             self._activation_source = None if activation.flags.writeable else activation
-        q, v, tau_in, J, gap, velocity = self._inputs
+        q, (v, tau_in, J, gap, velocity) = self._q_input, self._inputs
         source = self._source
         if source is not None and state.normal_rows is source.last_rows:
             tau_in[...] = tau  # q, v and the rows: in the inputs and outputs of that call
@@ -194,12 +219,14 @@ class CompiledFreeStep:
                 source.last_rows = None
             rows = state.normal_rows
             assert rows is not None
-            q[...], v[...], tau_in[...] = state.q, state.v, tau
+            if q is not None:
+                q[...] = state.q
+            v[...], tau_in[...] = state.v, tau
             J[...], gap[...], velocity[...] = rows.reshape(-1), state.gap, state.normal_velocity
         self._run()
         out = self._last = self._out.copy()
         a, b, c = self._split[:3]
-        return out[:a], out[a:b], out[b:c]
+        return out[:a], out[a:b] if self._positions else None, out[b:c]
 
     def read_rows_of(self, rows: ConstraintRows) -> None:
         """Read q, v and the rows in place from ``rows``' buffers when a state is its last call's.
@@ -208,18 +235,20 @@ class CompiledFreeStep:
         output), so that a step from the evaluation ``rows`` made last copies only tau (as M
         and h, which the step reads from the data, the state must be the last evaluation): the
         copies cost more than 5 % of a two-link step (docs/benchmarks.md). For a rigid robot
-        (q and v of the rows' size).
+        (v of the rows' size; q too with ``positions``).
         """
         q, v, out = rows.buffers()
-        n, nv = self._sizes[1], q.size
+        n, nv = self._sizes[1], v.size
         if self._sizes[0] != nv:
             raise ValueError(f"rows of nv = {nv} for a step of size {self._sizes[0]}")
         function, index = self.function, self.function.index_in
         for name, buffer in (
             ("q", q), ("v", v), ("J_t", out[2 * n :]), ("gap", out[:n]), ("u", out[n : 2 * n])
         ):  # fmt: skip
-            function.bind_input(index(name), buffer)
-        self._inputs = tuple(function.input_buffer(index(name)) for name in _STEP_INPUTS)
+            if name != "q" or self._positions:
+                function.bind_input(index(name), buffer)
+        self._q_input = function.input_buffer(index("q")) if self._positions else None
+        self._inputs = tuple(function.input_buffer(index(name)) for name in _STEP_INPUTS[1:])
         self._source = rows
 
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
@@ -290,16 +319,24 @@ class ImpactRules(NamedTuple):
 
 
 def _free_step_function(
-    nv: int, size: int, n: int, rules: ImpactRules, elastic: tuple[bool, ...], single_rows: bool
+    nv: int,
+    size: int,
+    n: int,
+    rules: ImpactRules,
+    elastic: tuple[bool, ...],
+    single_rows: bool,
+    positions: bool,
 ) -> Any:
     """The casadi Function of :class:`CompiledFreeStep` (the module docstring's terms).
 
     ``elastic``: whether each row's restitution is non-zero (n,); the others read a constant 0
-    (their rebound terms fold away).
+    (their rebound terms fold away). Without ``positions`` the Function has no input q (a
+    rigid robot's stiffness terms are 0) and no output :math:`q^{free}`.
     """
     import casadi as ca  # imported only for the steps that use it, and only to build
 
-    q, v, tau = ca.SX.sym("q", size), ca.SX.sym("v", size), ca.SX.sym("tau", size)
+    q = ca.SX.sym("q", size) if positions else ca.SX.zeros(size)
+    v, tau = ca.SX.sym("v", size), ca.SX.sym("tau", size)
     M_upper, nle = ca.SX.sym("M", nv, nv), ca.SX.sym("nle", nv)
     # The rows as ConstraintRows writes them, row by row: the columns of Jᵀ (nv, n).
     rows_t, gap, velocity = ca.SX.sym("J_t", nv, n), ca.SX.sym("gap", n), ca.SX.sym("u", n)
@@ -334,7 +371,7 @@ def _free_step_function(
     )  # the impact law of every row, each as if active
     parts = [
         v_free,
-        q + theta_displacement(v, v_free, h, th),
+        *([q + theta_displacement(v, v_free, h, th)] if positions else []),
         predicted_gaps(gap, velocity, gh),
         ca.vec(Winv_Jt),
         ca.vec(delassus),
@@ -344,6 +381,8 @@ def _free_step_function(
     inputs += [activation, kinetic, restitution_s]
     names = ["q", "v", "tau", "M", "nle", "J_t", "gap", "u", "W0", "Kq", "F", "scalars"]
     names += ["activation", "kinetic", "restitution"]
+    if not positions:
+        inputs, names = inputs[1:], names[1:]
     if single_rows:
         for i in range(n):
             parts.append(

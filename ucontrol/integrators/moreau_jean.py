@@ -492,13 +492,17 @@ class MoreauJean:
     def _compiled_free_step(self) -> CompiledFreeStep | None:
         """The free part of the step as one compiled call, where the step allows it.
 
-        With the compiled constraint rows (plane contacts and stops of a robot whose joints are
-        vector spaces), without midpoint Coriolis forces, Coulomb joints or bilateral
-        constraints, and where a C compiler is present. The same call solves the steps with
-        one active row when the solver's one-row solve is the closed form.
+        With the compiled constraint rows (plane contacts and stops), without midpoint Coriolis
+        forces, Coulomb joints or bilateral constraints, and where a C compiler is present.
+        Where every joint is a vector space, the same call gives :math:`q^{free}` and solves
+        the steps with one active row when the solver's one-row solve is the closed form; on
+        a rigid robot with a free-flyer root it gives the velocity terms alone (the
+        configuration is advanced by :meth:`_advance`).
         """
+        vector_space = self._vector_space
         if (
             self._rows is None
+            or (not vector_space and self.flexible is not None)
             or self.midpoint
             or self._coulomb_rows is not None
             or self._bilateral is not None
@@ -518,7 +522,8 @@ class MoreauJean:
             rules=ImpactRules(
                 self.constraints.restitution, self.restitution_threshold, self.newton_law
             ),
-            single_rows=getattr(self.solver, "exact_single", False) is True,
+            single_rows=vector_space and getattr(self.solver, "exact_single", False) is True,
+            positions=vector_space,
         )
         return step if step.compiled else None
 
