@@ -681,7 +681,7 @@ class MoreauJean:
         counts = constraints.tangent_count[indices]
         if self._friction and counts.any():  # normal and tangential rows read together
             J, T, directions = constraints.contact_rows(data, indices)
-            J, tangents = np.vstack((J, T)), counts
+            J, tangents = np.concatenate((J, T)), counts
         elif state.normal_rows is not None:
             J = state.normal_rows[indices]
         else:
@@ -1143,7 +1143,11 @@ def _closing_impacts(
 
 def _pad(rows: Vector, size: int) -> Vector:
     """``rows`` (normal rows) followed by zeros (tangential rows), shape (size,)."""
-    return rows if rows.size == size else np.concatenate((rows, np.zeros(size - rows.size)))
+    if rows.size == size:
+        return rows
+    padded = np.zeros(size)
+    padded[: rows.size] = rows
+    return padded
 
 
 def _default_friction_solver() -> CoulombSolver:
