@@ -679,7 +679,7 @@ class MoreauJean:
         rows = indices.tolist()  # (Python ints: the loops over the active rows below)
         tangents: NDArray[np.intp] | None = None
         counts = constraints.tangent_count[indices]
-        if self._friction and counts.any():  # normal and tangential rows read together
+        if self._friction and np.count_nonzero(counts):  # normal and tangential rows together
             J, T, directions = constraints.contact_rows(data, indices)
             J, tangents = np.concatenate((J, T)), counts
         elif state.normal_rows is not None:
