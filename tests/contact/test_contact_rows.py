@@ -1,6 +1,9 @@
-"""Point contacts' normal and tangential rows read together (ConstraintSet.contact_rows)."""
+"""Point contacts' rows read together (ConstraintSet.contact_rows), their gaps and velocities."""
 
 from __future__ import annotations
+
+import copy
+import pickle
 
 import numpy as np
 import pinocchio as pin
@@ -15,6 +18,8 @@ from ucontrol.model import RobotModel
 _STEP = 1e-6
 #: Their error bound on the rows' velocities [m/s] (O(step²) plus round-off over the step).
 _FD_TOLERANCE = 1e-7
+#: Gaps against the frame placements of a fresh buffer [m] (the same arithmetic up to order).
+_GAP_TOLERANCE = 1e-15
 
 _GROUND = Plane(name="ground")
 _TILTED = Plane(point=[0.1, -0.2, 0.05], normal=[0.3, 1.0, 0.5], name="tilted")
@@ -118,3 +123,68 @@ def test_rows_read_together_equal_the_rows_read_apart(build) -> None:
                 np.testing.assert_allclose(
                     J[row], contact.surface.normal @ frame_jacobian[:3], atol=1e-15
                 )
+
+
+def _gaps_and_rates(
+    robot: RobotModel, constraints: ConstraintSet, q: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Gaps n·(p_F - p0) - r on a fresh buffer, and their rates by central differences on q."""
+
+    def gaps(step: float) -> np.ndarray:
+        data = pin.Data(robot.model)
+        pin.framesForwardKinematics(robot.model, data, robot.integrate(q, step * v))
+        return np.array(
+            [
+                contact.surface.normal
+                @ (data.oMf[robot.frame_id(contact.frame)].translation - contact.surface.point)
+                - contact.radius
+                for contact in constraints.contacts
+            ]
+        )
+
+    return gaps(0.0), (gaps(_STEP) - gaps(-_STEP)) / (2.0 * _STEP)
+
+
+def _move(robot: RobotModel, data: pin.Data, q: np.ndarray, v: np.ndarray) -> None:
+    """What ConstraintSet.evaluate reads, computed on ``data`` at (q, v)."""
+    pin.computeAllTerms(robot.model, data, q, v)
+    pin.updateFramePlacements(robot.model, data)
+
+
+def test_gaps_and_velocities_against_placements_and_differences() -> None:
+    robot, constraints = _table()
+    for seed in range(3):
+        q, v, data = _state(robot, seed)
+        gap, velocity = constraints.evaluate(data, q, v)
+        gap_ref, velocity_ref = _gaps_and_rates(robot, constraints, q, v)
+        assert np.max(np.abs(gap - gap_ref)) / _GAP_TOLERANCE <= 1.0
+        assert np.max(np.abs(velocity - velocity_ref)) / _FD_TOLERANCE <= 1.0
+
+
+def test_buffers_read_in_turn_give_each_its_own_state() -> None:
+    """The frame origins are read from views on the last buffer: another buffer is read anew."""
+    robot, constraints = _table()
+    states = [_state(robot, seed) for seed in (10, 11)]
+    references = [_gaps_and_rates(robot, constraints, q, v)[0] for q, v, _ in states]
+    for _ in range(2):
+        for (q, v, data), gap_ref in zip(states, references, strict=True):
+            gap, _ = constraints.evaluate(data, q, v)
+            assert np.max(np.abs(gap - gap_ref)) / _GAP_TOLERANCE <= 1.0
+    # The first buffer moved to the second state: the views follow it.
+    (_, _, data), (q, v, _) = states
+    _move(robot, data, q, v)
+    gap, _ = constraints.evaluate(data, q, v)
+    assert np.max(np.abs(gap - references[1])) / _GAP_TOLERANCE <= 1.0
+
+
+@pytest.mark.parametrize("duplicate", [copy.deepcopy, lambda x: pickle.loads(pickle.dumps(x))])
+def test_a_copied_set_reads_its_copied_buffer(duplicate) -> None:
+    """A copy of a set and of the buffer it read does not read the original buffer's memory."""
+    robot, constraints = _table()
+    (q, v, data), (q_other, v_other, _) = _state(robot, 20), _state(robot, 21)
+    constraints.evaluate(data, q, v)  # views on ``data`` taken
+    copied, copied_data = duplicate((constraints, data))
+    _move(robot, copied_data, q_other, v_other)
+    gap, _ = copied.evaluate(copied_data, q_other, v_other)
+    gap_ref = _gaps_and_rates(robot, constraints, q_other, v_other)[0]
+    assert np.max(np.abs(gap - gap_ref)) / _GAP_TOLERANCE <= 1.0

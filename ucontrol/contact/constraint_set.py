@@ -30,6 +30,15 @@ _ON_CIRCLE = 1e-12
 _SELECTIONS = 256
 
 
+def _along(direction: list[float], vector: list[float]) -> float:
+    """The component of a 3-vector along a unit ``direction``, both as Python floats.
+
+    Three products of Python floats cost less than a numpy dot of two 3-vectors (a call into
+    BLAS), of which :meth:`ConstraintSet.evaluate` makes two per point contact.
+    """
+    return direction[0] * vector[0] + direction[1] * vector[1] + direction[2] * vector[2]
+
+
 class ConstraintSet:
     r"""Point contacts, sphere–sphere contacts, collision pairs, joint stops, then clearances.
 
@@ -214,6 +223,12 @@ class ConstraintSet:
         self._contact_terms = list(
             zip(self._frame_ids, list(self._normals), self._offsets.tolist(), strict=True)
         )
+        # The same with the normals as Python floats (:func:`_along`).
+        self._plane_terms = list(
+            zip(self._frame_ids, self._normals.tolist(), self._offsets.tolist(), strict=True)
+        )
+        # The Pinocchio data whose frame origins :meth:`evaluate` last read, with their views.
+        self._origins: tuple[pin.Data | None, list[Vector]] = (None, [])
         self._plane_tangents = [tangent_basis(normal, self.planar_axis) for normal in self._normals]
         self._moving = [
             (i, contact.surface.motion, contact.surface.normal)
@@ -278,21 +293,25 @@ class ConstraintSet:
         Raises:
             InvalidParameterError: ``t`` is None and some surface moves.
         """
-        model, placements = self.robot.model, data.oMf
+        model = self.robot.model
         gap = np.empty(self.size)
         velocity = np.empty(self.size)
-        for i, (frame_id, normal, offset) in enumerate(self._contact_terms):
-            gap[i] = normal.dot(placements[frame_id].translation) - offset
-            velocity[i] = normal.dot(pin.getFrameVelocity(model, data, frame_id, _LWA).linear)
-        for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
-            delta = placements[first].translation - placements[second].translation
-            distance = np.sqrt(delta.dot(delta))
-            gap[i] = distance - radii
-            relative = (
-                pin.getFrameVelocity(model, data, first, _LWA).linear
-                - pin.getFrameVelocity(model, data, second, _LWA).linear
-            )
-            velocity[i] = delta.dot(relative) / distance
+        origins = self._frame_origins(data)
+        for i, (frame_id, n_i, offset) in enumerate(self._plane_terms):
+            gap[i] = _along(n_i, origins[i].tolist()) - offset
+            linear = pin.getFrameVelocity(model, data, frame_id, _LWA).linear  # [m/s]
+            velocity[i] = _along(n_i, linear.tolist())
+        if self._pair_terms:
+            placements = data.oMf
+            for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
+                delta = placements[first].translation - placements[second].translation
+                distance = np.sqrt(delta.dot(delta))
+                gap[i] = distance - radii
+                relative = (
+                    pin.getFrameVelocity(model, data, first, _LWA).linear
+                    - pin.getFrameVelocity(model, data, second, _LWA).linear
+                )
+                velocity[i] = delta.dot(relative) / distance
         if self.collision is not None:
             rows = slice(self._pairs_end, self.n_contacts)
             gap[rows], velocity[rows] = self.collision.evaluate(data, t)
@@ -306,6 +325,27 @@ class ConstraintSet:
             gap[i], normal = play.gap_normal(data)
             velocity[i] = -normal.dot(v[play.v_xy])
         return gap, velocity
+
+    def _frame_origins(self, data: pin.Data) -> list[Vector]:
+        """The point contacts' frame origins in ``data`` [m], each shape (3,), read without a call.
+
+        Pinocchio's ``data.oMf[f].translation`` is a view on ``data``'s own memory, which every
+        later frame placement of ``data`` updates: the views are taken once per data buffer (the
+        last one read is kept, with the buffer, so that its memory outlives them) and reading
+        them costs no call into Pinocchio (two per contact otherwise, most of a call of
+        :meth:`evaluate`: docs/benchmarks.md).
+        """
+        read, origins = self._origins
+        if read is not data:
+            origins = [data.oMf[frame_id].translation for frame_id in self._frame_ids]
+            self._origins = (data, origins)
+        return origins
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The set's state, less the views of :meth:`_frame_origins` (a copy would not follow)."""
+        state = self.__dict__.copy()
+        state["_origins"] = (None, [])
+        return state
 
     def _ahead_rules(self, robot: RobotModel) -> list[tuple[int, int, int, Vector]]:
         """(constraint, ahead frame, other frame, direction) of each ``closes_ahead_of``."""
@@ -758,8 +798,8 @@ class ConstraintSet:
     def _gap(self, data: pin.Data, q: Vector, t: float = 0.0) -> Vector:
         """Gaps from frame placements already in ``data``, shape (n,)."""
         gap = np.empty(self.size)
-        for i, (frame_id, normal, offset) in enumerate(self._contact_terms):
-            gap[i] = normal.dot(data.oMf[frame_id].translation) - offset
+        for i, (frame_id, normal, offset) in enumerate(self._plane_terms):
+            gap[i] = _along(normal, data.oMf[frame_id].translation.tolist()) - offset
         for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
             delta = data.oMf[first].translation - data.oMf[second].translation
             gap[i] = np.sqrt(delta.dot(delta)) - radii

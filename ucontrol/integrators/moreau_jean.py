@@ -684,9 +684,9 @@ class MoreauJean:
         rows = indices.tolist()  # (Python ints: the loops over the active rows below)
         tangents: NDArray[np.intp] | None = None
         counts = constraints.tangent_count[indices]
-        if self._friction and counts.any():  # normal and tangential rows read together
+        if self._friction and np.count_nonzero(counts):  # normal and tangential rows together
             J, T, directions = constraints.contact_rows(data, indices)
-            J, tangents = np.vstack((J, T)), counts
+            J, tangents = np.concatenate((J, T)), counts
         elif state.normal_rows is not None:
             J = state.normal_rows[indices]
         else:
@@ -1148,7 +1148,11 @@ def _closing_impacts(
 
 def _pad(rows: Vector, size: int) -> Vector:
     """``rows`` (normal rows) followed by zeros (tangential rows), shape (size,)."""
-    return rows if rows.size == size else np.concatenate((rows, np.zeros(size - rows.size)))
+    if rows.size == size:
+        return rows
+    padded = np.zeros(size)
+    padded[: rows.size] = rows
+    return padded
 
 
 def _default_friction_solver() -> CoulombSolver:
