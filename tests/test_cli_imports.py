@@ -146,6 +146,54 @@ def _assert_same_logs(first: Path, second: Path) -> None:
                 np.testing.assert_array_equal(a[key], b[key], err_msg=key)
 
 
+#: Prints, after ``ucontrol run`` of the default scene in this process (numpy not loaded
+#: before), the thread count of each OpenBLAS library loaded and the variable it reads.
+BLAS_PROGRAM = """
+import ctypes, os, sys
+from ucontrol.cli import main
+
+out, duration = sys.argv[1:]
+assert main(["run", "--out", out, "--duration", duration, "--no-progress"]) == 0
+libraries = {line.split()[-1] for line in open("/proc/self/maps") if "openblas" in line.lower()}
+for path in sorted(libraries):
+    library = ctypes.CDLL(path)
+    names = ("openblas_get_num_threads", "scipy_openblas_get_num_threads64_",
+             "scipy_openblas_get_num_threads")
+    name = next(name for name in names if hasattr(library, name))
+    print("threads", getattr(library, name)())
+print("variable", os.environ.get("OPENBLAS_NUM_THREADS"))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/maps")
+@pytest.mark.parametrize("chosen", [None, "2"])
+def test_run_loads_openblas_single_threaded_unless_the_user_chose(
+    tmp_path: Path, chosen: str | None
+) -> None:
+    """Without a thread count of the user's, OpenBLAS runs one thread; the variable is reset.
+
+    A count the user chose (here 2, or the cores there are) is OpenBLAS's, untouched.
+    """
+    variables = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
+    env = {key: value for key, value in os.environ.items() if key not in variables}
+    if chosen is not None:
+        env["OPENBLAS_NUM_THREADS"] = chosen
+    completed = subprocess.run(
+        [sys.executable, "-c", BLAS_PROGRAM, str(tmp_path / "run"), "0.05"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    words = [line.split(" ", 1) for line in completed.stdout.splitlines()]
+    threads = [int(value) for key, value in words if key == "threads"]
+    assert threads  # numpy's OpenBLAS at least
+    expected = 1 if chosen is None else min(int(chosen), os.cpu_count() or 1)
+    assert threads == [expected] * len(threads)
+    assert dict(words)["variable"] == str(chosen)
+
+
 #: Every command of ``ucontrol``.
 COMMANDS = ("scenes", "run", "check", "convergence", "bench", "view", "plot", "sweep", "design")
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import signal
 import sys
 import textwrap
@@ -37,6 +38,9 @@ _SCENES_WIDTH = 100
 _SCENE_HELP = "scene TOML file or built-in scene name (default: the built-in default scene)"
 #: The commands whose parsers this module builds (``sweep`` and ``design`` have their modules').
 _OWN_COMMANDS = ("run", "check", "convergence", "bench", "view", "plot", "scenes")
+#: The variables OpenBLAS reads its thread count from, first found first: where none is set,
+#: this module's commands load it single-threaded (:func:`_single_threaded_blas`).
+_BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
 
 if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
     from ucontrol.analysis.stability_check import StabilityCheck
@@ -585,6 +589,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     seconds to import: a signal then ends the command in one line, never a traceback.
     """
     previous: dict[int, Any] = {}
+    restore_blas = _single_threaded_blas(sys.argv[1:] if argv is None else argv)
     try:
         _interrupt_on_signals(previous)
         args = _parser(argv).parse_args(argv)
@@ -617,6 +622,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 128 + signum  # the conventional status of a process ended by that signal
     finally:
         _restore_signals(previous)
+        if restore_blas:
+            del os.environ[_BLAS_THREAD_VARIABLES[0]]
+
+
+def _single_threaded_blas(argv: Sequence[str]) -> bool:
+    """Have OpenBLAS loaded with one thread for this module's commands; True if this set it.
+
+    Their matrices are a robot's (tens of rows), where OpenBLAS runs on one thread anyway;
+    its pool of idle threads, started when numpy's and scipy's copies load, costs each
+    process about 0.04 s of CPU at start (docs/benchmarks.md). Nothing is set where the user
+    chose a thread count (:data:`_BLAS_THREAD_VARIABLES`), where numpy is loaded already (an
+    in-process call: its OpenBLAS is started), or for ``sweep`` and ``design`` (their workers
+    and solvers are their modules' business). The variable is removed when the command ends.
+    """
+    command = next((word for word in argv if not word.startswith("-")), None)
+    if command not in _OWN_COMMANDS or "numpy" in sys.modules:
+        return False
+    if any(os.environ.get(name) for name in _BLAS_THREAD_VARIABLES):
+        return False
+    os.environ[_BLAS_THREAD_VARIABLES[0]] = "1"
+    return True
 
 
 if __name__ == "__main__":
