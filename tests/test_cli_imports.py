@@ -25,9 +25,10 @@ from ucontrol.model.compiled_function import NO_COMPILE_ENV
 from ucontrol.solvers.lapack_routines import FLAPACK
 
 #: Imported by other commands (convergence, design, sweep, plot, view; their parsers too) or
-#: by scenes with a Brogliato, walking, impedance, juggling or hopping controller or a path,
-#: never by a plain run of the default scene; the campaign package's runner and spec (dask's
-#: side), which ``--set`` need not load.
+#: by scenes with a Brogliato, walking, impedance, juggling, hopping or pronking controller or
+#: a path (the desired cycle, its segments and numpy's polynomials among them), never by a
+#: plain run of the default scene; the campaign package's runner and spec (dask's side), which
+#: ``--set`` need not load; the cycles' analyses of a summary, for phase-machine controllers.
 HEAVY = (
     "scipy",
     "ucontrol.convergence",
@@ -51,6 +52,14 @@ HEAVY = (
     "ucontrol.control.juggling_controller",
     "ucontrol.control.raibert_controller",
     "ucontrol.control.path_reach",
+    "ucontrol.control.controller_table",
+    "ucontrol.control.desired_cycle",
+    "ucontrol.control.trajectory_segment",
+    "ucontrol.control.task_coordinates",
+    "ucontrol.control.pronking_controller",
+    "numpy.polynomial",
+    "ucontrol.analysis.tracking",
+    "ucontrol.analysis.weak_stability",
     "dask",
     "matplotlib",
     "meshcat",
