@@ -203,6 +203,43 @@ def test_run_loads_openblas_single_threaded_unless_the_user_chose(
     assert dict(words)["variable"] == str(chosen)
 
 
+#: ``ucontrol run`` called from Python with its words, then as the process's command (its
+#: words in ``sys.argv``); the objects the collector holds frozen after each.
+FREEZE_PROGRAM = """
+import gc, sys
+from ucontrol.cli import main
+
+words = ["run", "--out", sys.argv[1], "--duration", "0.01", "--no-progress"]
+assert main(words) == 0
+print("called", gc.get_freeze_count())
+sys.argv = ["ucontrol", *words]
+assert main() == 0
+print("command", gc.get_freeze_count())
+"""
+
+
+def test_only_the_process_command_freezes_the_collector(tmp_path: Path) -> None:
+    """The command's process ends freezing its objects (a quicker exit); a caller's does not."""
+    completed = subprocess.run(
+        [sys.executable, "-c", FREEZE_PROGRAM, str(tmp_path / "run")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    counts = {
+        key: int(value)
+        for key, value in (
+            line.split(" ", 1)
+            for line in completed.stdout.splitlines()
+            if line.startswith(("called ", "command "))
+        )
+    }
+    assert counts["called"] == 0
+    assert counts["command"] > 1000  # the modules' objects, among them
+    assert (tmp_path / "run" / "summary.json").is_file()
+
+
 #: Every command of ``ucontrol``.
 COMMANDS = ("scenes", "run", "check", "convergence", "bench", "view", "plot", "sweep", "design")
 

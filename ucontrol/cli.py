@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import gc
 import os
 import signal
 import sys
@@ -587,6 +588,13 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     SIGTERM and SIGHUP are handled like Ctrl-C from the start, before the modules that take
     seconds to import: a signal then ends the command in one line, never a traceback.
+
+    Called as the process's command (``argv`` None: the ``ucontrol`` script, ``python -m
+    ucontrol.cli``), it freezes the garbage collector's objects when the command ends
+    (:func:`gc.freeze`): the process ends next, and the interpreter's exit then spares the
+    collections over every object the imports made (about 0.03 s of CPU, docs/benchmarks.md);
+    it closes files, flushes its streams and runs the exit handlers as before. A call with
+    ``argv`` from a Python program leaves its collector alone.
     """
     previous: dict[int, Any] = {}
     restore_blas = _single_threaded_blas(sys.argv[1:] if argv is None else argv)
@@ -624,6 +632,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         _restore_signals(previous)
         if restore_blas:
             del os.environ[_BLAS_THREAD_VARIABLES[0]]
+        if argv is None:
+            gc.freeze()
 
 
 def _single_threaded_blas(argv: Sequence[str]) -> bool:
