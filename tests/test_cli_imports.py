@@ -215,6 +215,7 @@ print("called", gc.get_freeze_count())
 sys.argv = ["ucontrol", *words]
 assert main() == 0
 print("command", gc.get_freeze_count())
+print("enabled", int(gc.isenabled()))
 """
 
 
@@ -232,11 +233,12 @@ def test_only_the_process_command_freezes_the_collector(tmp_path: Path) -> None:
         for key, value in (
             line.split(" ", 1)
             for line in completed.stdout.splitlines()
-            if line.startswith(("called ", "command "))
+            if line.startswith(("called ", "command ", "enabled "))
         )
     }
     assert counts["called"] == 0
     assert counts["command"] > 1000  # the modules' objects, among them
+    assert counts["enabled"] == 1  # the collector still runs for what comes after
     assert (tmp_path / "run" / "summary.json").is_file()
 
 

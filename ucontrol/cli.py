@@ -590,17 +590,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     seconds to import: a signal then ends the command in one line, never a traceback.
 
     Called as the process's command (``argv`` None: the ``ucontrol`` script, ``python -m
-    ucontrol.cli``), it freezes the garbage collector's objects when the command ends
-    (:func:`gc.freeze`): the process ends next, and the interpreter's exit then spares the
-    collections over every object the imports made (about 0.03 s of CPU, docs/benchmarks.md);
-    it closes files, flushes its streams and runs the exit handlers as before. A call with
-    ``argv`` from a Python program leaves its collector alone.
+    ucontrol.cli``), it spares the garbage collector the objects of its imports, which live
+    as long as the process (:func:`gc.freeze`, docs/benchmarks.md): the collector is off
+    while the parser's modules (the scene layer, numpy, Pinocchio) are imported, then what
+    they made is frozen and the collector on again; when the command ends, the objects are
+    frozen again, so that the interpreter's exit does not traverse them (it still closes
+    files, flushes its streams and runs the exit handlers). A call with ``argv`` from a
+    Python program leaves its collector alone.
     """
     previous: dict[int, Any] = {}
     restore_blas = _single_threaded_blas(sys.argv[1:] if argv is None else argv)
+    own_process = argv is None
+    if own_process:
+        gc.disable()
     try:
         _interrupt_on_signals(previous)
         args = _parser(argv).parse_args(argv)
+        if own_process:
+            _freeze_collector()
         commands = {
             "run": _run,
             "check": _check,
@@ -632,8 +639,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         _restore_signals(previous)
         if restore_blas:
             del os.environ[_BLAS_THREAD_VARIABLES[0]]
-        if argv is None:
-            gc.freeze()
+        if own_process:
+            _freeze_collector()
+
+
+def _freeze_collector() -> None:
+    """Move every object the collector tracks out of its reach, and turn it on."""
+    gc.freeze()
+    gc.enable()
 
 
 def _single_threaded_blas(argv: Sequence[str]) -> bool:
