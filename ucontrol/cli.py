@@ -652,9 +652,9 @@ def _freeze_collector() -> None:
 def _single_threaded_blas(argv: Sequence[str]) -> bool:
     """Have OpenBLAS loaded with one thread for this module's commands; True if this set it.
 
-    Their matrices are a robot's (tens of rows), where OpenBLAS runs on one thread anyway;
-    its pool of idle threads, started when numpy's and scipy's copies load, costs each
-    process about 0.04 s of CPU at start (docs/benchmarks.md). Nothing is set where the user
+    Their matrices are a robot's (tens of rows), far below the sizes where OpenBLAS's
+    threads pay, while its pools of idle threads, started when numpy's and scipy's copies
+    load, cost each process CPU time (docs/benchmarks.md). Nothing is set where the user
     chose a thread count (:data:`_BLAS_THREAD_VARIABLES`), where numpy is loaded already (an
     in-process call: its OpenBLAS is started), or for ``sweep`` and ``design`` (their workers
     and solvers are their modules' business). The variable is removed when the command ends.
