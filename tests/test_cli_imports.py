@@ -27,10 +27,12 @@ from ucontrol.solvers.lapack_routines import FLAPACK
 #: Imported by other commands (convergence, design, sweep, plot, view; their parsers too) or
 #: by scenes with a Brogliato, walking, impedance, juggling, hopping or pronking controller or
 #: a path (the desired cycle, its segments and numpy's polynomials among them), never by a
-#: plain run of the default scene; the campaign package's runner and spec (dask's side), which
-#: ``--set`` need not load; the cycles' analyses of a summary, for phase-machine controllers.
+#: plain run of the default scene; the campaign package (its overrides come with ``--set``,
+#: which need not load its runner and spec, dask's side); the cycles' analyses of a summary,
+#: for phase-machine controllers.
 HEAVY = (
     "scipy",
+    "ucontrol.campaign",
     "ucontrol.convergence",
     "ucontrol.analysis.stability_check",
     "ucontrol.campaign.runner",

@@ -308,11 +308,15 @@ def _scenes(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ucontrol.campaign.overrides import scene_with_overrides
     from ucontrol.scene import load_scene
     from ucontrol.simulate import simulate
 
-    scene = scene_with_overrides(args.scene, args.set) if args.set else load_scene(args.scene)
+    if args.set:  # the campaign package's overrides, for these alone
+        from ucontrol.campaign.overrides import scene_with_overrides
+
+        scene = scene_with_overrides(args.scene, args.set)
+    else:
+        scene = load_scene(args.scene)
     if args.integrator is not None:
         settings = dataclasses.replace(scene.integrator, name=args.integrator)
         scene = dataclasses.replace(scene, integrator=settings)
