@@ -19,7 +19,8 @@ keeps the environment as it is.
 ``--baseline DIR`` also runs each command from the source tree DIR (another revision, e.g.
 ``git archive REV | tar -x -C DIR`` with ``robots`` linked as ``DIR/ucontrol/robots``),
 interleaved with this tree's, first on ``sys.path`` and with this tree's editable-install
-finder removed, and prints the command CPU of both.
+finder removed, and prints the command CPU of both; with ``--baseline-python PYTHON`` (an
+environment where DIR is installed editable) the baseline runs as ``PYTHON -m ucontrol.cli``.
 
 Run: ``python experiments/cli_run_speed.py --scenes default two_link_one_constraint panda_table
 --rounds 5``.
@@ -56,6 +57,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, dict[str, float]]:
         help="run the commands in this environment as it is (see the module docstring)",
     )
     parser.add_argument("--baseline", type=Path, default=None, help="a source tree to compare with")
+    parser.add_argument(
+        "--baseline-python",
+        type=Path,
+        default=None,
+        help="the baseline's interpreter, whose environment installs --baseline (editable): "
+        "the baseline runs as `python -m ucontrol.cli` there",
+    )
     args = parser.parse_args(argv)
 
     samples: dict[str, list[dict[str, float]]] = {scene: [] for scene in args.scenes}
@@ -68,13 +76,15 @@ def main(argv: Sequence[str] | None = None) -> dict[str, dict[str, float]]:
         for scene in args.scenes:  # warm-up: the compile and bytecode caches filled
             _command(scene, Path(work) / scene, env)
             if args.baseline is not None:
-                _command(scene, Path(work) / "baseline", env, args.baseline)
+                _command(scene, Path(work) / "baseline", env, args.baseline, args.baseline_python)
         for _ in range(args.rounds):
             for scene in args.scenes:
                 out = Path(work) / scene
                 samples[scene].append({**_command(scene, out, env), **_in_process(scene)})
                 if args.baseline is not None:
-                    other = _command(scene, Path(work) / "baseline", env, args.baseline)
+                    other = _command(
+                        scene, Path(work) / "baseline", env, args.baseline, args.baseline_python
+                    )
                     baseline[scene].append(other["command_cpu_s"])
     figures = {
         scene: {key: statistics.median(run[key] for run in runs) for key in runs[0]}
@@ -114,11 +124,21 @@ raise SystemExit(main(sys.argv[1:]))
 
 
 def _command(
-    scene: str, out: Path, env: dict[str, str], tree: Path | None = None
+    scene: str,
+    out: Path,
+    env: dict[str, str],
+    tree: Path | None = None,
+    python: Path | None = None,
 ) -> dict[str, float]:
-    """``ucontrol run`` in a new process: its CPU and wall time and its summary's RTFs."""
+    """``ucontrol run`` in a new process: its CPU and wall time and its summary's RTFs.
+
+    From this environment, or from the source tree ``tree`` put first on ``sys.path``, or with
+    the interpreter ``python`` (whose environment installs ``tree``).
+    """
     words = ["run", "--out", str(out), "--no-progress", *([] if scene == DEFAULT else [scene])]
-    if tree is None:
+    if python is not None:
+        command = [str(python), "-m", "ucontrol.cli", *words]
+    elif tree is None:
         command = [sys.executable, "-m", "ucontrol.cli", *words]
     else:
         command = [sys.executable, "-c", _FROM_TREE, str(tree), *words]

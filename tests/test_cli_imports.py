@@ -25,11 +25,14 @@ from ucontrol.model.compiled_function import NO_COMPILE_ENV
 from ucontrol.solvers.lapack_routines import FLAPACK
 
 #: Imported by other commands (convergence, design, sweep, plot, view; their parsers too) or
-#: by scenes with a Brogliato, walking, impedance, juggling or hopping controller or a path,
-#: never by a plain run of the default scene; the campaign package's runner and spec (dask's
-#: side), which ``--set`` need not load.
+#: by scenes with a Brogliato, walking, impedance, juggling, hopping or pronking controller or
+#: a path (the desired cycle, its segments and numpy's polynomials among them), never by a
+#: plain run of the default scene; the campaign package (its overrides come with ``--set``,
+#: which need not load its runner and spec, dask's side); the cycles' analyses of a summary,
+#: for phase-machine controllers.
 HEAVY = (
     "scipy",
+    "ucontrol.campaign",
     "ucontrol.convergence",
     "ucontrol.analysis.stability_check",
     "ucontrol.campaign.runner",
@@ -51,6 +54,14 @@ HEAVY = (
     "ucontrol.control.juggling_controller",
     "ucontrol.control.raibert_controller",
     "ucontrol.control.path_reach",
+    "ucontrol.control.controller_table",
+    "ucontrol.control.desired_cycle",
+    "ucontrol.control.trajectory_segment",
+    "ucontrol.control.task_coordinates",
+    "ucontrol.control.pronking_controller",
+    "numpy.polynomial",
+    "ucontrol.analysis.tracking",
+    "ucontrol.analysis.weak_stability",
     "dask",
     "matplotlib",
     "meshcat",
@@ -144,6 +155,93 @@ def _assert_same_logs(first: Path, second: Path) -> None:
         for key in a.files:
             if key not in TIMINGS:
                 np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+#: Prints, after ``ucontrol run`` of the default scene in this process (numpy not loaded
+#: before), the thread count of each OpenBLAS library loaded and the variable it reads.
+BLAS_PROGRAM = """
+import ctypes, os, sys
+from ucontrol.cli import main
+
+out, duration = sys.argv[1:]
+assert main(["run", "--out", out, "--duration", duration, "--no-progress"]) == 0
+libraries = {line.split()[-1] for line in open("/proc/self/maps") if "openblas" in line.lower()}
+for path in sorted(libraries):
+    library = ctypes.CDLL(path)
+    names = ("openblas_get_num_threads", "scipy_openblas_get_num_threads64_",
+             "scipy_openblas_get_num_threads")
+    name = next(name for name in names if hasattr(library, name))
+    print("threads", getattr(library, name)())
+print("variable", os.environ.get("OPENBLAS_NUM_THREADS"))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/maps")
+@pytest.mark.parametrize("chosen", [None, "2"])
+def test_run_loads_openblas_single_threaded_unless_the_user_chose(
+    tmp_path: Path, chosen: str | None
+) -> None:
+    """Without a thread count of the user's, OpenBLAS runs one thread; the variable is reset.
+
+    A count the user chose (here 2, or the cores there are) is OpenBLAS's, untouched.
+    """
+    variables = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
+    env = {key: value for key, value in os.environ.items() if key not in variables}
+    if chosen is not None:
+        env["OPENBLAS_NUM_THREADS"] = chosen
+    completed = subprocess.run(
+        [sys.executable, "-c", BLAS_PROGRAM, str(tmp_path / "run"), "0.05"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    words = [line.split(" ", 1) for line in completed.stdout.splitlines()]
+    threads = [int(value) for key, value in words if key == "threads"]
+    assert threads  # numpy's OpenBLAS at least
+    expected = 1 if chosen is None else min(int(chosen), os.cpu_count() or 1)
+    assert threads == [expected] * len(threads)
+    assert dict(words)["variable"] == str(chosen)
+
+
+#: ``ucontrol run`` called from Python with its words, then as the process's command (its
+#: words in ``sys.argv``); the objects the collector holds frozen after each.
+FREEZE_PROGRAM = """
+import gc, sys
+from ucontrol.cli import main
+
+words = ["run", "--out", sys.argv[1], "--duration", "0.01", "--no-progress"]
+assert main(words) == 0
+print("called", gc.get_freeze_count())
+sys.argv = ["ucontrol", *words]
+assert main() == 0
+print("command", gc.get_freeze_count())
+print("enabled", int(gc.isenabled()))
+"""
+
+
+def test_only_the_process_command_freezes_the_collector(tmp_path: Path) -> None:
+    """The command's process ends freezing its objects (a quicker exit); a caller's does not."""
+    completed = subprocess.run(
+        [sys.executable, "-c", FREEZE_PROGRAM, str(tmp_path / "run")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    counts = {
+        key: int(value)
+        for key, value in (
+            line.split(" ", 1)
+            for line in completed.stdout.splitlines()
+            if line.startswith(("called ", "command ", "enabled "))
+        )
+    }
+    assert counts["called"] == 0
+    assert counts["command"] > 1000  # the modules' objects, among them
+    assert counts["enabled"] == 1  # the collector still runs for what comes after
+    assert (tmp_path / "run" / "summary.json").is_file()
 
 
 #: Every command of ``ucontrol``.

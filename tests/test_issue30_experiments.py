@@ -6,10 +6,14 @@ against Pinocchio's dynamics, where MuJoCo is installed.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import load_experiment
 
+import ucontrol
 from ucontrol.exceptions import URDFError
 from ucontrol.model import example_robot_data_dir
 
@@ -23,6 +27,21 @@ def test_cli_run_speed_runs(capsys: pytest.CaptureFixture[str]) -> None:
     assert default["command_cpu_s"] > 0.0 and default["command_wall_s"] > 0.0
     assert all(default[key] > 0.0 for key in ("rtf_wall", "rtf_cpu", "in_process_rtf_cpu"))
     assert "| default |" in capsys.readouterr().out
+
+
+def test_cli_run_speed_runs_a_baseline_from_its_interpreter(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``--baseline-python``: the baseline as ``PYTHON -m ucontrol.cli`` (here this tree's)."""
+    speed = load_experiment("cli_run_speed")
+    tree = str(Path(ucontrol.__file__).parents[1])
+    speed.main(
+        ["--scenes", "default", "--rounds", "1", "--baseline", tree, "--baseline-python",
+         sys.executable]
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert f"| scene | command CPU, {tree} [s] | this tree [s] |" in out
+    assert out.count("| default |") == 2  # the figures' table and the baseline's
 
 
 def test_mujoco_peer_is_the_same_robot() -> None:

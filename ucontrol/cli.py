@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import gc
+import os
 import signal
 import sys
 import textwrap
@@ -37,6 +39,9 @@ _SCENES_WIDTH = 100
 _SCENE_HELP = "scene TOML file or built-in scene name (default: the built-in default scene)"
 #: The commands whose parsers this module builds (``sweep`` and ``design`` have their modules').
 _OWN_COMMANDS = ("run", "check", "convergence", "bench", "view", "plot", "scenes")
+#: The variables OpenBLAS reads its thread count from, first found first: where none is set,
+#: this module's commands load it single-threaded (:func:`_single_threaded_blas`).
+_BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
 
 if TYPE_CHECKING:  # meshcat is imported only when a viewer is asked for
     from ucontrol.analysis.stability_check import StabilityCheck
@@ -303,11 +308,15 @@ def _scenes(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ucontrol.campaign.overrides import scene_with_overrides
     from ucontrol.scene import load_scene
     from ucontrol.simulate import simulate
 
-    scene = scene_with_overrides(args.scene, args.set) if args.set else load_scene(args.scene)
+    if args.set:  # the campaign package's overrides, for these alone
+        from ucontrol.campaign.overrides import scene_with_overrides
+
+        scene = scene_with_overrides(args.scene, args.set)
+    else:
+        scene = load_scene(args.scene)
     if args.integrator is not None:
         settings = dataclasses.replace(scene.integrator, name=args.integrator)
         scene = dataclasses.replace(scene, integrator=settings)
@@ -583,11 +592,26 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     SIGTERM and SIGHUP are handled like Ctrl-C from the start, before the modules that take
     seconds to import: a signal then ends the command in one line, never a traceback.
+
+    Called as the process's command (``argv`` None: the ``ucontrol`` script, ``python -m
+    ucontrol.cli``), it spares the garbage collector the objects of its imports, which live
+    as long as the process (:func:`gc.freeze`, docs/benchmarks.md): the collector is off
+    while the parser's modules (the scene layer, numpy, Pinocchio) are imported, then what
+    they made is frozen and the collector on again; when the command ends, the objects are
+    frozen again, so that the interpreter's exit does not traverse them (it still closes
+    files, flushes its streams and runs the exit handlers). A call with ``argv`` from a
+    Python program leaves its collector alone.
     """
     previous: dict[int, Any] = {}
+    restore_blas = _single_threaded_blas(sys.argv[1:] if argv is None else argv)
+    own_process = argv is None
+    if own_process:
+        gc.disable()
     try:
         _interrupt_on_signals(previous)
         args = _parser(argv).parse_args(argv)
+        if own_process:
+            _freeze_collector()
         commands = {
             "run": _run,
             "check": _check,
@@ -617,6 +641,35 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 128 + signum  # the conventional status of a process ended by that signal
     finally:
         _restore_signals(previous)
+        if restore_blas:
+            del os.environ[_BLAS_THREAD_VARIABLES[0]]
+        if own_process:
+            _freeze_collector()
+
+
+def _freeze_collector() -> None:
+    """Move every object the collector tracks out of its reach, and turn it on."""
+    gc.freeze()
+    gc.enable()
+
+
+def _single_threaded_blas(argv: Sequence[str]) -> bool:
+    """Have OpenBLAS loaded with one thread for this module's commands; True if this set it.
+
+    Their matrices are a robot's (tens of rows), far below the sizes where OpenBLAS's
+    threads pay, while its pools of idle threads, started when numpy's and scipy's copies
+    load, cost each process CPU time (docs/benchmarks.md). Nothing is set where the user
+    chose a thread count (:data:`_BLAS_THREAD_VARIABLES`), where numpy is loaded already (an
+    in-process call: its OpenBLAS is started), or for ``sweep`` and ``design`` (their workers
+    and solvers are their modules' business). The variable is removed when the command ends.
+    """
+    command = next((word for word in argv if not word.startswith("-")), None)
+    if command not in _OWN_COMMANDS or "numpy" in sys.modules:
+        return False
+    if any(os.environ.get(name) for name in _BLAS_THREAD_VARIABLES):
+        return False
+    os.environ[_BLAS_THREAD_VARIABLES[0]] = "1"
+    return True
 
 
 if __name__ == "__main__":

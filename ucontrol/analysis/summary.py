@@ -9,8 +9,6 @@ import numpy as np
 from ucontrol.analysis.cycles import CYCLE_FIELDS
 from ucontrol.analysis.energy_balance import step_work
 from ucontrol.analysis.impacts import impact_mask
-from ucontrol.analysis.tracking import tracking
-from ucontrol.analysis.weak_stability import weak_stability
 from ucontrol.log import SOLVED, UNSOLVED, Log
 
 #: Energy changes below this, relative to 1 + the largest absolute energy in [J], are rounding.
@@ -66,7 +64,10 @@ def summarize(
         summary["energy_increase_constraints"] = [
             name for name, hit in zip(log.constraint_names, impacts[worst_step]) if hit
         ]
-    if CYCLE_FIELDS <= set(log.fields):  # a phase-machine controller ran
+    if CYCLE_FIELDS <= set(log.fields):  # a phase-machine controller ran: its cycles' figures
+        from ucontrol.analysis.tracking import tracking
+        from ucontrol.analysis.weak_stability import weak_stability
+
         summary["weak_stability"] = weak_stability(log).to_dict()
         summary["tracking"] = tracking(log).to_dict()
     return summary

@@ -2,23 +2,22 @@
 
 The table's keys are checked when the scene is loaded (:func:`check_controller_table`), the
 controller is built when a run asks for it. The Brogliato laws (which need casadi) are
-imported only by a scene that declares one.
+imported only by a scene that declares one; so are the desired cycle and the pronking law,
+whose settings' fields are keys of their tables.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import as_bool, check_keys, require_key
 from ucontrol.contact.plane import Plane
 from ucontrol.control.controller import Controller
-from ucontrol.control.controller_table import CYCLE_KEYS, tracked_contacts
-from ucontrol.control.desired_cycle import DesiredCycle
 from ucontrol.control.friction_compensation import FrictionCompensation
 from ucontrol.control.joint_pd import JointPD
-from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.control.zero_torque import ZeroTorque
 from ucontrol.exceptions import NotFoundError, SceneError
 from ucontrol.model.joint_friction import JointFriction
@@ -30,7 +29,7 @@ from ucontrol.scene.impedance_table import (
     impedance_from_table,
 )
 from ucontrol.scene.juggling_table import JUGGLING_KEYS, juggling_from_table
-from ucontrol.scene.pronk_table import PRONK_KEYS, pronk_from_table
+from ucontrol.scene.pronk_table import pronk_from_table, pronk_keys
 from ucontrol.scene.raibert_table import RAIBERT_KEYS, raibert_from_table
 
 if TYPE_CHECKING:
@@ -39,10 +38,13 @@ if TYPE_CHECKING:
 _BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
 #: Keys of ``type = "reference_spreading"`` beyond the impedance ones (``SpreadingSettings``).
 _SPREADING_KEYS = ("restitution", "blend_time", "interim_time", "impact_speed", "contact_gap")
-_CONTROLLER_KEYS = {
-    "zero": {"type"},
-    "joint_pd": {"type", "kp", "kd", "q_ref", "gravity_compensation"},
-    "brogliato": {
+
+
+def _brogliato_keys() -> set[str]:
+    """Keys of a ``type = "brogliato"`` table (the desired cycle's settings among them)."""
+    from ucontrol.control.controller_table import CYCLE_KEYS  # the desired cycle's module
+
+    return {
         "type",
         "frame",
         "contacts",
@@ -56,16 +58,22 @@ _CONTROLLER_KEYS = {
         "designed_cycle",
         *_BROGLIATO_GAIN_KEYS,
         *CYCLE_KEYS,
-    },
+    }
+
+
+#: Keys of each controller type's table, or the function that lists them (its modules
+#: imported only for a scene that declares the type: :func:`_controller_keys`).
+_CONTROLLER_KEYS: dict[str, set[str] | Callable[[], set[str]]] = {
+    "zero": {"type"},
+    "joint_pd": {"type", "kp", "kd", "q_ref", "gravity_compensation"},
+    "brogliato": _brogliato_keys,
     "impedance": IMPEDANCE_KEYS,
     "reference_spreading": {*IMPEDANCE_KEYS, *_SPREADING_KEYS},
     "juggling": JUGGLING_KEYS,
-    "pronk": PRONK_KEYS,
+    "pronk": pronk_keys,
     "raibert": RAIBERT_KEYS,
     "hzd": HZD_KEYS,
 }
-# Every controller may run on its own model of the scene ([controller.model]).
-_CONTROLLER_KEYS = {kind: {*keys, "model"} for kind, keys in _CONTROLLER_KEYS.items()}
 #: Controller types a scene may declare.
 CONTROLLERS = tuple(_CONTROLLER_KEYS)
 _MODEL_KEYS = {"mass_scale", "com_offset", "surfaces", "joint_friction"}
@@ -85,8 +93,18 @@ def check_controller_table(table: Mapping[str, Any]) -> str:
     kind = str(table.get("type", "zero"))
     if kind not in _CONTROLLER_KEYS:
         raise NotFoundError("controller type", kind, CONTROLLERS)
-    check_keys("[controller]", table, _CONTROLLER_KEYS[kind])
+    check_keys("[controller]", table, _controller_keys(kind))
     return kind
+
+
+@functools.cache
+def _controller_keys(kind: str) -> set[str]:
+    """The keys of a ``kind`` table, ``model`` among them.
+
+    Every controller may run on its own model of the scene (``[controller.model]``).
+    """
+    keys = _CONTROLLER_KEYS[kind]
+    return {*(keys() if callable(keys) else keys), "model"}
 
 
 def build_controller(scene: SceneData) -> Controller:
@@ -173,7 +191,10 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
     """The ``type = "brogliato"`` controller of a scene (keys in docs/scene_format.md)."""
     # casadi comes with the Brogliato controllers: imported by the scenes that declare one
     from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
+    from ucontrol.control.controller_table import CYCLE_KEYS, tracked_contacts
+    from ucontrol.control.desired_cycle import DesiredCycle
     from ucontrol.control.path_table import cycle_from_table  # the paths, for these alone
+    from ucontrol.control.task_coordinates import TaskCoordinates
 
     section = "[controller]"
     frame = str(require_key(table, section, "frame"))

@@ -6,7 +6,6 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ucontrol._validation import check_keys, require_key
-from ucontrol.control.controller_table import tracked_contacts
 from ucontrol.exceptions import InvalidParameterError
 
 if TYPE_CHECKING:
@@ -69,6 +68,7 @@ def impedance_arguments(scene: SceneData, table: Mapping[str, Any]) -> dict[str,
     Shared by the task-space laws built on it (``impedance``, ``reference_spreading``); the
     keys and errors are those of :func:`impedance_from_table`, whose caller checked the keys.
     """
+    from ucontrol.control.controller_table import tracked_contacts
     from ucontrol.control.impedance_controller import ImpedanceGains
     from ucontrol.control.path_reach import check_reach
     from ucontrol.control.path_table import cycle_from_table

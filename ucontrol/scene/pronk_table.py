@@ -3,28 +3,38 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ucontrol._validation import check_keys, require_key
-from ucontrol.control.pronking_controller import PronkingController, PronkSettings
 from ucontrol.exceptions import NotFoundError
 
 if TYPE_CHECKING:
+    from ucontrol.control.pronking_controller import PronkingController
     from ucontrol.scene.scene_data import SceneData
 
-#: Gains and limits of the table passed on to :class:`PronkSettings` as they are.
-_SETTING_KEYS = tuple(
-    field.name
-    for field in dataclasses.fields(PronkSettings)
-    if field.name not in {"stand_height", "apex", "friction"}
-)
-#: Keys of a ``[controller] type = "pronk"`` table.
-PRONK_KEYS = {"type", "feet", "posture", "stand_height", "apex", "friction", *_SETTING_KEYS}
 #: Share of the feet's smallest Coulomb coefficient the commanded forces use by default.
 FRICTION_MARGIN = 0.8
+
+
+@functools.cache
+def _setting_keys() -> tuple[str, ...]:
+    """Gains and limits of the table passed on to :class:`PronkSettings` as they are."""
+    from ucontrol.control.pronking_controller import PronkSettings  # with the pronking scenes
+
+    return tuple(
+        field.name
+        for field in dataclasses.fields(PronkSettings)
+        if field.name not in {"stand_height", "apex", "friction"}
+    )
+
+
+def pronk_keys() -> set[str]:
+    """Keys of a ``[controller] type = "pronk"`` table (its settings' fields among them)."""
+    return {"type", "feet", "posture", "stand_height", "apex", "friction", *_setting_keys()}
 
 
 def pronk_from_table(scene: SceneData, table: Mapping[str, Any]) -> PronkingController:
@@ -37,11 +47,13 @@ def pronk_from_table(scene: SceneData, table: Mapping[str, Any]) -> PronkingCont
     fields of :class:`PronkSettings` of the same names.
 
     Raises:
-        UnknownKeyError: A key not in :data:`PRONK_KEYS`.
+        UnknownKeyError: A key not in :func:`pronk_keys`.
         NotFoundError: A foot that is no point contact's frame.
         InvalidParameterError: A bad value (:class:`PronkSettings`, :class:`PronkingController`).
     """
-    check_keys("[controller]", table, PRONK_KEYS)
+    from ucontrol.control.pronking_controller import PronkingController, PronkSettings
+
+    check_keys("[controller]", table, pronk_keys())
     by_frame = {contact.frame: contact for contact in scene.contacts}
     feet = [str(name) for name in table.get("feet", list(by_frame))]
     for name in feet:
@@ -55,7 +67,7 @@ def pronk_from_table(scene: SceneData, table: Mapping[str, Any]) -> PronkingCont
         stand_height=stand_height,
         apex=require_key(table, "[controller]", "apex") if hops else stand_height,
         friction=table.get("friction", FRICTION_MARGIN * min(pair.friction for pair in pairs)),
-        **{key: table[key] for key in _SETTING_KEYS if key in table},
+        **{key: table[key] for key in _setting_keys() if key in table},
     )
     return PronkingController(
         scene.robot,
