@@ -317,9 +317,9 @@ def solve_on_statuses(
         present = tangent_rows[:, component] < size
         row = band.position[tangent_rows[present, component]]
         normal = band.position[slide[present]]
-        ab[2 * k + row - normal, normal] -= problem.mu[slide[present]] * directions[
-            slide[present], component
-        ]
+        ab[2 * k + row - normal, normal] -= (
+            problem.mu[slide[present]] * directions[slide[present], component]
+        )
     lu, _, x, info = _gbsv()(k, k, ab, rhs[:, None], overwrite_ab=1)
     pivots = np.abs(lu[2 * k])
     if info != 0 or not pivots.min(initial=np.inf) > LSTSQ_CONDITION * pivots.max(initial=0.0):

@@ -70,7 +70,7 @@ from numpy.typing import NDArray
 from ucontrol._validation import as_positive
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.solvers.alart_curnier import AlartCurnier, solve_square
-from ucontrol.solvers.banded_delassus import BandedStatusSolver
+from ucontrol.solvers.banded_delassus import BANDED_SIZE, BandedStatusSolver
 from ucontrol.solvers.compiled_coulomb_newton import MARGIN, compiled_newton
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.coulomb_problem import CoulombProblem, tangential_norms
@@ -184,9 +184,10 @@ class ProxsuiteCoulombSolver:
         if guess is not None and self.polish:  # step 0: polish the last solution, no QP
             best_u = problem.velocity(guess)
             best_P, best = guess, problem.residual(guess, best_u)
-            banded = self._banded and self._banded.polish(  # banded D: O(n) status solves
-                problem, best_P, best_u, best, _polish_target(problem)
-            )
+            banded = None
+            if self._banded is not None and problem.size >= BANDED_SIZE:  # O(n) status solves
+                target = _polish_target(problem)
+                banded = self._banded.polish(problem, best_P, best_u, best, target)
             if banded:
                 best_P, best_u, best, polished = banded
             if not banded or best > POLISH_THRESHOLD:
