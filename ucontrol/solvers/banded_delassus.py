@@ -14,9 +14,9 @@ that graph (:func:`scipy.sparse.csgraph.reverse_cuthill_mckee`) numbers the node
 coupled ones are close, and the rows are ordered node after node. The half bandwidth k of D in
 that order (at least the size of a node's row group minus one) decides: the band is used from
 :data:`BANDED_SIZE` rows on where :math:`k \le r / 8` (:data:`BANDWIDTH_FRACTION`). The order
-is found once per row layout and kept while D's non-zero entries stay in its band (one count
-per problem: a change of the pattern, e.g. two contacts that come to share a body, finds the
-order again).
+is a function of the row layout and of D's non-zero pattern, kept for the last few patterns
+(:data:`ORDERS`): a change of the pattern, e.g. two contacts that come to share a body, finds
+the order again, and a solve never depends on the problems solved before it.
 
 **The solve.** At impulses P with velocities u, the natural map's argument
 :math:`z = \sigma P - \hat u` gives each contact's status (the cone of
@@ -60,6 +60,8 @@ BANDED_SIZE = 64
 BANDWIDTH_FRACTION = 0.125
 #: Cap on the status solves per call.
 STATUS_SOLVES = 8
+#: Band orders kept, by row layout and non-zero pattern of D.
+ORDERS = 16
 #: Status of a contact: separating (impulse 0), sticking (velocity 0), sliding (on the cone).
 SEPARATE, STICK, SLIDE = 0, 1, 2
 
@@ -91,96 +93,96 @@ class BandOrder(NamedTuple):
     band_row: NDArray[np.intp]
 
 
-class BandedStatusSolver:
-    """Exact solves on guessed contact statuses by band LU, for banded Delassus matrices.
+def band_order(problem: CoulombProblem) -> BandOrder | None:
+    """The band order of ``problem``'s D, or None where D is small or not banded enough.
 
-    The band order of each row layout is kept between calls (module docstring).
+    A function of the row layout and of D's non-zero pattern alone (the last
+    :data:`ORDERS` kept), whatever the problems solved before.
     """
-
-    def __init__(self) -> None:
-        self._orders: dict[bytes, BandOrder | None] = {}
-
-    def band_order(self, problem: CoulombProblem) -> BandOrder | None:
-        """The band order of ``problem``'s D, or None where D is small or not banded enough."""
-        if problem.size < BANDED_SIZE:
-            return None
-        key = problem.tangents.tobytes() + problem.equalities.to_bytes(4, "little")
-        if key in self._orders:
-            known = self._orders[key]
-            if known is None or _in_band(problem.D, known):
-                return known
-        found = find_band_order(problem)
-        self._orders[key] = found
-        return found
-
-    def polish(
-        self, problem: CoulombProblem, P: Vector, u: Vector, residual: float, target: float
-    ) -> tuple[Vector, Vector, float, bool] | None:
-        """Status solves from (P, u) while they lower the natural-map residual.
-
-        Args:
-            problem: The Coulomb problem.
-            P: Impulses in [N s], shape (r,).
-            u: Their velocities ``D P + b`` in [m/s], shape (r,).
-            residual: Their natural-map residual in [m/s].
-            target: Natural-map residual in [m/s] at which to stop.
-
-        Returns:
-            None where D is not banded (:meth:`band_order`); else the best impulses (r,),
-            their velocities (r,), natural-map residual in [m/s], and whether a solve
-            improved on ``P``.
-        """
-        band = self.band_order(problem)
-        if band is None:
-            return None
-        improved, previous = False, None
-        for _ in range(STATUS_SOLVES):
-            statuses = contact_statuses(problem, P, u)
-            if previous is not None and all(map(np.array_equal, statuses, previous)):
-                break  # the same equations: the same impulses
-            candidate = solve_on_statuses(problem, band, *statuses)
-            if candidate is None:
-                break
-            candidate_u = problem.velocity(candidate)
-            candidate_residual = problem.residual(candidate, candidate_u)
-            if not candidate_residual < residual:
-                break
-            P, u, residual, improved, previous = (
-                candidate,
-                candidate_u,
-                candidate_residual,
-                True,
-                statuses,
-            )
-            if residual <= target:
-                break
-        return P, u, residual, improved
+    if problem.size < BANDED_SIZE:
+        return None
+    pattern = np.packbits(problem.D != 0.0).tobytes()
+    return _band_order(problem.tangents.tobytes(), problem.equalities, pattern)
 
 
-def find_band_order(problem: CoulombProblem) -> BandOrder | None:
+def status_polish(
+    problem: CoulombProblem, P: Vector, u: Vector, residual: float, target: float
+) -> tuple[Vector, Vector, float, bool] | None:
+    """Status solves from (P, u) while they lower the natural-map residual.
+
+    Args:
+        problem: The Coulomb problem.
+        P: Impulses in [N s], shape (r,).
+        u: Their velocities ``D P + b`` in [m/s], shape (r,).
+        residual: Their natural-map residual in [m/s].
+        target: Natural-map residual in [m/s] at which to stop.
+
+    Returns:
+        None where D is not banded (:func:`band_order`); else the best impulses (r,), their
+        velocities (r,), natural-map residual in [m/s], and whether a solve improved on
+        ``P``.
+    """
+    band = band_order(problem)
+    if band is None:
+        return None
+    improved, previous = False, None
+    for _ in range(STATUS_SOLVES):
+        statuses = contact_statuses(problem, P, u)
+        if previous is not None and all(map(np.array_equal, statuses, previous)):
+            break  # the same equations: the same impulses
+        candidate = solve_on_statuses(problem, band, *statuses)
+        if candidate is None:
+            break
+        candidate_u = problem.velocity(candidate)
+        candidate_residual = problem.residual(candidate, candidate_u)
+        if not candidate_residual < residual:
+            break
+        P, u, residual, improved, previous = (
+            candidate,
+            candidate_u,
+            candidate_residual,
+            True,
+            statuses,
+        )
+        if residual <= target:
+            break
+    return P, u, residual, improved
+
+
+@functools.lru_cache(maxsize=ORDERS)
+def _band_order(tangents: bytes, equalities: int, pattern: bytes) -> BandOrder | None:
     """The reverse Cuthill–McKee order of the contacts' coupling graph, if D is banded in it.
 
-    None where the half bandwidth exceeds :data:`BANDWIDTH_FRACTION` of the rows.
+    Args:
+        tangents: The bytes of the problem's tangent counts (an intp array).
+        equalities: Its bilateral rows.
+        pattern: D's non-zero pattern, row by row, packed in bits (``np.packbits``).
+
+    Returns:
+        None where the half bandwidth exceeds :data:`BANDWIDTH_FRACTION` of the rows.
     """
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-    size, group = problem.size, row_groups(problem)
-    nodes = int(group.max(initial=-1)) + 1
+    counts = np.frombuffer(tangents, dtype=np.intp)
+    group = row_groups(counts, equalities)
+    size, nodes = group.size, counts.size + equalities
+    bits = np.unpackbits(np.frombuffer(pattern, dtype=np.uint8), count=size * size)
+    nonzero = bits.reshape(size, size).astype(bool)
     member = np.zeros((size, nodes))
     member[np.arange(size), group] = 1.0
-    coupled = member.T @ (problem.D != 0.0) @ member != 0.0  # (nodes, nodes)
+    coupled = member.T @ nonzero @ member != 0.0  # (nodes, nodes)
     node_order = reverse_cuthill_mckee(csr_matrix(coupled), symmetric_mode=True)
     rank = np.empty(nodes, dtype=np.intp)
     rank[node_order] = np.arange(nodes)
     order = np.argsort(rank[group], kind="stable").astype(np.intp)  # a node's rows together
     position = np.empty(size, dtype=np.intp)
     position[order] = np.arange(size)
-    rows, columns = np.nonzero(problem.D)
+    rows, columns = np.nonzero(nonzero)
     spread = np.abs(position[rows] - position[columns]).max(initial=0)
     group_span = int(np.bincount(group).max(initial=1)) - 1  # the local rows of a status
     # A sliding spatial contact's tangential row combines its two rows of D (adjacent).
-    bandwidth = int(max(spread + problem.spatial, group_span))
+    bandwidth = int(max(spread + bool(np.any(counts == 2)), group_span))
     if bandwidth > BANDWIDTH_FRACTION * size:
         return None
     # LAPACK's band storage of kl = ku = k: entry (i, j) at row 2k + i - j, column j.
@@ -194,22 +196,18 @@ def find_band_order(problem: CoulombProblem) -> BandOrder | None:
         """Flat index into D of the entry (i + shift, j) of each storage entry (clipped)."""
         return np.asarray(order[np.clip(rows_at + shift, 0, size - 1)] * size + order[column])
 
-    return BandOrder(order, position, bandwidth, flat(0), flat(1), flat(-1), valid, rows_at)
+    band = BandOrder(order, position, bandwidth, flat(0), flat(1), flat(-1), valid, rows_at)
+    for array in band[:2] + band[3:]:
+        array.flags.writeable = False  # shared by every problem of the same pattern
+    return band
 
 
-def row_groups(problem: CoulombProblem) -> NDArray[np.intp]:
+def row_groups(tangents: NDArray[np.intp], equalities: int) -> NDArray[np.intp]:
     """The node of each row (r,): its contact's index, or m + j for bilateral row j."""
-    m, size = problem.m, problem.size
-    group = np.empty(size, dtype=np.intp)
-    group[:m] = np.arange(m)
-    group[m : size - problem.equalities] = np.repeat(np.arange(m), problem.tangents)
-    group[size - problem.equalities :] = m + np.arange(problem.equalities)
-    return group
-
-
-def _in_band(D: Vector, band: BandOrder) -> bool:
-    """Whether every non-zero entry of ``D`` lies in the band of ``band``."""
-    return np.count_nonzero(D) == np.count_nonzero(D.ravel()[band.flat] * band.valid)
+    m = tangents.size
+    return np.concatenate(
+        (np.arange(m), np.repeat(np.arange(m), tangents), m + np.arange(equalities))
+    ).astype(np.intp)
 
 
 def contact_statuses(
@@ -272,7 +270,7 @@ def solve_on_statuses(
 
     Args:
         problem: The Coulomb problem.
-        band: The band order of its D (:func:`find_band_order`).
+        band: The band order of its D (:func:`band_order`).
         status: Status of each contact, shape (m,).
         directions: Unit sliding direction of each contact, shape (m, 2).
         turning: C of each contact, shape (m, 2, 2) (:func:`contact_statuses`).
