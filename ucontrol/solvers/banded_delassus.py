@@ -125,28 +125,25 @@ def status_polish(
     band = band_order(problem)
     if band is None:
         return None
-    improved, previous = False, None
+    best, improved, previous = (P, u, residual), False, None
     for _ in range(STATUS_SOLVES):
-        statuses = contact_statuses(problem, P, u)
+        statuses = contact_statuses(problem, best[0], best[1])
         if previous is not None and all(map(np.array_equal, statuses, previous)):
             break  # the same equations: the same impulses
         candidate = solve_on_statuses(problem, band, *statuses)
-        if candidate is None:
+        trial = None if candidate is None else _scored(problem, candidate)
+        if trial is None or not trial[2] < best[2]:  # kept only where the residual drops
             break
-        candidate_u = problem.velocity(candidate)
-        candidate_residual = problem.residual(candidate, candidate_u)
-        if not candidate_residual < residual:
+        best, improved, previous = trial, True, statuses
+        if best[2] <= target:
             break
-        P, u, residual, improved, previous = (
-            candidate,
-            candidate_u,
-            candidate_residual,
-            True,
-            statuses,
-        )
-        if residual <= target:
-            break
-    return P, u, residual, improved
+    return best[0], best[1], best[2], improved
+
+
+def _scored(problem: CoulombProblem, P: Vector) -> tuple[Vector, Vector, float]:
+    """Impulses P (r,), their velocities (r,) and natural-map residual in [m/s]."""
+    u = problem.velocity(P)
+    return P, u, problem.residual(P, u)
 
 
 @functools.lru_cache(maxsize=ORDERS)
