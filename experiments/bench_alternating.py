@@ -12,11 +12,18 @@ item the smallest and the median CPU time per step of each tree.
   ``experiments/bench_contacts.py``) runs ``--steps`` Moreau–Jean steps after five of warm-up,
   ``--runs`` times per process.
 
+With ``--instructions`` the columns of beads are counted instead, by valgrind's callgrind
+(deterministic, unlike CPU time on a shared machine: one round): a worker warms up five
+steps, switches the instrumentation on in itself (``callgrind_control -i on``) and runs
+``--steps`` steps, then ``2 × --steps``; the difference over ``--steps`` is the instructions
+of one step.
+
 Usage::
 
     git archive 89430a0 | tar -x -C /tmp/base   # then copy the built _native_call extension
     python experiments/bench_alternating.py --baseline /tmp/base \
         --scenes panda_table_friction solo_landing solo_pronk --beads 10 50 100
+    python experiments/bench_alternating.py --baseline /tmp/base --beads 100 --instructions
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -76,6 +84,41 @@ def _beads_costs(n: int, steps: int, runs: int) -> list[float]:
     return costs
 
 
+def _beads_instructed(n: int, steps: int) -> None:
+    """``steps`` steps of the column of ``n`` beads, instrumented by callgrind after warm-up."""
+    import numpy as np
+
+    sys.path.insert(0, str(Path("experiments").resolve()))
+    from bench_contacts import _integrator, column
+
+    robot, constraints, q, v = column(n)
+    integrator = _integrator("ucontrol", robot, constraints, 1e-3, 1e-10)
+    tau = np.zeros(v.size)
+    for k in range(5 + steps):
+        if k == 5:  # valgrind reads the request while this process runs: poll, not wait
+            switch = subprocess.Popen(["callgrind_control", "-i", "on", str(os.getpid())])
+            while switch.poll() is None:
+                time.sleep(0.01)
+        outcome = integrator.step(integrator.evaluate(q, v), tau)
+        q, v = outcome.q, outcome.v
+
+
+def _instructions(tree: Path, n: int, steps: int) -> float:
+    """Instructions per step of the column of ``n`` beads on ``tree`` (module docstring)."""
+    env = dict(os.environ, PYTHONPATH=str(tree), OPENBLAS_NUM_THREADS="1", PYTHONHASHSEED="0")
+    collected = []
+    for length in (steps, 2 * steps):
+        command = ["valgrind", "--tool=callgrind", "--instr-atstart=no"]
+        command += ["--callgrind-out-file=/dev/null", sys.executable, str(Path(__file__).resolve())]
+        command += ["--worker", f"instructed:{n}", "--steps", str(length)]
+        done = subprocess.run(command, cwd=tree, env=env, capture_output=True, text=True)
+        counts = re.findall(r"Collected : (\d+)", done.stderr)
+        if done.returncode or not counts:
+            raise RuntimeError(f"the instrumented run failed:\n{done.stderr[-2000:]}")
+        collected.append(int(counts[-1]))
+    return (collected[1] - collected[0]) / steps
+
+
 def _measure(tree: Path, item: str, args: argparse.Namespace) -> list[float]:
     """The costs of ``item`` (``scene:NAME`` or ``beads:N``) in a fresh process on ``tree``."""
     env = dict(os.environ, PYTHONPATH=str(tree), OPENBLAS_NUM_THREADS="1")
@@ -106,10 +149,16 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, object]]:
     parser.add_argument("--steps", type=int, default=20, help="bead-column steps per run [-]")
     parser.add_argument("--runs", type=int, default=2, help="runs per process [-]")
     parser.add_argument("--rounds", type=int, default=4, help="alternating rounds [-]")
+    parser.add_argument(
+        "--instructions", action="store_true", help="count the beads' instructions per step"
+    )
     parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker is not None:
         kind, _, value = args.worker.partition(":")
+        if kind == "instructed":
+            _beads_instructed(int(value), args.steps)
+            return []
         if kind == "scene":
             worker_costs = _scene_costs(value, args.duration, args.runs)
         else:
@@ -118,6 +167,8 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, object]]:
         return []
     trees = {"before": args.baseline, "after": args.current}
     trees = {label: tree.resolve() for label, tree in trees.items() if tree is not None}
+    if args.instructions:
+        return _instruction_table(trees, args.beads, args.steps)
     items = [f"scene:{name}" for name in args.scenes] + [f"beads:{n}" for n in args.beads]
     costs: dict[tuple[str, str], list[float]] = {(i, t): [] for i in items for t in trees}
     load = [os.getloadavg()[0]]
@@ -146,6 +197,26 @@ def main(argv: Sequence[str] | None = None) -> list[dict[str, object]]:
         lines.append(f"| {item} | " + " | ".join(cells) + " |")
     print(f"CPU µs per step; load average {min(load):.1f}–{max(load):.1f}\n")
     print("\n".join(lines))
+    return rows
+
+
+def _instruction_table(
+    trees: dict[str, Path], sizes: list[int], steps: int
+) -> list[dict[str, object]]:
+    """Print and return the instructions per step of each column size on each tree."""
+    rows: list[dict[str, object]] = []
+    print("| item | " + " | ".join(trees) + (" | after / before |" if len(trees) == 2 else " |"))
+    print("|:---|" + "---:|" * (len(trees) + (len(trees) == 2)))
+    for n in sizes:
+        row: dict[str, object] = {"item": f"beads:{n}"}
+        for label, tree in trees.items():
+            row[label] = _instructions(tree, n, steps)
+        cells = [f"{row[label]:,.0f}" for label in trees]
+        if len(trees) == 2:
+            row["ratio"] = float(row["after"]) / float(row["before"])  # type: ignore[arg-type]
+            cells.append(f"{row['ratio']:.2f}")
+        rows.append(row)
+        print(f"| beads:{n} | " + " | ".join(cells) + " |", flush=True)
     return rows
 
 

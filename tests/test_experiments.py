@@ -214,6 +214,18 @@ def test_bench_alternating_runs(capsys: pytest.CaptureFixture[str]) -> None:
     assert "| beads:2 |" in capsys.readouterr().out
 
 
+def test_bench_alternating_counts_instructions(capsys: pytest.CaptureFixture[str]) -> None:
+    import shutil
+
+    if shutil.which("valgrind") is None or shutil.which("callgrind_control") is None:
+        pytest.skip("valgrind's callgrind is not installed")
+    [row] = _load("bench_alternating").main("--beads 2 --steps 2 --instructions".split())
+    # A step of two beads with friction: hundreds of thousands of instructions (about
+    # 1.5 million measured), never the set-up's billions.
+    assert row["item"] == "beads:2" and 1e5 < float(row["after"]) < 1e8
+    assert "| beads:2 |" in capsys.readouterr().out
+
+
 def test_instructions_per_step_runs(capsys: pytest.CaptureFixture[str]) -> None:
     import shutil
 

@@ -217,5 +217,7 @@ def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vect
     # the apex, 0.
     boundary_n = np.maximum((z_n + mu * t) / (1.0 + mu * mu), 0.0)
     inside = (t <= mu * z_n) & (z_n >= 0.0)  # z_n >= 0 matters for mu = 0
-    ratio = np.divide(mu * boundary_n, t, out=np.zeros_like(t), where=t > 0.0)
+    # Outside the cone the ratio is below 1; inside it is not used, and with a subnormal t
+    # (impulses decaying down a long column of beads) it would overflow.
+    ratio = np.divide(mu * boundary_n, t, out=np.zeros_like(t), where=(t > 0.0) & ~inside)
     return np.where(inside, z_n, boundary_n), np.where(inside, 1.0, ratio)[:, None] * z_t

@@ -70,6 +70,7 @@ from numpy.typing import NDArray
 from ucontrol._validation import as_positive
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.solvers.alart_curnier import AlartCurnier, solve_square
+from ucontrol.solvers.banded_delassus import BANDED_SIZE, status_polish
 from ucontrol.solvers.compiled_coulomb_newton import MARGIN, compiled_newton
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.coulomb_problem import CoulombProblem, tangential_norms
@@ -106,6 +107,10 @@ class ProxsuiteCoulombSolver:
             step of :mod:`ucontrol.solvers.compiled_coulomb_newton` first (step 0 of the
             module docstring); where it does not solve, or nothing compiles, the numpy polish
             runs as without it.
+        banded: Polish the last solution of a problem whose Delassus matrix is banded by
+            status solves on its band first (:mod:`ucontrol.solvers.banded_delassus`); the
+            numpy polish runs after them only where they leave the residual above
+            :data:`~ucontrol.solvers.lcp_refinement.POLISH_THRESHOLD`.
     """
 
     name = "proxsuite-tresca"
@@ -122,6 +127,7 @@ class ProxsuiteCoulombSolver:
         facets: int = 4,
         polish: bool = True,
         compiled_newton: bool = True,
+        banded: bool = True,
     ) -> None:
         self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
         self.max_iter = int(as_positive("max_iter", max_iter))
@@ -130,6 +136,7 @@ class ProxsuiteCoulombSolver:
         self.facets = int(facets)
         self.polish = polish
         self.compiled_newton = compiled_newton
+        self.banded = banded
         self._qp = WarmStartedQP(eps_abs=eps_abs, max_iter=qp_max_iter, bounds_change=True)
         angles = 2.0 * np.pi * np.arange(self.facets) / self.facets
         self._facet_angles = np.column_stack((np.cos(angles), np.sin(angles)))  # (facets, 2)
@@ -177,7 +184,13 @@ class ProxsuiteCoulombSolver:
         if guess is not None and self.polish:  # step 0: polish the last solution, no QP
             best_u = problem.velocity(guess)
             best_P, best = guess, problem.residual(guess, best_u)
-            best_P, best_u, best, polished = _polish(problem, best_P, best_u, best)
+            by_band = None
+            if self.banded and problem.size >= BANDED_SIZE:  # O(n) status solves
+                by_band = status_polish(problem, best_P, best_u, best, _polish_target(problem))
+            if by_band:
+                best_P, best_u, best, polished = by_band
+            if not by_band or best > POLISH_THRESHOLD:
+                best_P, best_u, best, polished = _polish(problem, best_P, best_u, best)
             if _marginal(problem, best_P, best_u, self.residual_tolerance):
                 best = np.inf  # solved again by the fixed point, which prefers sticking
         if best > self.residual_tolerance:
