@@ -3,7 +3,9 @@ r"""Campaign start-up: the share of a run outside its time-stepping loop, fresh 
 Each campaign runs ``--runs`` runs of ``--duration`` simulated seconds of a tracking scene
 (``two_link_one_constraint`` or ``panda_table``) with sensors and actuators in the loop, on the
 ``LocalCluster`` of ``--workers`` workers that :func:`~ucontrol.campaign.run_campaign` starts
-(its start inside the clock, as with ``ucontrol campaign``), twice: every run building its
+(its start inside the clock, as with ``ucontrol campaign``, and with it each worker's
+preparation, :func:`~ucontrol.campaign.runner.prepare_worker`: imports, libraries and the first
+run's builds, kept with reuse), twice: every run building its
 integrator and controller (``fresh``: ``reuse=False``, as before) and each worker reusing them
 where the run's overrides allow (``reused``: ``reuse=True``, the default). Two campaigns:
 

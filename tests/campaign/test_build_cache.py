@@ -18,7 +18,7 @@ from ucontrol.campaign.build_cache import (
     integrator_key,
 )
 from ucontrol.campaign.overrides import apply_overrides
-from ucontrol.campaign.runner import run_task, simulate_cached
+from ucontrol.campaign.runner import prepare_worker, run_task, simulate_cached
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.log import Log
 from ucontrol.scene import Scene, builtin_scene
@@ -139,6 +139,49 @@ def test_run_task_records_how_it_got_its_objects() -> None:
     assert second["build"] == {INTEGRATOR: "reused", CONTROLLER: "reused"}
     assert fresh["build"] == {INTEGRATOR: "built", CONTROLLER: "built"}
     assert first["metrics"] == second["metrics"] == fresh["metrics"]
+
+
+def _task(table: dict[str, Any], path: Path, parameters: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "run_id": "r0",
+        "index": 0,
+        "scene": table,
+        "scene_ref": {"path": str(path)},
+        "parameters": parameters,
+        "metrics": [("max_penetration", "max_penetration")],
+        "success": None,
+    }
+
+
+def test_a_prepared_worker_reuses_its_builds_with_the_logs_of_fresh_ones() -> None:
+    base, path = _table("two_link_one_constraint", 6.0)
+    first = {**NOISE, "sensors.seed": 1}
+    cache = BuildCache()
+    assert prepare_worker(_task(base, path, first), cache) == ""
+    for overrides, build in [
+        ({**NOISE, "sensors.seed": 2}, "reused"),  # the prepared objects, never run before
+        ({**NOISE, "sensors.seed": 3, "contacts.0.restitution": 0.2}, "built"),
+    ]:
+        table = apply_overrides(base, overrides)
+        result, how = simulate_cached(table, path, cache)
+        assert how == {INTEGRATOR: build, CONTROLLER: build}, overrides
+        _assert_same_log(result.log, _fresh(table, path))
+        assert len(result.log.impacts.t) > 0
+    unkept = BuildCache()  # without reuse the builds are made (libraries loaded) and dropped
+    assert prepare_worker({**_task(base, path, first), "reuse": False}, unkept) == ""
+    _, how = simulate_cached(apply_overrides(base, first), path, unkept)
+    assert how == {INTEGRATOR: "built", CONTROLLER: "built"}
+
+
+def test_a_worker_prepared_for_a_failing_run_leaves_the_error_to_the_run() -> None:
+    table, path = _table("two_link_one_constraint", 0.5)
+    task = _task(table, path, {"controller.no_such_gain": 1.0})
+    cache = BuildCache()
+    said = prepare_worker(task, cache)  # never raises
+    assert said.split(":")[0].endswith("Error") and "no_such_gain" in said
+    assert cache.stats().built == {INTEGRATOR: 0, CONTROLLER: 0}
+    record = run_task(task)
+    assert record["status"] == "error" and "no_such_gain" in record["error"]
 
 
 def test_keys_follow_what_each_builder_reads() -> None:

@@ -67,7 +67,8 @@ NO_WORKER_TIMEOUT_S = 60.0
 _POLL_S = 0.1
 #: Modules the workers of a local cluster import as soon as they are up, all at once and before
 #: the first run (the scene layer, the closed loop, Pinocchio): a run's time is its own. A worker
-#: started later (after one died) imports them in its first run.
+#: started later (after one died) imports them in its first run. :func:`prepare_worker` then
+#: builds the first run's objects, which imports the rest (its controller, sensors, summary).
 WORKER_IMPORTS = ("ucontrol.campaign.prebuilt_scene", "ucontrol.simulate")
 #: Dask settings of the local cluster. A run whose worker dies is tried once more on a fresh
 #: worker, then recorded as killed; each worker holds only the run it executes (with dask's
@@ -176,15 +177,9 @@ def simulate_cached(
         was ``"built"`` or ``"reused"``. Objects go back to the cache only after a run that
         completed (a failed run's are dropped).
     """
-    from ucontrol.campaign.prebuilt_scene import PrebuiltScene
     from ucontrol.simulate import simulate
 
-    built = PrebuiltScene.from_dict(table, base_dir=path.parent, default_name=path.stem)
-    scene = cast(PrebuiltScene, built)  # from_dict builds the class it is called on
-    keys = {
-        INTEGRATOR: integrator_key(str(path), table),
-        CONTROLLER: controller_key(str(path), table),
-    }
+    scene, keys = _cached_scene(table, path)
     build = {}
     integrator = cache.checkout(INTEGRATOR, keys[INTEGRATOR])
     if integrator is None:
@@ -199,11 +194,58 @@ def simulate_cached(
         controller.reset()
         build[CONTROLLER] = REUSED
     result = simulate(scene.use_integrator(integrator), controller, progress=False)
+    _keep(cache, keys, integrator, controller)
+    return result, build
+
+
+def prepare_worker(task: Mapping[str, Any], cache: BuildCache = WORKER_CACHE) -> str:
+    """Ready this process for a campaign's runs: imports, libraries and the first run's builds.
+
+    Run on each worker of a local cluster before any run (``Client.run``): it imports
+    :data:`WORKER_IMPORTS` and builds the integrator and the controller of ``task`` (a run's
+    task, as for :func:`run_task`), which imports their modules and loads their compiled
+    libraries. With ``reuse`` (the default) both are kept in ``cache`` for the runs that
+    build them the same, which reset them as after a run (their logs are those of fresh
+    builds); without, they are dropped. Nothing is simulated and nothing raises: a task
+    whose builds fail is left to its run, which records the error.
+
+    Returns:
+        The error of the builds as ``"Type: message"``, or ``""`` when they were made.
+    """
+    import importlib
+
+    for module in WORKER_IMPORTS:
+        importlib.import_module(module)
+    try:
+        path = scene_file(task["scene_ref"])
+        scene, keys = _cached_scene(apply_overrides(task["scene"], task["parameters"]), path)
+        integrator, controller = scene.build_integrator(), scene.build_controller()
+    except Exception as error:  # the run builds again and records it
+        return f"{type(error).__name__}: {error}"
+    if task.get("reuse", True):
+        _keep(cache, keys, integrator, controller)
+    return ""
+
+
+def _cached_scene(table: dict[str, Any], path: Path) -> tuple[Any, dict[str, str]]:
+    """The scene of ``table`` (from file ``path``) that takes a built integrator, and its keys."""
+    from ucontrol.campaign.prebuilt_scene import PrebuiltScene
+
+    built = PrebuiltScene.from_dict(table, base_dir=path.parent, default_name=path.stem)
+    scene = cast(PrebuiltScene, built)  # from_dict builds the class it is called on
+    keys = {
+        INTEGRATOR: integrator_key(str(path), table),
+        CONTROLLER: controller_key(str(path), table),
+    }
+    return scene, keys
+
+
+def _keep(cache: BuildCache, keys: Mapping[str, str], integrator: Any, controller: Any) -> None:
+    """Put the objects that can be reset into ``cache`` under their keys."""
     if reusable_integrator(integrator):
         cache.checkin(INTEGRATOR, keys[INTEGRATOR], integrator)
     if reusable_controller(controller):
         cache.checkin(CONTROLLER, keys[CONTROLLER], controller)
-    return result, build
 
 
 def run_campaign(
@@ -255,10 +297,11 @@ def run_campaign(
     if pending:
         with _signals():  # installed first: a SIGTERM while the cluster starts is handled too
             try:
-                with _client(client, scheduler, workers, len(pending)) as dask_client:
+                tasks = _tasks(campaign, pending, reuse)
+                with _client(client, scheduler, workers, tasks) as dask_client:
                     bar = _progress_bar(len(plan), skipped, progress)
                     try:
-                        records = _results(dask_client, campaign, pending, worker_timeout, reuse)
+                        records = _results(dask_client, campaign, pending, tasks, worker_timeout)
                         for record in records:
                             if isinstance(record, str):  # no worker left: stop
                                 reason = record
@@ -346,16 +389,9 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT_S) -> Any:
         raise SchedulerUnreachableError(address, str(error) or type(error).__name__) from error
 
 
-def _results(
-    client: Any, campaign: Campaign, pending: list[Any], worker_timeout: float, reuse: bool
-) -> Iterator[dict[str, Any] | str]:
-    """Submit the pending runs and yield each record as its run ends.
-
-    When no worker has been connected for ``worker_timeout`` seconds, the reason is yielded
-    (a text) instead, and the runs left are cancelled.
-    """
-    tag = campaign.fingerprint()[:10]
-    tasks = [
+def _tasks(campaign: Campaign, pending: list[Any], reuse: bool) -> list[dict[str, Any]]:
+    """The task of each pending run (:func:`run_task`'s argument)."""
+    return [
         {
             "run_id": run.run_id,
             "index": run.index,
@@ -369,6 +405,21 @@ def _results(
         }
         for run in pending
     ]
+
+
+def _results(
+    client: Any,
+    campaign: Campaign,
+    pending: list[Any],
+    tasks: list[dict[str, Any]],
+    worker_timeout: float,
+) -> Iterator[dict[str, Any] | str]:
+    """Submit the pending runs (their ``tasks``) and yield each record as its run ends.
+
+    When no worker has been connected for ``worker_timeout`` seconds, the reason is yielded
+    (a text) instead, and the runs left are cancelled.
+    """
+    tag = campaign.fingerprint()[:10]
     keys = [f"ucontrol-run-{tag}-{run.run_id}" for run in pending]
     futures = client.map(run_task, tasks, key=keys, pure=False)
     by_key = {future.key: (task, future) for task, future in zip(tasks, futures, strict=True)}
@@ -427,8 +478,14 @@ def _as_completed(client: Any, futures: list[Any], worker_timeout: float) -> Ite
 
 
 @contextmanager
-def _client(client: Any, scheduler: str | None, workers: int | None, pending: int) -> Iterator[Any]:
-    """The given client, a client of ``scheduler``, or a new LocalCluster's."""
+def _client(
+    client: Any, scheduler: str | None, workers: int | None, tasks: list[dict[str, Any]]
+) -> Iterator[Any]:
+    """The given client, a client of ``scheduler``, or a new LocalCluster's.
+
+    A new LocalCluster has at most one worker per task, each readied for the first task by
+    :func:`prepare_worker` before any run.
+    """
     if client is not None:
         yield client
         return
@@ -442,7 +499,7 @@ def _client(client: Any, scheduler: str | None, workers: int | None, pending: in
     import dask
     from distributed import Client, LocalCluster
 
-    n = max(1, min(workers or os.cpu_count() or 1, pending))
+    n = max(1, min(workers or os.cpu_count() or 1, len(tasks)))
     with dask.config.set(CLUSTER_SETTINGS):
         cluster = LocalCluster(
             n_workers=n,
@@ -453,19 +510,11 @@ def _client(client: Any, scheduler: str | None, workers: int | None, pending: in
         )
     local = Client(cluster)
     try:
-        local.run(_import_run_modules)
+        local.run(prepare_worker, tasks[0])
         yield local
     finally:
         local.close()
         cluster.close()
-
-
-def _import_run_modules() -> None:
-    """Import :data:`WORKER_IMPORTS` (on a worker, by ``Client.run``)."""
-    import importlib
-
-    for module in WORKER_IMPORTS:
-        importlib.import_module(module)
 
 
 class _Signalled(KeyboardInterrupt):
