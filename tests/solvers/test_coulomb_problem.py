@@ -112,3 +112,64 @@ def test_bad_problems_raise() -> None:
         CoulombProblem(np.eye(3), np.zeros(3), np.array([-0.5]), np.array([2]))
     with pytest.raises(InvalidParameterError, match="`tangents` must be 0, 1 or 2"):
         CoulombProblem(np.eye(4), np.zeros(4), np.array([0.5]), np.array([3]))
+
+
+def _random_problem(rng: np.random.Generator, tangents: list[int], equalities: int = 0):
+    """A random Coulomb problem of the layout ``tangents``, with ``equalities`` bilateral rows."""
+    size = len(tangents) + sum(tangents) + equalities
+    A = rng.standard_normal((size, size))
+    D = A @ A.T + 0.1 * np.eye(size)
+    mu = rng.uniform(0.0, 1.0, len(tangents))
+    return CoulombProblem(D, rng.standard_normal(size), mu, np.array(tangents), equalities)
+
+
+def test_residual_of_a_few_rows_is_the_projections_definition() -> None:
+    """Problems of a few rows (Python floats) against the numpy projection of each contact."""
+    rng = np.random.default_rng(2)
+    for tangents, equalities in [([2], 0), ([1], 0), ([0], 0), ([2, 0, 1], 0), ([2, 2], 2)]:
+        problem = _random_problem(rng, tangents, equalities)
+        m, sigma = problem.m, problem.normal_scale
+        for _ in range(20):
+            P = rng.standard_normal(problem.size)
+            P[:m] = np.abs(P[:m]) * rng.integers(0, 2, m)  # some contacts open
+            u = problem.velocity(P)
+            u_t = problem.tangential(u)
+            z_n = sigma * P[:m] - u[:m] - problem.mu * np.linalg.norm(u_t, axis=1)
+            sigma_P_t = sigma[:, None] * problem.tangential(P)
+            pi_n, pi_t = project_on_cones(z_n, sigma_P_t - u_t, problem.mu)
+            terms = [np.abs(sigma * P[:m] - pi_n).max(), np.abs(sigma_P_t - pi_t).max()]
+            terms.append(np.abs(u[problem.size - equalities :]).max(initial=0.0))
+            assert problem.residual(P) == pytest.approx(max(terms), rel=1e-14, abs=1e-15)
+
+
+def test_residual_of_many_rows_is_its_contacts_largest() -> None:
+    """A block-diagonal problem of 45 rows (numpy) against its blocks' own (Python floats)."""
+    rng = np.random.default_rng(3)
+    layout, count = [2, 1, 0, 2], 5  # 4 contacts, 9 rows per block
+    blocks = [_random_problem(rng, layout) for _ in range(count)]
+    n = blocks[0].size
+    P_blocks = [np.abs(rng.standard_normal(n)) for _ in blocks]
+    D, b, P = np.zeros((n * count, n * count)), np.zeros(n * count), np.zeros(n * count)
+    for k, block in enumerate(blocks):
+        rows = slice(n * k, n * k + n)
+        D[rows, rows], b[rows], P[rows] = block.D, block.b, P_blocks[k]
+    # The whole problem's rows: every block's normal rows, then every block's tangential rows.
+    m = len(layout)
+    normal = [n * k + a for k in range(count) for a in range(m)]
+    tangential = [n * k + t for k in range(count) for t in range(m, n)]
+    rows = np.array(normal + tangential)
+    whole = CoulombProblem(
+        D[np.ix_(rows, rows)],
+        b[rows],
+        np.concatenate([block.mu for block in blocks]),
+        np.tile(layout, count),
+    )
+    assert whole.size > 32  # the numpy form
+    expected = max(block.residual(P_k) for block, P_k in zip(blocks, P_blocks, strict=True))
+    assert whole.residual(P[rows]) == pytest.approx(expected, rel=1e-13)
+
+
+def test_residual_is_nan_where_an_impulse_is() -> None:
+    problem = _single(0.5, np.eye(3), np.array([-1.0, 0.3, -0.2]))
+    assert np.isnan(problem.residual(np.array([np.nan, 0.0, 0.0])))
+    assert np.isnan(problem.residual(np.array([1.0, 0.0, np.nan])))

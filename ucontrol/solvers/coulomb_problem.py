@@ -22,6 +22,9 @@ Its **natural-map residual** (:meth:`CoulombProblem.residual`), in [m/s], is
 with :math:`\sigma_a = D_{n_a n_a}` turning impulses into velocities; it vanishes exactly at
 solutions of the true (non-convex) Coulomb problem, and for frictionless contacts it is the
 LCP's :math:`|\min(\sigma P, u)|` of :func:`~ucontrol.solvers.complementarity_residual`.
+Up to :data:`~ucontrol.solvers.contact_solution.PYTHON_RESIDUAL_SIZE` rows it is computed
+by a loop on Python floats (:func:`project_on_cone`), whose cost is a fraction of the numpy
+expression's fixed costs per call on so few rows (a Panda's one contact: docs/benchmarks.md).
 
 **Bilateral rows.** A closed chain adds ``equalities`` rows :math:`J_b` **last** (after the
 tangential rows), whose impulses :math:`P_b` are free in sign and whose velocities vanish,
@@ -33,12 +36,14 @@ the larger of it and the contacts' natural-map residual.
 from __future__ import annotations
 
 import functools
+import math
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.exceptions import InvalidParameterError, ShapeError
+from ucontrol.solvers.contact_solution import PYTHON_RESIDUAL_SIZE
 
 Vector = NDArray[np.float64]
 
@@ -92,8 +97,9 @@ class CoulombProblem:
             raise ShapeError("D", (size, size), D.shape)
         if mu.shape != (m,):
             raise ShapeError("mu", (m,), mu.shape)
-        if (mu < 0.0).any():
-            raise InvalidParameterError("mu", mu.tolist(), ">= 0 for every contact")
+        mu_values = mu.tolist()
+        if any(value < 0.0 for value in mu_values):
+            raise InvalidParameterError("mu", mu_values, ">= 0 for every contact")
         self.D = D
         self.b = b
         self.tangents = layout.tangents
@@ -103,11 +109,20 @@ class CoulombProblem:
         self.size = size
         self.tangent_rows = layout.tangent_rows
         self.spatial = layout.spatial
-        scale = D.diagonal()[:m].copy()
-        scale[scale <= 0.0] = 1.0
-        self.normal_scale = scale
         self.equality_rows = layout.equality_rows
-        self._padded = np.zeros(size + 1)
+        self._layout = layout
+
+    @functools.cached_property
+    def normal_scale(self) -> Vector:
+        """Diagonal of D on the normal rows (1 where it vanishes), [m/s per N s], shape (m,)."""
+        scale = self.D.diagonal()[: self.m].copy()
+        scale[scale <= 0.0] = 1.0
+        return scale
+
+    @functools.cached_property
+    def _padded(self) -> Vector:
+        """Rows (r,) and a last entry that stays 0: gathers of missing tangent rows read it."""
+        return np.zeros(self.size + 1)
 
     def velocity(self, P: Vector) -> Vector:
         """Constraint velocities with restitution ``D P + b`` in [m/s], shape (r,)."""
@@ -130,6 +145,8 @@ class CoulombProblem:
             velocity: ``D P + b`` if already computed, shape (r,).
         """
         u = self.velocity(P) if velocity is None else velocity
+        if self.size <= PYTHON_RESIDUAL_SIZE:
+            return self._residual_on_floats(P.tolist(), u.tolist())
         bilateral = (
             float(np.max(np.abs(u[self.size - self.equalities :]))) if self.equalities else 0.0
         )
@@ -146,6 +163,34 @@ class CoulombProblem:
         r_n = np.abs(sigma_P_n - pi_n).max()
         return float(max(r_n, np.abs(sigma_P_t - pi_t).max(), bilateral))
 
+    def _residual_on_floats(self, P: list[float], u: list[float]) -> float:
+        """:meth:`residual` by a loop on Python floats (problems of a few rows, module docstring).
+
+        Contact by contact, the same expressions as the numpy form (:func:`project_on_cone` for
+        the projection); a NaN anywhere gives NaN.
+        """
+        m, size = self.m, self.size
+        residual = check = 0.0  # check: the sum of every term, NaN if any of them is
+        for value in u[size - self.equalities :]:
+            residual = max(residual, abs(value))
+            check += value
+        if m:
+            P.append(0.0)  # entry `size`: the missing tangent rows read 0
+            u.append(0.0)
+            D, mu = self.D, self.mu.tolist()
+            for a, (i, j) in enumerate(self._layout.row_pairs):
+                sigma = D.item(a, a)
+                sigma = 1.0 if sigma <= 0.0 else sigma
+                u_1, u_2 = u[i], u[j]
+                sigma_P = (sigma * P[a], sigma * P[i], sigma * P[j])
+                z_n = sigma_P[0] - (u[a] + mu[a] * math.hypot(u_1, u_2))
+                pi = project_on_cone(z_n, sigma_P[1] - u_1, sigma_P[2] - u_2, mu[a])
+                for value, projected in zip(sigma_P, pi, strict=True):
+                    error = abs(value - projected)
+                    residual = max(residual, error)
+                    check += error
+        return math.nan if math.isnan(check) else residual
+
 
 class _Layout(NamedTuple):
     """What a :class:`CoulombProblem` derives from its tangent counts alone (read-only arrays)."""
@@ -159,6 +204,7 @@ class _Layout(NamedTuple):
     equality_rows: NDArray[np.intp]
     frictional: NDArray[np.bool_]
     all_frictional: bool
+    row_pairs: tuple[tuple[int, int], ...]
 
 
 @functools.lru_cache(maxsize=LAYOUTS)
@@ -193,12 +239,35 @@ def _layout(tangents: bytes, equalities: int) -> _Layout:
         equality_rows,
         frictional,
         bool(frictional.all()),
+        tuple((int(i), int(j)) for i, j in tangent_rows.tolist()),
     )
 
 
 def tangential_norms(x_t: Vector) -> Vector:
     """Euclidean norm of each row of ``x_t`` (m, 2), shape (m,): one ufunc call (``hypot``)."""
     return np.hypot(x_t[:, 0], x_t[:, 1])
+
+
+def project_on_cone(z_n: float, z_1: float, z_2: float, mu: float) -> tuple[float, float, float]:
+    r"""Euclidean projection of one :math:`(z_n, z_1, z_2)` on :math:`\{\|x_t\| \le \mu x_n\}`.
+
+    :func:`project_on_cones` for one contact on Python floats (its expressions, in its order).
+
+    Args:
+        z_n: Normal component.
+        z_1: First tangential component.
+        z_2: Second tangential component (0 for a planar contact).
+        mu: Cone aperture (friction coefficient) >= 0.
+
+    Returns:
+        The projected normal and two tangential components.
+    """
+    t = math.hypot(z_1, z_2)
+    if t <= mu * z_n and z_n >= 0.0:  # inside (z_n >= 0 matters for mu = 0)
+        return z_n, z_1, z_2
+    boundary_n = max((z_n + mu * t) / (1.0 + mu * mu), 0.0)  # on the polar cone: the apex
+    ratio = mu * boundary_n / t if t > 0.0 else 0.0
+    return boundary_n, ratio * z_1, ratio * z_2
 
 
 def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vector]:
