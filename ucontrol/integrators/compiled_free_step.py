@@ -155,6 +155,7 @@ class CompiledFreeStep:
         # Ends of the outputs v_free, q_free, predicted gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ, rebound and
         # closure terms (Python ints).
         self._split = tuple(np.cumsum([size, size, n, size * n, n * n, n, n]).tolist())
+        self._ends = self._split[:3]  # those of the outputs every call returns
         buffer = self.function.input_buffer
         self._kinetic, self._activation = buffer(index("kinetic")), buffer(index("activation"))
         # The per-step inputs, written in place: q, v, tau, J (row by row), gaps, normal
@@ -198,7 +199,7 @@ class CompiledFreeStep:
             J[...], gap[...], velocity[...] = rows.reshape(-1), state.gap, state.normal_velocity
         self._run()
         out = self._last = self._out.copy()
-        a, b, c = self._split[:3]
+        a, b, c = self._ends
         return out[:a], out[a:b], out[b:c]
 
     def read_rows_of(self, rows: ConstraintRows) -> None:
