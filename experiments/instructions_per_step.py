@@ -14,9 +14,13 @@ the same tree measured twice then agrees to about 0.3 % (docs/benchmarks.md).
 ``--python`` chooses the interpreter, hence the ucontrol tree it imports (a checkout's
 virtual environment), ``--tree`` the folder whose ``robots/`` holds the scenes.
 
+``--bench-loops`` measures loops of ``experiments/bench_step.py`` (the Panda, one contact)
+instead: ``--steps`` steps less 50, with the same instrumentation switch.
+
 Usage::
 
     python experiments/instructions_per_step.py --scenes two_link_one_constraint
+    python experiments/instructions_per_step.py --bench-loops ucontrol "mujoco mj_step"
     python experiments/instructions_per_step.py --python /tmp/base/venv/bin/python --tree /tmp/base
 """
 
@@ -50,19 +54,52 @@ simulate(scene, duration=float(sys.argv[2]), progress=False)
 """
 
 
+#: The same for a loop of experiments/bench_step.py (one contact): ``--steps`` steps of it.
+BENCH_CHILD = """
+import sys, time
+from pathlib import Path
+sys.path.insert(0, sys.argv[5])
+import numpy as np
+import bench_step
+from ucontrol.bench import time_loop
+robot, contacts, control = bench_step.panda_setup(1)
+step = bench_step.make_loops(robot, contacts, 1e-3, 1e-8)[sys.argv[1]]
+def forces(k, q, v):
+    return control(q, v)
+def run(steps):
+    time_loop(step, forces, bench_step.Q0, np.zeros(bench_step.Q0.size), steps=steps, repeats=1,
+              warmup=0)
+run(50)
+Path(sys.argv[3]).write_text("ready")
+while not Path(sys.argv[4]).exists():
+    time.sleep(0.05)
+run(int(sys.argv[2]))
+"""
+
 #: Longest wait for the instrumented child (start-up, the switch, the measured run), in [s].
 TIMEOUT_S = 900.0
 
 
-def count(python: str, scene: Path, duration: float, workdir: Path) -> int:
-    """Instructions callgrind collects over one run of ``duration`` [s] of ``scene``."""
+def count(
+    python: str,
+    scene: Path | str,
+    duration: float,
+    workdir: Path,
+    child: str = CHILD,
+    experiments: Path = ROOT / "experiments",
+) -> int:
+    """Instructions callgrind collects over one run of ``duration`` [s] of ``scene``.
+
+    With ``child`` = :data:`BENCH_CHILD`, ``scene`` is a loop of experiments/bench_step.py and
+    ``duration`` its number of steps, imported from ``experiments``.
+    """
     ready, go, out = workdir / "ready", workdir / "go", workdir / "callgrind.out"
     for path in (ready, go):
         path.unlink(missing_ok=True)
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONHASHSEED="0")
     command = ["valgrind", "--tool=callgrind", "--dump-instr=no", "--instr-atstart=no"]
-    command += [f"--callgrind-out-file={out}", python, "-c", CHILD]
-    command += [str(scene), repr(duration), str(ready), str(go)]
+    command += [f"--callgrind-out-file={out}", python, "-c", child]
+    command += [str(scene), repr(duration), str(ready), str(go), str(experiments)]
     process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:  # the child waits for `go`: never left behind, whatever fails here
         deadline = time.monotonic() + TIMEOUT_S
@@ -92,6 +129,19 @@ def per_step(python: str, scene: Path, duration: float, dt: float = 1e-3) -> flo
     return (long - short) / (round(duration / dt) - 2)
 
 
+def bench_loop_per_step(python: str, loop: str, steps: int, tree: Path = ROOT) -> float:
+    """Instructions per step of ``loop`` of experiments/bench_step.py, one contact.
+
+    ``steps`` steps less 50, over their difference (the set-up, imports and warm-up cancel);
+    the script from ``tree``'s experiments/.
+    """
+    with tempfile.TemporaryDirectory() as directory:
+        workdir, experiments = Path(directory), tree / "experiments"
+        long = count(python, loop, steps, workdir, BENCH_CHILD, experiments)
+        short = count(python, loop, 50, workdir, BENCH_CHILD, experiments)
+    return (long - short) / (steps - 50)
+
+
 def main(argv: Sequence[str] | None = None) -> list[tuple[str, float]]:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--python", default=sys.executable, help="interpreter (its ucontrol)")
@@ -99,8 +149,22 @@ def main(argv: Sequence[str] | None = None) -> list[tuple[str, float]]:
     parser.add_argument("--scenes", nargs="+", default=list(SCENES), help="scene names")
     parser.add_argument("--duration", type=float, default=2.0, help="measured run in [s]")
     parser.add_argument("--dt", type=float, default=1e-3, help="the scenes' step in [s]")
+    parser.add_argument(
+        "--bench-loops",
+        nargs="+",
+        default=[],
+        help="loops of experiments/bench_step.py (one contact, e.g. 'ucontrol' "
+        "'mujoco mj_step') measured instead of scenes",
+    )
+    parser.add_argument("--steps", type=int, default=1050, help="steps of a bench loop [-]")
     args = parser.parse_args(argv)
     rows = []
+    if args.bench_loops:
+        print("| bench_step loop, 1 contact | instructions per step |\n|:---|---:|")
+        for loop in args.bench_loops:
+            rows.append((loop, bench_loop_per_step(args.python, loop, args.steps, args.tree)))
+            print(f"| {loop} | {rows[-1][1]:,.0f} |", flush=True)
+        return rows
     print("| scene | instructions per step |\n|:---|---:|")
     for name in args.scenes:
         scene = args.tree / "robots" / f"{name}.toml"

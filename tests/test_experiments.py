@@ -237,3 +237,17 @@ def test_instructions_per_step_runs(capsys: pytest.CaptureFixture[str]) -> None:
     # tens of thousands of instructions (about 170 000 measured), never the set-up's millions.
     assert name == "two_link_drop" and 1e4 < instructions < 1e6
     assert "| two_link_drop |" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_instructions_per_step_counts_a_bench_loop(capsys: pytest.CaptureFixture[str]) -> None:
+    import shutil
+
+    if shutil.which("valgrind") is None or shutil.which("callgrind_control") is None:
+        pytest.skip("valgrind's callgrind is not installed")
+    flags = ["--bench-loops", "ucontrol", "--steps", "60"]
+    [(name, instructions)] = _load("instructions_per_step").main(flags)
+    # A one-contact Panda step with its control law: about 120 000 instructions measured,
+    # never the set-up's millions (the 50-step run subtracted).
+    assert name == "ucontrol" and 3e4 < instructions < 1e6
+    assert "| ucontrol |" in capsys.readouterr().out

@@ -285,14 +285,16 @@ class _ClosedLoop:
         (:meth:`sample`). :meth:`release` undoes it.
         """
         use = getattr(self.controller, "use_plant_data", None)
-        data = getattr(self.integrator, "evaluation_data", None)
         own = getattr(getattr(self.controller, "robot", None), "model", None)
-        if use is None or data is None or not isinstance(own, pin.Model):
+        if use is None or not isinstance(own, pin.Model):
             return
         if own is not self.plant_model and own != self.plant_model:  # Pinocchio's equality
             return
         if self.sensors is None and self.flexible is None:
-            self.shares_plant_data = bool(use(data))
+            # (read only to share it: reading it makes the plant fill the whole data)
+            data = getattr(self.integrator, "evaluation_data", None)
+            if data is not None:
+                self.shares_plant_data = bool(use(data))
 
     def release(self) -> None:
         """Give the controller back its own Pinocchio data (the end of the run)."""

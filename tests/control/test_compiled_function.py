@@ -149,6 +149,46 @@ def test_runner_through_ctypes_without_the_extension(tmp_path, monkeypatch):
         np.testing.assert_allclose(out, ref, rtol=0.0, atol=_TOLERANCE)
 
 
+def _scaled() -> ca.Function:
+    x, s = ca.SX.sym("x", 3), ca.SX.sym("s")
+    return ca.Function("scaled", [x, s], [s * x])
+
+
+@pytest.mark.parametrize("path", ["native", "ctypes", "virtual machine"])
+def test_runner_copies_its_arguments_into_their_inputs(path, tmp_path, monkeypatch):
+    """runner(inputs): its arguments written first, as ``input_view(i)[...] = value`` does.
+
+    Contiguous and strided float64 arrays (copied by the extension), a float for an input of
+    one value, and values numpy converts (integers, a list), against the analytic outputs.
+    """
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
+    if path == "native" and native_call._extension() is None:
+        pytest.skip("installed without its C extension: compiled calls go through ctypes")
+    if path == "ctypes":
+        monkeypatch.setattr(compiled_function, "native_runner", lambda *args: None)
+    function = CompiledFunction(_scaled(), compile=path != "virtual machine")
+    run, out = function.runner((0, 1)), function.output_buffer(0)
+    native = type(run).__name__ == "builtin_function_or_method"
+    assert native == (path == "native")
+    rng = np.random.default_rng(3)
+    values = [
+        rng.standard_normal(3),
+        rng.standard_normal(9)[::3],
+        np.array([1, -2, 4]),
+        [0.5, 2, -1],
+    ]
+    for x in values:
+        for s in (1.5, np.float64(-0.25), np.array([2.0])):
+            assert run(x, s) is None
+            expected = float(np.asarray(s).item()) * np.asarray(x, dtype=float)
+            np.testing.assert_allclose(out, expected, rtol=0.0, atol=_TOLERANCE)
+    with pytest.raises(ValueError):  # numpy's, as input_view(0)[...] = a 4-vector raises
+        run(np.zeros(4), 1.0)
+    with pytest.raises((TypeError, ValueError), match=r"argument"):  # (C's or zip's)
+        run(np.zeros(3))
+
+
 def test_compiled_function_matches_analytic_values(tmp_path, monkeypatch):
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)

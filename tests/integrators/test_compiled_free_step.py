@@ -220,3 +220,28 @@ def test_without_a_compiler_there_is_no_compiled_step(monkeypatch: pytest.Monkey
     assert integrator.fast_paths == ()
     q, v = scene.initial_state()  # and the numpy path steps
     assert np.all(np.isfinite(integrator.step(integrator.evaluate(q, v), np.zeros(v.size)).v))
+
+
+def test_evaluations_fill_the_whole_data_once_it_is_read(rng: np.random.Generator) -> None:
+    """A Panda's evaluations run the step's Pinocchio passes alone until the data is shared.
+
+    Its energies, then (once :attr:`MoreauJean.evaluation_data` is read, as a controller
+    sharing the plant's data does) the terms of ``computeAllTerms`` the step does not read
+    (centre of mass, joint Jacobians, centroidal momentum matrix), against that pass.
+    """
+    scene, compiled, _ = _pair("panda_table")
+    model = scene.robot.model
+    reference = pin.Data(model)
+    q0, v0 = scene.initial_state()
+    for shared in (False, True):
+        data = compiled.evaluation_data if shared else None
+        q, v = q0 + 0.1 * rng.normal(size=q0.size), rng.normal(size=v0.size)
+        pin.computeAllTerms(model, reference, q, v)
+        state = compiled.evaluate(q, v)
+        # (the energies equal: the same passes; measured 0 J)
+        assert abs(state.kinetic_energy - reference.kinetic_energy) <= 1e-14
+        assert abs(state.potential_energy - reference.potential_energy) <= 1e-14
+        if data is not None:  # measured 0 apart
+            np.testing.assert_allclose(data.com[0], reference.com[0], rtol=0, atol=1e-15)
+            np.testing.assert_allclose(data.J, reference.J, rtol=0, atol=1e-15)
+            np.testing.assert_allclose(data.Ag, reference.Ag, rtol=0, atol=1e-14)

@@ -94,7 +94,7 @@ class ConstraintRows:
             self.function.input_view(index("q")),
             self.function.input_view(index("v")),
         )
-        self._run = self.function.runner()
+        self._run = self.function.runner((index("q"), index("v")))  # writes q, v first
         self._out = self.function.output_buffer(out("rows"))
         self.last_rows: Vector | None = None  # the rows of the last call's values
 
@@ -127,8 +127,7 @@ class ConstraintRows:
             (n,) and the normal Jacobian rows J (n, nv), as a plain tuple (unpacked at once
             by its callers: a record type would be one object more per step).
         """
-        self._q[...], self._v[...] = q, v
-        self._run()
+        self._run(q, v)
         out = self._out.copy()
         gaps, velocities, rows = self._parts
         self.last_rows = out[rows].reshape(self._n, self._nv)

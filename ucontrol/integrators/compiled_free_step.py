@@ -91,8 +91,9 @@ _STAGE_CONSTANTS = (
     "IMPACT_VELOCITY_THRESHOLD",
     "HELD_IMPACT_VELOCITY",
 )
-#: The inputs written (or bound) at every step, in this order.
-_STEP_INPUTS = ("q", "v", "tau", "J_t", "gap", "u")
+#: The inputs written (or bound) at every step besides tau and the kinetic energy, in this
+#: order.
+_STEP_INPUTS = ("q", "v", "J_t", "gap", "u")
 
 
 class CompiledFreeStep:
@@ -176,17 +177,20 @@ class CompiledFreeStep:
         # JW⁻¹Jᵀ, rebound and closure terms (Python ints).
         q_size = size if positions else 0
         self._split = tuple(np.cumsum([size, q_size, n, size * n, n * n, n, n]).tolist())
+        self._ends = self._split[:3]  # those of the outputs every call returns
         self._positions = positions
         buffer = self.function.input_buffer
-        self._kinetic, self._activation = buffer(index("kinetic")), buffer(index("activation"))
-        # The per-step inputs, written in place: q (none without positions), then v, tau, J
-        # (row by row), gaps, normal velocities.
+        self._activation = buffer(index("activation"))
+        # The per-step inputs, written in place: q (none without positions), then v, J (row by
+        # row), gaps, normal velocities.
         self._q_input = self.function.input_view(index("q")) if positions else None
         self._inputs = tuple(
             buffer(index(name)) if name == "J_t" else self.function.input_view(index(name))
             for name in _STEP_INPUTS[1:]
         )
-        self._run, self._out = self.function.runner(), self.function.output_buffer(0)
+        # A call writes tau and the kinetic energy, its arguments, first.
+        self._run = self.function.runner((index("tau"), index("kinetic")))
+        self._out = self.function.output_buffer(0)
         self._last: Vector | None = None  # the last call's outputs
         self._activation_source: Vector | None = None  # the activation input's last source
         self._source: ConstraintRows | None = None  # see read_rows_of
@@ -205,27 +209,26 @@ class CompiledFreeStep:
         :meth:`contact_terms`, :meth:`offsets` and :meth:`single_row` read the same call's
         other outputs.
         """
-        self._kinetic[0] = state.kinetic_energy
         if activation is not self._activation_source:  # (a writeable one is never kept)
             self._activation[:] = activation
             # A read-only array is unchanged until replaced: the next call need not copy it.
             self._activation_source = None if activation.flags.writeable else activation
-        q, (v, tau_in, J, gap, velocity) = self._q_input, self._inputs
+        q, (v, J, gap, velocity) = self._q_input, self._inputs
         source = self._source
-        if source is not None and state.normal_rows is source.last_rows:
-            tau_in[...] = tau  # q, v and the rows: in the inputs and outputs of that call
-        else:  # (into the rows' buffers if bound: they no longer hold their last call)
+        # q, v and the rows of the rows' last call: in the inputs and outputs of that call
+        if source is None or state.normal_rows is not source.last_rows:
+            # (into the rows' buffers if bound: they no longer hold their last call)
             if source is not None:
                 source.last_rows = None
             rows = state.normal_rows
             assert rows is not None
             if q is not None:
                 q[...] = state.q
-            v[...], tau_in[...] = state.v, tau
-            J[...], gap[...], velocity[...] = rows.reshape(-1), state.gap, state.normal_velocity
-        self._run()
+            v[...], J[...] = state.v, rows.reshape(-1)
+            gap[...], velocity[...] = state.gap, state.normal_velocity
+        self._run(tau, state.kinetic_energy)
         out = self._last = self._out.copy()
-        a, b, c = self._split[:3]
+        a, b, c = self._ends
         return out[:a], out[a:b] if self._positions else None, out[b:c]
 
     def read_rows_of(self, rows: ConstraintRows) -> None:

@@ -386,6 +386,7 @@ class MoreauJean:
         if self._rows is not None and self._rows.dynamics:
             self._rows.bind_dynamics(self._data)
         self._rigid_rows = self._rows if self.flexible is None else None
+        self._shared_data = False  # whether evaluation_data was read (evaluate)
         # The frictionless solver started from the last step's active set (a fast path).
         self._guessing_solver = (
             self.solver
@@ -550,15 +551,20 @@ class MoreauJean:
 
     @property
     def evaluation_data(self) -> pin.Data:
-        """The Pinocchio data of the last :meth:`evaluate`: ``pin.computeAllTerms`` at its (q, v).
+        """The Pinocchio data of the following :meth:`evaluate` calls: ``pin.computeAllTerms``.
 
-        The links' (q, v) with flexible joints. For a small rigid robot whose compiled rows
-        carry the dynamics (:func:`~ucontrol.contact.compiled_rows.compiled_rows`) only M and
-        h are filled (both triangles of M), by the rows' compiled call. A controller of the
-        same model may read it between :meth:`evaluate` and :meth:`step`, and run further
-        Pinocchio passes on it at that state (e.g. ``computeCoriolisMatrix``) as long as they
-        leave M, h and the energies as they are.
+        At each call's (q, v) (the links' with flexible joints). For a small rigid robot whose
+        compiled rows carry the dynamics (:func:`~ucontrol.contact.compiled_rows.compiled_rows`)
+        only M and h are filled (both triangles of M), by the rows' compiled call. A
+        controller of the same model may read it between :meth:`evaluate` and :meth:`step`,
+        and run further Pinocchio passes on it at that state (e.g. ``computeCoriolisMatrix``)
+        as long as they leave M, h and the energies as they are.
+
+        Until it is read, the evaluations of a rigid robot with compiled rows fill only what
+        the step reads (:meth:`evaluate`): reading it makes the following ones fill the whole
+        data.
         """
+        self._shared_data = True
         return self._data
 
     def evaluate(self, q: Vector, v: Vector, t: float | None = None) -> PlantEvaluation:
@@ -569,11 +575,29 @@ class MoreauJean:
             v: Velocity, shape (nv,) (nv + nf with flexible joints).
             t: Time in [s]; required when the constraints have moving surfaces.
 
+        A rigid robot whose constraints are compiled rows
+        (:func:`~ucontrol.contact.compiled_rows.compiled_rows`) without the dynamics, whose
+        data nobody else reads (:attr:`evaluation_data`), runs only the Pinocchio passes the
+        step reads (M by ``crba``, h by ``nonLinearEffects``, the energies from their
+        kinematics) instead of ``computeAllTerms`` (which also computes the joints' Jacobians,
+        the centre of mass and its Jacobian, the centroidal terms): the same M and energies,
+        h to round-off (about 1e-16); Pinocchio's part of a one-contact Panda step falls from
+        about 28,000 to 20,000 instructions, of 138,000 (docs/benchmarks.md).
+
         Raises:
             InvalidParameterError: ``t`` is None and some surface moves.
         """
-        if self._rigid_rows is not None:
-            return evaluate_rigid_rows(self._model, self._data, self._rigid_rows, q, v, t)
+        rows = self._rigid_rows
+        if rows is not None:
+            if rows.dynamics or self._shared_data:
+                return evaluate_rigid_rows(self._model, self._data, rows, q, v, t)
+            model, data = self._model, self._data
+            pin.crba(model, data, q, pin.Convention.WORLD)  # the placements of the energy
+            pin.nonLinearEffects(model, data, q, v)  # the links' velocities of the energy
+            gap, normal_velocity, normal_rows = rows(q, v)
+            kinetic = pin.computeKineticEnergy(model, data)
+            potential = pin.computePotentialEnergy(model, data)
+            return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
         return evaluate_plant(
             self._data,
             self.constraints,
@@ -610,7 +634,8 @@ class MoreauJean:
         if self._closure_rules:  # contacts that may not close here (a scuffing swing foot)
             predicted = self._barred(state, predicted, memory)
         active, activation = active_set(memory, state.gap, predicted, self._release)
-        count = np.count_nonzero(active)
+        indices = active.nonzero()[0]
+        count = indices.size
         if not count and not self._problem_rows:  # no contact problem: nothing held next
             self.memory = self._free_memory
             q_next = self._advance_theta(state, v_free) if q_free is None else q_free
@@ -620,8 +645,7 @@ class MoreauJean:
             )  # fmt: skip
         # One active row, the whole problem (a free step has no joint or bilateral rows).
         if count == 1 and free_step is not None and free_step.single_rows and not memory.first:
-            return self._single_row_outcome(free_step, active, int(active.argmax()), state)
-        indices = active.nonzero()[0]
+            return self._single_row_outcome(free_step, active, indices.item(0), state)
         return self._contact_outcome(state, v_free, inverse_inertia, active, indices, activation)
 
     def _barred(self, state: PlantEvaluation, predicted: Vector, memory: StepMemory) -> Vector:
@@ -659,7 +683,11 @@ class MoreauJean:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
         impulse[i] = P_i = P.item()
-        impacts = _closing_impacts(impulse, self.memory.activation, (i,), state)
+        # _closing_impacts on Python floats (a third of numpy scalars' cost)
+        t, u_minus = state.t, state.normal_velocity.item(i)
+        impacts: tuple[tuple[int, float], ...] = ()
+        if is_impact(P_i, self.memory.activation.item(i), u_minus):
+            impacts = ((i, 0.0 if t is None else float(t)),)
         # next_memory(impulse, (i,), ...), built once
         self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
         return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)

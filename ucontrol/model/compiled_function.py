@@ -32,7 +32,7 @@ import functools
 import logging
 import os
 import subprocess
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -218,7 +218,7 @@ class CompiledFunction:
         self._run_bound()
         return self._results
 
-    def runner(self) -> Callable[[], None]:
+    def runner(self, inputs: Sequence[int] = ()) -> Callable[..., None]:
         """A call on the inputs as they are: bound, or written through :meth:`input_view`.
 
         The call writes :meth:`output_buffer` and returns nothing. For hot loops: it skips
@@ -228,18 +228,31 @@ class CompiledFunction:
         without the compiled library it runs the casadi Function as :meth:`__call__` does.
         The runner keeps this object alive, and raises
         :class:`~ucontrol.exceptions.CompiledCallError` as :meth:`__call__` does.
+
+        Args:
+            inputs: The inputs the call's arguments are written into first, one argument
+                each, in this order (an input of one value also takes a float); as
+                ``input_view(i)[...] = value`` does, copied by the extension where it is
+                built. Their memory is the one they are bound to when the runner is made.
         """
+        views = tuple(self._in_views[i] for i in inputs)
         if not self.compiled:
             nothing = (None,) * len(self._in_buffers)
 
-            def interpreted() -> None:
+            def interpreted(*values: Vector | float) -> None:
+                for view, value in zip(views, values, strict=True):
+                    view[...] = value
                 self(*nothing)
 
             return interpreted
-        return self._bound_runner(owner=self)
+        return self._bound_runner(owner=self, inputs=inputs)
 
-    def _bound_runner(self, owner: object) -> Callable[[], None]:
-        """The compiled call on the bound buffers, natively where possible; keeps ``owner``."""
+    def _bound_runner(self, owner: object, inputs: Sequence[int] = ()) -> Callable[..., None]:
+        """The compiled call on the bound buffers, natively where possible; keeps ``owner``.
+
+        Its arguments are written into ``inputs`` first (:meth:`runner`).
+        """
+        views = tuple(self._in_views[i] for i in inputs)
         native = native_runner(
             self._entry,
             ctypes.addressof(self._arg),
@@ -248,11 +261,18 @@ class CompiledFunction:
             self._w_buffer.ctypes.data,
             owner,
             self.name,
+            [(i, self._in_sizes[i], view) for i, view in zip(inputs, views, strict=True)],
         )
         if native is not None:
             return native
         call, name = self._call, self.name
-        return lambda: _check(name, call())
+
+        def through_ctypes(*values: Vector | float) -> None:
+            for view, value in zip(views, values, strict=True):
+                view[...] = value
+            _check(name, call())
+
+        return through_ctypes
 
     def output_buffer(self, i: int) -> Vector:
         """The buffer of output ``i``, shape (nnz,), rewritten by every call."""
