@@ -41,6 +41,20 @@ def test_ipopt_converged_with_small_kkt_residuals(designed) -> None:  # type: ig
     assert report.max_violation <= 1e-6
 
 
+def test_the_report_splits_the_solve_cpu_time(designed) -> None:  # type: ignore[no-untyped-def]
+    _, report = designed
+    seconds = report.cpu_seconds
+    assert set(seconds) == {"solve", "hessian", "jacobian", "functions", "rest"}
+    assert all(value >= 0.0 for value in seconds.values())
+    # casadi times its evaluations inside the solve: the parts add up to the whole
+    parts = seconds["hessian"] + seconds["jacobian"] + seconds["functions"] + seconds["rest"]
+    assert parts == pytest.approx(seconds["solve"], rel=1e-12)
+    assert seconds["hessian"] > 0.0
+    # the exact Hessian: IPOPT evaluates it once per iteration
+    assert report.hessian_calls == report.iterations
+    assert f"{report.hessian_calls} Hessian evaluations" in report.markdown()
+
+
 #: The task's optimal cost before the transcription was built for speed (main at 89430a0:
 #: `design_cycle(DesignTask.from_toml("robots/two_link_one_constraint_task.toml"))`, 44
 #: iterations). IPOPT stops at a scaled KKT error below the task's tol = 1e-13; converged

@@ -30,6 +30,7 @@ up to the RK4 error (:func:`ucontrol.design.replay_open_loop`).
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -545,6 +546,7 @@ class CycleTranscription:
                 "hessian_approximation": task.solver.hessian,
             },
         )
+        start = time.process_time()
         try:
             solution = opti.solve()
             value = solution.value
@@ -552,8 +554,9 @@ class CycleTranscription:
         except RuntimeError:  # pragma: no cover - casadi raises on some failures anyway
             value = opti.debug.value
             stats = opti.debug.stats()
+        seconds = time.process_time() - start  # [s] CPU
         cycle = self._cycle(value, handles)
-        report = self._report(opti, value, stats, handles)
+        report = self._report(opti, value, stats, handles, seconds)
         return report, cycle
 
     def _cycle(self, value: Callable[[Any], Any], handles: dict[str, Any]) -> DesignedCycle:
@@ -613,6 +616,7 @@ class CycleTranscription:
         value: Callable[[Any], Any],
         stats: dict[str, Any],
         handles: dict[str, Any],
+        seconds: float,
     ) -> DesignReport:
         violations: dict[str, float] = {}
         for group in handles["groups"]:
@@ -667,7 +671,23 @@ class CycleTranscription:
             complementarity=complementarity,
             multiplier_sign_error=sign_error,
             cost_scale=float(handles["scale"]),
+            cpu_seconds=_cpu_split(stats, seconds),
+            hessian_calls=int(stats.get("n_call_nlp_hess_l", 0)),
         )
+
+
+def _cpu_split(stats: dict[str, Any], seconds: float) -> dict[str, float]:
+    """CPU seconds of the solve by part, from casadi's timers (see ``DesignReport``)."""
+    hessian = float(stats.get("t_proc_nlp_hess_l", 0.0))
+    jacobian = float(stats.get("t_proc_nlp_jac_g", 0.0))
+    functions = sum(float(stats.get(f"t_proc_nlp_{name}", 0.0)) for name in ("f", "g", "grad_f"))
+    return {
+        "solve": seconds,
+        "hessian": hessian,
+        "jacobian": jacobian,
+        "functions": functions,
+        "rest": max(seconds - hessian - jacobian - functions, 0.0),
+    }
 
 
 def design_cycle(

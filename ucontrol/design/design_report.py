@@ -32,6 +32,12 @@ class DesignReport:
             nearer bound, inequalities only.
         multiplier_sign_error: Largest multiplier of the wrong sign for its active bound.
         cost_scale: The cost is divided by this for IPOPT (its value at the warm start).
+        cpu_seconds: Where the solve's CPU time went, in [s]: ``solve`` (the whole of it),
+            ``hessian`` (the Lagrangian's Hessian), ``jacobian`` (the constraints'
+            Jacobian), ``functions`` (cost, constraints, cost gradient) and ``rest``
+            (casadi building the derivative Functions, IPOPT's own linear algebra).
+        hessian_calls: Evaluations of the Lagrangian's Hessian (one per iteration with the
+            exact Hessian, none with ``limited-memory``).
     """
 
     status: str
@@ -49,6 +55,8 @@ class DesignReport:
     complementarity: float = math.nan
     multiplier_sign_error: float = math.nan
     cost_scale: float = 1.0
+    cpu_seconds: dict[str, float] = field(default_factory=dict)
+    hessian_calls: int = 0
 
     @property
     def period(self) -> float:
@@ -76,6 +84,7 @@ class DesignReport:
             f"- max constraint violation: {self.max_violation:.3g}",
             f"- inf_pr: {self.inf_pr:.3g}, inf_du: {self.inf_du:.3g}, stationarity: "
             f"{self.stationarity:.3g}, complementarity: {self.complementarity:.3g}",
+            *self._cpu_line(),
             "",
             "| phase | duration [s] |",
             "|---|---|",
@@ -95,3 +104,16 @@ class DesignReport:
             "",
         ]
         return "\n".join(lines)
+
+    def _cpu_line(self) -> list[str]:
+        """The solve's CPU split as one list item (none when it was not measured)."""
+        seconds = self.cpu_seconds
+        if not seconds:
+            return []
+        parts = ", ".join(
+            f"{name} {seconds[name]:.3g} s" for name in ("hessian", "jacobian", "functions", "rest")
+        )
+        return [
+            f"- CPU time of the solve: {seconds['solve']:.3g} s ({parts}; "
+            f"{self.hessian_calls} Hessian evaluations)"
+        ]
