@@ -9,7 +9,7 @@ carries is the reference run's, sample for sample, up to the failing step.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,17 +33,17 @@ def _failing_law(monkeypatch: pytest.MonkeyPatch) -> None:
     """Runners of the law that fail at their _FAILING_CALL-th call; the others untouched."""
     runner = CompiledFunction.runner
 
-    def failing_runner(self: CompiledFunction) -> Callable[[], None]:
-        run = runner(self)
+    def failing_runner(self: CompiledFunction, inputs: Sequence[int] = ()) -> Callable[..., None]:
+        run = runner(self, inputs)
         if self.name != _LAW:
             return run
         calls = [0]
 
-        def run_or_fail() -> None:
+        def run_or_fail(*values: object) -> None:
             calls[0] += 1
             if calls[0] == _FAILING_CALL:
                 raise CompiledCallError(self.name, "returned status 1")
-            run()
+            run(*values)
 
         return run_or_fail
 
