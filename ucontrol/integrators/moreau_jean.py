@@ -696,6 +696,8 @@ class MoreauJean:
         tangents: NDArray[np.intp] | None = None
         counts = constraints.tangent_count[indices]
         if self._friction and np.count_nonzero(counts):  # normal and tangential rows together
+            if self._rigid_rows is not None:  # the frame Jacobians, which the rows do not read
+                pin.computeJointJacobians(self._model, data, state.q)
             J, T, directions = constraints.contact_rows(data, indices)
             J, tangents = np.concatenate((J, T)), counts
             if inverse_inertia is None:  # W = M (_compiled_free_step): M⁻¹ [Jᵀ Tᵀ] as stage 1's
