@@ -155,14 +155,17 @@ def test_free_flyer_steps_equal_the_numpy_path(name: str, rng: np.random.Generat
     assert max(counts) >= 3  # multi-row problems among them
 
 
-def test_frictional_steps_with_joint_viscous_friction_keep_the_numpy_free_step() -> None:
-    """W = M + hθD: the tangential rows' M⁻¹ [Jᵀ Tᵀ] would need W's factor; not compiled."""
-    scene = load_scene("panda_table_friction")
+def test_frictional_steps_keep_the_numpy_free_step_with_viscous_joints_or_rebounds() -> None:
+    """W = M + hθD: the tangential rows' M⁻¹ [Jᵀ Tᵀ] would need W's factor; e > 0: refused."""
+    scene = load_scene("panda_table_friction")  # e = 0.5
+    plastic = dataclasses.replace(
+        scene, contacts=tuple(dataclasses.replace(c, restitution=0.0) for c in scene.contacts)
+    )
+    assert "free step" in plastic.build_integrator().fast_paths
     nv = scene.robot.nv
     friction = JointFriction(viscous=[0.7] * nv, coulomb=[0.0] * nv)
-    integrator = dataclasses.replace(scene, joint_friction=friction).build_integrator()
-    assert integrator.fast_paths == ("constraint rows", "active-set start")
-    assert "free step" in scene.build_integrator().fast_paths
+    for refused in (dataclasses.replace(plastic, joint_friction=friction), scene):
+        assert refused.build_integrator().fast_paths == ("constraint rows", "active-set start")
 
 
 def test_a_free_step_without_positions_has_no_one_row_steps() -> None:
