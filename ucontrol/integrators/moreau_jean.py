@@ -506,8 +506,9 @@ class MoreauJean:
         steps (frictionless): a contact step with tangential rows takes
         :math:`M^{-1} [J^T T^T]` from Pinocchio's Cholesky factor (:meth:`_contact_outcome`).
         With rebounds and friction, the tilted table of
-        ``tests/integrators/test_friction.py`` gained 1.1e-5 J at its impacts in most runs
-        through this path (none through the reference): not taken there.
+        ``tests/integrators/test_friction.py`` gained 1.1e-5 J at its impacts in some
+        processes through this path, none in others (none through the reference; cause not
+        found, docs/benchmarks.md): not taken there.
         """
         vector_space, friction = self._vector_space, self._friction
         if (
