@@ -62,3 +62,5 @@ def test_the_fast_paths_run_where_the_step_allows_them() -> None:
         assert "free step" in _run(name)[1], name
     for name in ("table_drop", "quadruped_stand"):  # free-flyer roots: their rows compiled
         assert "constraint rows" in _run(name)[1], name
+    assert "constraint rows" in _run("panda_table_friction")[1]  # with friction: normal rows
+    assert {"constraint rows", "free step"} <= set(_run("solo_landing")[1])  # plastic feet

@@ -22,8 +22,16 @@ def _random_state(robot, rng):  # type: ignore[no-untyped-def]
 
 @needs_compiled_code
 @pytest.mark.parametrize(
-    "name", ["two_link_one_constraint", "panda_table", "table_drop", "quadruped_stand"]
-)  # the last two on a free-flyer root
+    "name",
+    [
+        "two_link_one_constraint",
+        "panda_table",
+        "panda_table_friction",  # frictional contacts: their normal rows
+        "table_drop",
+        "quadruped_stand",
+        "solo_landing",
+    ],
+)  # the last three on a free-flyer root
 def test_rows_equal_pinocchio_and_finite_differences(name: str, rng: np.random.Generator) -> None:
     scene = load_scene(name)
     _check_rows_against_pinocchio(scene.constraints, rng)
@@ -109,9 +117,6 @@ def test_values_are_fresh_arrays() -> None:
 
 
 def test_sets_that_do_not_qualify_keep_the_pinocchio_path() -> None:
-    friction = load_scene("block_incline")  # frictional contacts
-    assert not qualifies(friction.constraints)
-    assert compiled_rows(friction.constraints) is None
     stops_only = ConstraintSet(
         load_scene("two_link_one_constraint").robot,
         stops=load_scene("two_link_one_constraint").constraints.stops,

@@ -123,11 +123,13 @@ def test_single_row_steps_equal_the_numpy_path(
         assert seen["plastic"]  # the energy guard acted (never for one row at θ = 1/2)
 
 
-@pytest.mark.parametrize("name", ["table_drop", "quadruped_stand"])
+@pytest.mark.parametrize("name", ["table_drop", "quadruped_stand", "solo_landing"])
 def test_free_flyer_steps_equal_the_numpy_path(name: str, rng: np.random.Generator) -> None:
     """On a free-flyer root the free step gives the velocity terms (v_free, D, the impact law).
 
     Every foot pressed into the ground by 1 mm at the lowest, so that several rows are active.
+    With friction (``solo_landing``'s four feet) the contact steps take the tangential rows
+    and :math:`M^{-1} [J^T T^T]` from Pinocchio, the normal rows' offsets from the free step.
     """
     scene, compiled, reference = _pair(name)
     assert "single row" not in compiled.fast_paths  # (its q would not be on SE(3))
@@ -148,7 +150,22 @@ def test_free_flyer_steps_equal_the_numpy_path(name: str, rng: np.random.Generat
         np.testing.assert_allclose(a.v, b.v, rtol=0, atol=2e-13)
         np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-15)
         np.testing.assert_allclose(a.impulse, b.impulse, rtol=0, atol=2e-13)
+        if compiled.constraints.has_friction:  # [N s], world coordinates
+            np.testing.assert_allclose(a.friction_impulse, b.friction_impulse, rtol=0, atol=2e-13)
     assert max(counts) >= 3  # multi-row problems among them
+
+
+def test_frictional_steps_keep_the_numpy_free_step_with_viscous_joints_or_rebounds() -> None:
+    """W = M + hθD: the tangential rows' M⁻¹ [Jᵀ Tᵀ] would need W's factor; e > 0: refused."""
+    scene = load_scene("panda_table_friction")  # e = 0.5
+    plastic = dataclasses.replace(
+        scene, contacts=tuple(dataclasses.replace(c, restitution=0.0) for c in scene.contacts)
+    )
+    assert "free step" in plastic.build_integrator().fast_paths
+    nv = scene.robot.nv
+    friction = JointFriction(viscous=[0.7] * nv, coulomb=[0.0] * nv)
+    for refused in (dataclasses.replace(plastic, joint_friction=friction), scene):
+        assert refused.build_integrator().fast_paths == ("constraint rows", "active-set start")
 
 
 def test_a_free_step_without_positions_has_no_one_row_steps() -> None:

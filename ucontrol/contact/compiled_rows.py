@@ -255,7 +255,7 @@ def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> Cons
     compiled symbolic terms compute faster than Pinocchio's recursive algorithms there.
 
     They qualify with at least one point contact and nothing but point contacts against fixed
-    planes and joint stops, without friction or bilateral constraints, on a robot of revolute
+    planes and joint stops, without bilateral constraints, on a robot of revolute
     and prismatic joints on a fixed base or a free-flyer root (whose rows carry no dynamics);
     they compile where a C compiler is present (and ``UCONTROL_NO_COMPILE`` is not set).
     Elsewhere the Pinocchio path of :class:`ConstraintSet` is faster than casadi's virtual
@@ -281,8 +281,10 @@ def compiled_rows(constraints: ConstraintSet, *, dynamics: bool = False) -> Cons
 def qualifies(constraints: ConstraintSet) -> bool:
     """Whether ``constraints`` are plane point contacts (at least one) and stops alone.
 
-    Without friction, sphere–sphere contacts, collision pairs, moving surfaces, bilateral
-    constraints or clearance joints; the robot's joints are checked when the rows are built.
+    Without sphere–sphere contacts, collision pairs, moving surfaces, bilateral constraints or
+    clearance joints; the robot's joints are checked when the rows are built. With friction,
+    the rows are the normal ones: a frictional step reads its tangential rows from Pinocchio
+    (:meth:`~ucontrol.contact.ConstraintSet.contact_rows`).
     """
     return bool(
         constraints.contacts
@@ -290,6 +292,5 @@ def qualifies(constraints: ConstraintSet) -> bool:
         and constraints.collision is None
         and constraints.bilateral is None
         and not constraints.time_dependent
-        and not constraints.has_friction
         and not constraints.clearances
     )

@@ -196,7 +196,9 @@ one readable reference (numpy, Pinocchio, LAPACK) and at most one generated fast
 (casadi, compiled to C): the constraint rows with M and h on small robots
 (:mod:`~ucontrol.contact.compiled_rows`) and the free step with its one-row steps
 (:mod:`~ucontrol.integrators.compiled_free_step`), which apply the same definitions of the
-impact law, the predicted gaps and the energy guard on casadi's symbols. The public switch
+impact law, the predicted gaps and the energy guard on casadi's symbols. With friction the two
+give the normal rows' terms, and a contact step with tangential rows reads them from
+Pinocchio's data and :math:`M^{-1} [J^T\ T^T]` from its Cholesky factor. The public switch
 ``compiled = False`` (or ``UCONTROL_NO_COMPILE=1``, or no C compiler) runs the references
 alone; ``tests/test_paths_agree.py`` runs every shipped scene both ways and compares the logs
 field by field (:attr:`MoreauJean.fast_paths` names the paths a step runs).
@@ -380,9 +382,11 @@ class MoreauJean:
         self._projection_data = pin.Data(robot.model) if self._bilateral is not None else None
         self._has_contacts = constraints.n_contacts > 0 or self._bilateral is not None
         # Gaps, velocities and rows of plane contacts and stops in one compiled call, if possible.
-        # (With the dynamics for small rigid robots: M and h written into the data.)
+        # (With the dynamics for small rigid robots: M and h written into the data; not with
+        # friction, whose steps read the frame Jacobians of the data's kinematics.)
         self.compiled = bool(compiled)
-        self._rows = compiled_rows(constraints, dynamics=flexible is None) if compiled else None
+        dynamics = flexible is None and not constraints.has_friction
+        self._rows = compiled_rows(constraints, dynamics=dynamics) if compiled else None
         if self._rows is not None and self._rows.dynamics:
             self._rows.bind_dynamics(self._data)
         self._rigid_rows = self._rows if self.flexible is None else None
@@ -498,15 +502,26 @@ class MoreauJean:
         Where every joint is a vector space, the same call gives :math:`q^{free}` and solves
         the steps with one active row when the solver's one-row solve is the closed form; on
         a rigid robot with a free-flyer root it gives the velocity terms alone (the
-        configuration is advanced by :meth:`_advance`).
+        configuration is advanced by :meth:`_advance`). With friction, for a rigid robot
+        without joint friction (W = M), with plastic contacts (e = 0) and without one-row
+        steps (frictionless): a contact step with tangential rows takes
+        :math:`M^{-1} [J^T T^T]` from Pinocchio's Cholesky factor (:meth:`_contact_outcome`).
+        With rebounds and friction, the tilted table of
+        ``tests/integrators/test_friction.py`` gained 1.1e-5 J at its impacts in some
+        processes through this path, none in others (none through the reference; cause not
+        found, docs/benchmarks.md): not taken there.
         """
-        vector_space = self._vector_space
+        vector_space, friction = self._vector_space, self._friction
         if (
             self._rows is None
             or (not vector_space and self.flexible is not None)
             or self.midpoint
             or self._coulomb_rows is not None
             or self._bilateral is not None
+            or (
+                friction
+                and (self.flexible is not None or self._viscous is not None or not self._plastic)
+            )
         ):
             return None
         from ucontrol.integrators.compiled_free_step import CompiledFreeStep, ImpactRules
@@ -523,7 +538,9 @@ class MoreauJean:
             rules=ImpactRules(
                 self.constraints.restitution, self.restitution_threshold, self.newton_law
             ),
-            single_rows=vector_space and getattr(self.solver, "exact_single", False) is True,
+            single_rows=vector_space
+            and not friction
+            and getattr(self.solver, "exact_single", False) is True,
             positions=vector_space,
         )
         return step if step.compiled else None
@@ -710,11 +727,17 @@ class MoreauJean:
         """
         constraints, data, m = self.constraints, self._data, indices.size
         rows = indices.tolist()  # (Python ints: the loops over the active rows below)
+        free_step = self._free_step if inverse_inertia is None else None  # its terms computed
         tangents: NDArray[np.intp] | None = None
         counts = constraints.tangent_count[indices]
         if self._friction and np.count_nonzero(counts):  # normal and tangential rows together
+            if self._rigid_rows is not None:  # the frame Jacobians, which the rows do not read
+                pin.computeJointJacobians(self._model, data, state.q)
             J, T, directions = constraints.contact_rows(data, indices)
             J, tangents = np.concatenate((J, T)), counts
+            if inverse_inertia is None:  # W = M (_compiled_free_step): M⁻¹ [Jᵀ Tᵀ] as stage 1's
+                pin.cholesky.decompose(self._model, data)
+                inverse_inertia = self._rigid_inverse_inertia
         elif state.normal_rows is not None:
             J = state.normal_rows[indices]
         else:
@@ -730,8 +753,8 @@ class MoreauJean:
                 J_b = np.hstack((J_b, np.zeros((J_b.shape[0], self.flexible.nf))))
             J, m_b = np.vstack((J, J_b)), J_b.shape[0]
         if inverse_inertia is None:  # the compiled free step's terms (normal rows only)
-            assert self._free_step is not None
-            Minv_Jt, D = self._free_step.contact_terms(indices)
+            assert free_step is not None
+            Minv_Jt, D = free_step.contact_terms(indices)
         else:
             Minv_Jt = inverse_inertia(J)
             D = J.dot(Minv_Jt)
@@ -743,9 +766,8 @@ class MoreauJean:
             rate_now = _pad(rate_now, r)
             u_free[:r] += _pad(rate_next, r)
         held_rows: NDArray[np.bool_] | None = None
-        if inverse_inertia is None and activation is self.memory.activation:
-            assert self._free_step is not None  # computed by the free step, same activation
-            rebound, closure = self._free_step.offsets(indices)
+        if free_step is not None and activation is self.memory.activation:
+            rebound, closure = free_step.offsets(indices)  # by the free step, same activation
         else:  # the impact law on the normal rows
             held_rows = activation[indices] > 0.0
             rebound, closure = newton_offsets(
