@@ -41,19 +41,28 @@ def _run(integrator: MoreauJean, scene: Scene) -> tuple[np.ndarray, list[int]]:
     return np.array(rows), qps
 
 
-def test_a_reset_integrator_reproduces_a_new_one() -> None:
-    """Frictionless, bit for bit: the quadruped's QPs give the same bits from the same start."""
-    scene = Scene.from_toml(ROBOTS / "quadruped_stand.toml")
-    fresh, _ = _run(scene.build_integrator(compiled=False), scene)
-    integrator = scene.build_integrator(compiled=False)
+Run = tuple[np.ndarray, list[int]]
+
+
+def _runs(name: str, compiled: bool) -> tuple[Run, Run, Run]:
+    """A new integrator's run; a used one's after renewing its memory alone; then after reset."""
+    scene = Scene.from_toml(ROBOTS / f"{name}.toml")
+    fresh = _run(scene.build_integrator(compiled=compiled), scene)
+    integrator = scene.build_integrator(compiled=compiled)
     assert isinstance(integrator, MoreauJean)
     _run(integrator, scene)
     integrator.memory = fresh_memory(integrator.constraints.size)  # the memory alone
-    memory_only, _ = _run(integrator, scene)
+    memory_only = _run(integrator, scene)
+    integrator.reset()
+    return fresh, memory_only, _run(integrator, scene)
+
+
+def test_a_reset_integrator_reproduces_a_new_one() -> None:
+    """Frictionless, bit for bit: the quadruped's QPs give the same bits from the same start."""
+    (fresh, _), (memory_only, _), (reset, _) = _runs("quadruped_stand", compiled=False)
     # The set-up is the one the reset is for: the warm starts change the run.
     assert not np.array_equal(memory_only, fresh)
-    integrator.reset()
-    assert np.array_equal(_run(integrator, scene)[0], fresh)
+    assert np.array_equal(reset, fresh)
 
 
 def test_a_reset_coulomb_solver_starts_cold_as_a_new_one() -> None:
@@ -64,15 +73,9 @@ def test_a_reset_coulomb_solver_starts_cold_as_a_new_one() -> None:
     the polish leaves at 1.2e-14. The warm start's trace is in the QPs each step runs: a
     remembered solution is polished by Newton without a QP, a cold start solves one first.
     """
-    scene = Scene.from_toml(ROBOTS / "block_incline_spatial.toml")
-    fresh, fresh_qps = _run(scene.build_integrator(compiled=True), scene)
-    integrator = scene.build_integrator(compiled=True)
-    assert isinstance(integrator, MoreauJean)
-    _run(integrator, scene)
-    integrator.memory = fresh_memory(integrator.constraints.size)  # the memory alone
-    _, memory_only_qps = _run(integrator, scene)
+    (fresh, fresh_qps), (_, memory_only_qps), (reset, reset_qps) = _runs(
+        "block_incline_spatial", compiled=True
+    )
     assert memory_only_qps != fresh_qps  # the last solutions kept: fewer QPs
-    integrator.reset()
-    reset, reset_qps = _run(integrator, scene)
     assert reset_qps == fresh_qps
     np.testing.assert_allclose(reset, fresh, rtol=0.0, atol=1e-12)
