@@ -700,11 +700,7 @@ class MoreauJean:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
         impulse[i] = P_i = P.item()
-        # _closing_impacts on Python floats (a third of numpy scalars' cost)
-        t, u_minus = state.t, state.normal_velocity.item(i)
-        impacts: tuple[tuple[int, float], ...] = ()
-        if is_impact(P_i, self.memory.activation.item(i), u_minus):
-            impacts = ((i, 0.0 if t is None else float(t)),)
+        impacts = _closing_impacts(impulse, self.memory.activation, (i,), state)
         # next_memory(impulse, (i,), ...), built once
         self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
         return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
@@ -1188,10 +1184,13 @@ def _closing_impacts(
     """
     impacts: tuple[tuple[int, float], ...] = ()
     u_minus, t = state.normal_velocity, state.t
-    if len(rows) > 1:  # Python floats: cheaper than numpy scalars from a few rows on
+    if len(rows) > 1:  # Python floats (a third of numpy scalars' cost): by lists from two rows
         impulse, activation, u_minus = impulse.tolist(), activation.tolist(), u_minus.tolist()
-    for i in rows:
-        if is_impact(impulse[i], activation[i], u_minus[i]):
+        values = [(i, impulse[i], activation[i], u_minus[i]) for i in rows]
+    else:  # one row: its floats alone
+        values = [(i, impulse.item(i), activation.item(i), u_minus.item(i)) for i in rows]
+    for i, P_i, activation_i, u_i in values:
+        if is_impact(P_i, activation_i, u_i):
             impacts += ((int(i), 0.0 if t is None else float(t)),)
     return impacts
 
