@@ -79,6 +79,78 @@ def _check_rows_against_pinocchio(constraints: ConstraintSet, rng: np.random.Gen
 
 
 @needs_compiled_code
+@pytest.mark.parametrize(
+    "name", ["panda_table_friction", "solo_landing", "block_incline", "block_incline_spatial"]
+)  # fixed base, free-flyer root, planar (one tangent each), free body on an incline
+def test_tangent_rows_equal_pinocchio_and_finite_differences(
+    name: str, rng: np.random.Generator
+) -> None:
+    """The tangential rows of the compiled call: ConstraintSet.contact_rows' and t · ∂p/∂q."""
+    constraints = load_scene(name).constraints
+    robot, rows = constraints.robot, compiled_rows(constraints)
+    assert rows is not None and rows.tangential == int(constraints.tangent_count.sum()) > 0
+    model, data = robot.model, pin.Data(robot.model)
+    frames = [robot.frame_id(contact.frame) for contact in constraints.contacts]
+    every = np.arange(constraints.size)
+    for _ in range(5):
+        q, v = _random_state(robot, rng)
+        pin.computeAllTerms(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        J, T, tangents = constraints.contact_rows(data, every)
+        rows(q, v)
+        selected, tangents_c = rows.contact_selection(every)
+        assert rows.last_contact_rows is not None
+        rows_c = rows.last_contact_rows[selected]
+        # Measured: 2.8e-17 (the frame compositions' round-off); the tangents are the same.
+        np.testing.assert_allclose(rows_c, np.concatenate((J, T)), rtol=0, atol=1e-14)
+        np.testing.assert_array_equal(tangents_c, tangents)
+        # Each row t · ∂p_F/∂q along v, by central differences on the manifold (~eps²).
+        owners = np.repeat(np.arange(len(frames)), constraints.tangent_count[: len(frames)])
+        eps = 1e-6
+        for j in range(robot.nv):
+            step = np.zeros(robot.nv)
+            step[j] = eps
+            ends = []
+            for sign in (1.0, -1.0):
+                pin.framesForwardKinematics(model, data, pin.integrate(model, q, sign * step))
+                ends.append(np.array([data.oMf[frames[i]].translation for i in owners]))
+            derivative = np.sum(tangents * (ends[0] - ends[1]), axis=1) / (2 * eps)
+            np.testing.assert_allclose(derivative, rows_c[constraints.size :, j], atol=1e-8)
+
+
+@needs_compiled_code
+def test_tangent_rows_of_an_active_subset_in_the_order_of_contact_rows(
+    rng: np.random.Generator,
+) -> None:
+    """A subset of the feet, in any order: the rows and tangents ConstraintSet stacks."""
+    constraints = load_scene("solo_landing").constraints
+    robot, rows = constraints.robot, compiled_rows(constraints)
+    assert rows is not None
+    model, data = robot.model, pin.Data(robot.model)
+    q, v = _random_state(robot, rng)
+    pin.computeAllTerms(model, data, q, v)
+    rows(q, v)
+    assert rows.last_contact_rows is not None
+    for indices in ([2], [3, 0], [1, 2, 3], [2, 0, 1]):
+        active = np.array(indices, dtype=np.intp)
+        J, T, tangents = constraints.contact_rows(data, active)
+        selected, tangents_c = rows.contact_selection(active)
+        np.testing.assert_allclose(
+            rows.last_contact_rows[selected], np.concatenate((J, T)), rtol=0, atol=1e-14
+        )
+        np.testing.assert_array_equal(tangents_c, tangents)
+
+
+@needs_compiled_code
+def test_contacts_with_a_radius_keep_pinocchios_tangent_rows() -> None:
+    """A rolling contact point's rows need the angular Jacobian: the normal rows alone."""
+    constraints = load_scene("capsule_arm_points").constraints
+    assert constraints.has_friction and any(c.radius > 0.0 for c in constraints.contacts)
+    rows = compiled_rows(constraints)
+    assert rows is not None and rows.tangential == 0
+
+
+@needs_compiled_code
 @pytest.mark.parametrize("armature", [None, (0.3, 0.7)])
 def test_rows_with_dynamics_fill_m_and_h_as_pinocchio(armature, rng: np.random.Generator) -> None:
     """A small robot's rows with the dynamics: M, h and the energies of computeAllTerms."""

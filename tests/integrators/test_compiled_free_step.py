@@ -32,9 +32,19 @@ CASES = [
 ]
 
 
-def _pair(name: str, viscous: bool = False, theta: float | None = None):  # type: ignore[no-untyped-def]
-    """Two integrators of scene ``name``: with the compiled free step and without it."""
+def _pair(  # type: ignore[no-untyped-def]
+    name: str, viscous: bool = False, theta: float | None = None, friction: float | None = None
+):
+    """Two integrators of scene ``name``: with the compiled free step and without it.
+
+    ``friction``: the Coulomb coefficient of every contact instead of the scene's.
+    """
     scene = load_scene(name)
+    if friction is not None:
+        scene = dataclasses.replace(
+            scene,
+            contacts=tuple(dataclasses.replace(c, friction=friction) for c in scene.contacts),
+        )
     if theta is not None:
         scene = dataclasses.replace(
             scene, integrator=dataclasses.replace(scene.integrator, theta=theta)
@@ -123,16 +133,25 @@ def test_single_row_steps_equal_the_numpy_path(
         assert seen["plastic"]  # the energy guard acted (never for one row at θ = 1/2)
 
 
-@pytest.mark.parametrize("name", ["table_drop", "quadruped_stand", "solo_landing"])
-def test_free_flyer_steps_equal_the_numpy_path(name: str, rng: np.random.Generator) -> None:
+@pytest.mark.parametrize(
+    ("name", "friction"),
+    [("table_drop", None), ("quadruped_stand", None), ("quadruped_stand", 0.7),
+     ("solo_landing", None)],
+)  # fmt: skip
+def test_free_flyer_steps_equal_the_numpy_path(
+    name: str, friction: float | None, rng: np.random.Generator
+) -> None:
     """On a free-flyer root the free step gives the velocity terms (v_free, D, the impact law).
 
     Every foot pressed into the ground by 1 mm at the lowest, so that several rows are active.
-    With friction (``solo_landing``'s four feet) the contact steps take the tangential rows
-    and :math:`M^{-1} [J^T T^T]` from Pinocchio, the normal rows' offsets from the free step.
+    With friction (``solo_landing``'s four feet, the standing Solo with μ = 0.7) the contact
+    steps take the tangential rows from the compiled rows and :math:`M^{-1} [J^T T^T]` and the
+    Delassus matrix of all the rows from the free step; the reference from Pinocchio's frame
+    Jacobians and Cholesky factor.
     """
-    scene, compiled, reference = _pair(name)
+    scene, compiled, reference = _pair(name, friction=friction)
     assert "single row" not in compiled.fast_paths  # (its q would not be on SE(3))
+    assert ("tangent rows" in compiled.fast_paths) == compiled.constraints.has_friction
     model, (q0, v0) = scene.robot.model, scene.initial_state()
     n, counts = compiled.constraints.size, set()
     for trial in range(20):
@@ -165,7 +184,9 @@ def test_frictional_steps_keep_the_numpy_free_step_with_viscous_joints_or_reboun
     nv = scene.robot.nv
     friction = JointFriction(viscous=[0.7] * nv, coulomb=[0.0] * nv)
     for refused in (dataclasses.replace(plastic, joint_friction=friction), scene):
-        assert refused.build_integrator().fast_paths == ("constraint rows", "active-set start")
+        assert refused.build_integrator().fast_paths == (
+            "constraint rows", "tangent rows", "active-set start"
+        )  # fmt: skip
 
 
 def test_a_free_step_without_positions_has_no_one_row_steps() -> None:

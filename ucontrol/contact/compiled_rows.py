@@ -1,4 +1,4 @@
-r"""Gaps, normal velocities and normal Jacobian rows of every constraint in one compiled call.
+r"""Gaps, normal velocities, normal and tangential Jacobian rows of the constraints in one call.
 
 :meth:`ConstraintSet.evaluate <ucontrol.contact.constraint_set.ConstraintSet.evaluate>` and
 :meth:`~ucontrol.contact.constraint_set.ConstraintSet.jacobian` read Pinocchio's data one
@@ -22,6 +22,16 @@ frame, Pinocchio's) rather than along q (:func:`_point_terms`). The
 frame positions are those of :class:`~ucontrol.model.symbolic_model.SymbolicModel`; they equal
 Pinocchio's to round-off (about 1e-16 m). The normals, offsets, signs and bounds are inputs, so
 one library serves every plane and bound of a robot's contact frames and stop coordinates.
+
+With friction, the same call gives the tangential rows of the frictional contacts,
+
+.. math:: T_{ij} = t_{ij}^T \frac{\partial p_{F_i}}{\partial q} \quad (j = 1, \dots, c_i),
+
+for the constant tangents :math:`t_{ij}` of a fixed plane, read from the same directions as
+the reference rows (:attr:`~ucontrol.contact.ConstraintSet.point_directions`, an input of the
+call). The reference adds a lever term :math:`\ell_{ij}^T J_{ang}` for a contact with a
+radius (its contact point rolls): such sets give their normal rows alone here, and a step
+reads their tangential rows from Pinocchio.
 """
 
 from __future__ import annotations
@@ -39,8 +49,10 @@ from ucontrol.model.robot_model import RobotModel
 
 Vector = NDArray[np.float64]
 
-#: The compiled call's inputs: the state, then the planes' and the stops' constant terms.
-_IN_NAMES = ["q", "v", "planes", "stops"]
+#: The compiled call's inputs: the state, then the planes', stops' and tangents' constant terms.
+_IN_NAMES = ["q", "v", "planes", "stops", "tangents"]
+#: The active sets whose row selections a :class:`ConstraintRows` keeps at most.
+_SELECTIONS = 64
 #: The modules whose code writes the compiled call (part of its definition key).
 _GENERATED_BY = (
     "ucontrol.contact.compiled_rows",
@@ -72,14 +84,15 @@ class ConstraintRows:
         robot = constraints.robot
         nv, n_c, n = robot.nv, constraints.n_contacts, constraints.size
         name = "constraint_rows_dynamics" if dynamics else "constraint_rows"
+        counts = _tangent_counts(constraints)
         # What the Function is built from: casadi is imported only to build it (a cache miss).
         definition = definition_key(
             [name, robot.model.saveToString(), [c.frame for c in constraints.contacts], n_c, n,
-             list(constraints.stop_coordinates)],
+             list(constraints.stop_coordinates), counts],
             _GENERATED_BY,
         )  # fmt: skip
         self.function = CompiledFunction.cached(
-            name, definition, lambda: _rows_function(constraints, name, dynamics)
+            name, definition, lambda: _rows_function(constraints, name, dynamics, counts)
         )
         self.dynamics = dynamics
         self._names = self.function.index_in, self.function.index_out  # by name
@@ -88,6 +101,20 @@ class ConstraintRows:
         # Column-major (4, n_c) and (2, n_s) inputs: the rows of the (n_c, 4) and (n_s, 2) terms.
         self.function.input_buffer(index("planes"))[:] = constraints.plane_terms.ravel()
         self.function.input_buffer(index("stops"))[:] = constraints.stop_terms.ravel()
+        #: Tangential rows of the call (those of every frictional contact, in their order).
+        self.tangential = sum(counts)
+        directions = constraints.point_directions
+        # The tangents (k, 3), world coordinates: column-major (3, k) input.
+        self._tangents = _read_only(
+            np.concatenate([directions[i, 1 : 1 + c, :3] for i, c in enumerate(counts)])
+            if self.tangential
+            else np.zeros((0, 3))
+        )
+        self.function.input_buffer(index("tangents"))[:] = self._tangents.ravel()
+        # Each contact's first tangential row among all the rows (n + its offset).
+        self._first_tangent = (n + np.cumsum(counts) - np.asarray(counts, dtype=int)).tolist()
+        self._counts = counts
+        self._selections: dict[tuple[int, ...], tuple[NDArray[np.intp], Vector]] = {}
         self._n, self._nv = n, nv
         self._parts = (slice(0, n), slice(n, 2 * n), slice(2 * n, None))
         self._q, self._v = (
@@ -96,7 +123,9 @@ class ConstraintRows:
         )
         self._run = self.function.runner((index("q"), index("v")))  # writes q, v first
         self._out = self.function.output_buffer(out("rows"))
-        self.last_rows: Vector | None = None  # the rows of the last call's values
+        self.last_rows: Vector | None = None  # the normal rows of the last call's values
+        #: The normal, then tangential rows of the last call, shape (n + tangential, nv).
+        self.last_contact_rows: Vector | None = None
 
     @property
     def compiled(self) -> bool:
@@ -130,20 +159,44 @@ class ConstraintRows:
         self._run(q, v)
         out = self._out.copy()
         gaps, velocities, rows = self._parts
-        self.last_rows = out[rows].reshape(self._n, self._nv)
+        self.last_contact_rows = out[rows].reshape(-1, self._nv)
+        self.last_rows = self.last_contact_rows[: self._n]
         return out[gaps], out[velocities], self.last_rows
 
     def buffers(self) -> tuple[Vector, Vector, Vector]:
         """The compiled call's inputs q (nq,), v (nv,) and its output, as the last call left them.
 
-        The output holds the gaps (n,), the normal velocities (n,) and the rows, row by row
-        (n nv,).
+        The output holds the gaps (n,), the normal velocities (n,) and the rows, row by row:
+        the normal ones (n nv,), then the tangential ones (:attr:`tangential` nv,).
         """
         return self._q, self._v, self._out
 
+    def contact_selection(self, indices: NDArray[np.intp]) -> tuple[NDArray[np.intp], Vector]:
+        """The rows of the active constraints ``indices`` (m,) among the call's n + k rows.
 
-def _rows_function(constraints: ConstraintSet, name: str, dynamics: bool) -> Any:
+        Returns:
+            Their normal rows' positions, then those of their tangential rows, in the order of
+            ``indices`` (as :meth:`~ucontrol.contact.ConstraintSet.contact_rows` stacks
+            them), shape (m + k_a,), and the world tangent of each tangential row, shape
+            (k_a, 3) (read-only). Kept for each active set met (a few sets of feet).
+        """
+        key = tuple(indices.tolist())
+        selection = self._selections.get(key)
+        if selection is None:
+            if len(self._selections) >= _SELECTIONS:
+                self._selections.clear()
+            counts, first = self._counts, self._first_tangent
+            tangential = [first[i] + j for i in key for j in range(counts[i])]
+            selected = np.array(key + tuple(tangential), dtype=np.intp)
+            tangents = _read_only(self._tangents[np.asarray(tangential, dtype=np.intp) - self._n])
+            selection = self._selections[key] = selected, tangents
+        return selection
+
+
+def _rows_function(constraints: ConstraintSet, name: str, dynamics: bool, counts: list[int]) -> Any:
     """The casadi Function ``name`` of :class:`ConstraintRows` (its module docstring).
+
+    ``counts``: the tangential rows of each point contact (:func:`_tangent_counts`).
 
     Raises:
         InvalidParameterError: The robot has a joint :class:`SymbolicModel` does not support.
@@ -155,13 +208,17 @@ def _rows_function(constraints: ConstraintSet, name: str, dynamics: bool) -> Any
     q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
     planes = ca.SX.sym("planes", 4, n_c)  # columns (normal, offset)
     stops = ca.SX.sym("stops", 2, n - n_c)  # columns (sign, bound)
+    tangents = ca.SX.sym("tangents", 3, sum(counts))  # columns: each tangential row's t
     points = _point_terms(robot, q)
     gaps, rows = [], []
+    tangent_rows: list[Any] = []  # each frictional contact's, in order
     for i, contact in enumerate(constraints.contacts):
         position, jacobian = points(contact.frame)
         normal = planes[:3, i]
         gaps.append(ca.dot(normal, position) - planes[3, i])
         rows.append(normal.T @ jacobian)
+        for _ in range(counts[i]):  # (no lever: _tangent_counts)
+            tangent_rows.append(tangents[:, len(tangent_rows)].T @ jacobian)
     for k, (index_q, index_v) in enumerate(constraints.stop_coordinates):
         sign, bound = stops[0, k], stops[1, k]
         gaps.append(sign * (q[index_q] - bound))
@@ -169,7 +226,8 @@ def _rows_function(constraints: ConstraintSet, name: str, dynamics: bool) -> Any
         row[index_v] = sign
         rows.append(row)
     J = ca.vertcat(*rows)
-    outputs = [ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(J.T))]  # J row by row
+    rows_t = ca.vertcat(J, *tangent_rows).T
+    outputs = [ca.vertcat(ca.vertcat(*gaps), J @ v, ca.vec(rows_t))]  # J, then T, row by row
     if dynamics:  # M, h, and the energies (T, V)
         from ucontrol.model.symbolic_model import SymbolicModel
 
@@ -178,7 +236,26 @@ def _rows_function(constraints: ConstraintSet, name: str, dynamics: bool) -> Any
         energies = ca.vertcat(0.5 * ca.dot(v, M @ v), model.potential_energy(q))
         outputs += [M, model.nonlinear_effects(q, v), energies]
     out_names = ["rows", "M", "h", "energies"][: len(outputs)]
-    return ca.Function(name, [q, v, planes, stops], outputs, _IN_NAMES, out_names)
+    return ca.Function(name, [q, v, planes, stops, tangents], outputs, _IN_NAMES, out_names)
+
+
+def _tangent_counts(constraints: ConstraintSet) -> list[int]:
+    """The tangential rows of each point contact in the compiled call, as Python ints.
+
+    Those of :attr:`~ucontrol.contact.ConstraintSet.tangent_count` when no frictional
+    contact has a lever (a radius), else none (module docstring).
+    """
+    directions = constraints.point_directions
+    counts = constraints.tangent_count[: len(constraints.contacts)].tolist()
+    if np.any(directions[:, 1:, 3:]):  # a rolling contact point: the Pinocchio rows
+        return [0] * len(counts)
+    return [int(c) for c in counts]
+
+
+def _read_only(array: Vector) -> Vector:
+    """``array``, made read-only (shared by the calls that read it)."""
+    array.flags.writeable = False
+    return array
 
 
 def _point_terms(robot: RobotModel, q: Any) -> Callable[[str], tuple[Any, Any]]:
@@ -283,7 +360,8 @@ def qualifies(constraints: ConstraintSet) -> bool:
 
     Without sphere–sphere contacts, collision pairs, moving surfaces, bilateral constraints or
     clearance joints; the robot's joints are checked when the rows are built. With friction,
-    the rows are the normal ones: a frictional step reads its tangential rows from Pinocchio
+    the rows also hold the tangential ones, unless a frictional contact has a radius (module
+    docstring): a frictional step then reads its tangential rows from Pinocchio
     (:meth:`~ucontrol.contact.ConstraintSet.contact_rows`).
     """
     return bool(

@@ -579,6 +579,20 @@ class ConstraintSet:
             self._point_selections[key] = selection
         return selection
 
+    @property
+    def point_directions(self) -> Vector:
+        r"""The directions of each point contact's rows on its frame Jacobian (read-only).
+
+        Shape (len(contacts), 1 + c, 6), in LOCAL_WORLD_ALIGNED (linear, then angular part):
+        the normal row's (n, 0), then each tangential row's (t, ℓ) with the lever
+        :math:`\ell = r\, t \times n`, zero past the contact's ``tangent_count``; the
+        definition :meth:`contact_rows` reads (and the compiled rows,
+        :mod:`~ucontrol.contact.compiled_rows`).
+        """
+        directions = self._point_directions.view()
+        directions.flags.writeable = False
+        return directions
+
     def normal_drift(
         self,
         data: pin.Data,

@@ -22,8 +22,11 @@ viscous joint friction: :math:`W_0 = \mathrm{h}\theta (C_v + D) + \mathrm{h}^2\t
 springs' stiffness and damping matrices on the extended coordinates, B the motor inertias, D
 the viscous friction on the links; all zero on a rigid robot without joint friction). J are the
 normal rows of every constraint (:class:`~ucontrol.contact.compiled_rows.ConstraintRows`), zero
-on the motors. W is factored by casadi's symbolic Cholesky decomposition (``casadi.chol``) and
-two triangular solves; the results equal the reference stages to round-off. The same call
+on the motors, followed by the frictional contacts' tangential rows when the rows hold them
+(``tangential``): :math:`W^{-1} [J^T\ T^T]` and the Delassus matrix of all the rows, of which a
+contact step with friction reads its active rows' (:meth:`CompiledFreeStep.contact_terms`).
+W is factored by casadi's symbolic Cholesky decomposition (``casadi.chol``) and two
+triangular solves; the results equal the reference stages to round-off. The same call
 applies the impact law (:func:`~ucontrol.integrators.step_stages.newton_offsets`, on casadi's
 symbols) to every row as if it were active, with the rows held by the step memory's
 activation: the contact problem of the step reads the active rows' terms (:meth:`offsets`).
@@ -115,6 +118,9 @@ class CompiledFreeStep:
             space), so that the call also gives :math:`q^{free}`. Without (a free-flyer
             root, rigid) the call has no q and gives the velocity-space terms alone: the
             caller advances the configuration on its manifold.
+        tangential: Number k of tangential rows after the n normal ones (those of
+            :class:`~ucontrol.contact.compiled_rows.ConstraintRows`), whose Delassus terms
+            the call also gives (the impact law and the one-row steps read the normal rows).
 
     Raises:
         InvalidParameterError: ``positions`` is False with ``single_rows`` or ``flexible``.
@@ -137,6 +143,7 @@ class CompiledFreeStep:
         rules: ImpactRules,
         single_rows: bool = False,
         positions: bool = True,
+        tangential: int = 0,
     ) -> None:
         from ucontrol.model.compile_cache import definition_key
         from ucontrol.model.compiled_function import CompiledFunction
@@ -154,14 +161,16 @@ class CompiledFreeStep:
         # (with the shared stages' tolerances as they are now: constants of the Function)
         definition = definition_key(
             ["free_step", nv, size, n, float(rules.threshold), rules.newton_law, elastic,
-             single_rows, positions,
+             single_rows, positions, tangential,
              *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
             _GENERATED_BY,
         )  # fmt: skip
         self.function = CompiledFunction.cached(
             "free_step",
             definition,
-            lambda: _free_step_function(nv, size, n, rules, elastic, single_rows, positions),
+            lambda: _free_step_function(
+                nv, size, n, rules, elastic, single_rows, positions, tangential
+            ),
         )
         self.compiled = self.function.compiled
         index = self.function.index_in  # inputs bound by name
@@ -173,10 +182,11 @@ class CompiledFreeStep:
         self.function.input_buffer(index("scalars"))[:] = (dt, theta, horizon)
         self.single_rows = single_rows
         self._sizes = (size, n)
+        self._rows = n + tangential  # normal and tangential rows of the Delassus terms
         # Ends of the outputs v_free, q_free (none without positions), predicted gaps, W⁻¹Jᵀ,
-        # JW⁻¹Jᵀ, rebound and closure terms (Python ints).
-        q_size = size if positions else 0
-        self._split = tuple(np.cumsum([size, q_size, n, size * n, n * n, n, n]).tolist())
+        # JW⁻¹Jᵀ (of every row), rebound and closure terms (Python ints).
+        q_size, r = (size if positions else 0), self._rows
+        self._split = tuple(np.cumsum([size, q_size, n, size * r, r * r, n, n]).tolist())
         self._ends = self._split[:3]  # those of the outputs every call returns
         self._positions = positions
         buffer = self.function.input_buffer
@@ -224,7 +234,9 @@ class CompiledFreeStep:
             assert rows is not None
             if q is not None:
                 q[...] = state.q
-            v[...], J[...] = state.v, rows.reshape(-1)
+            # (the tangential rows, after the normal ones, are the rows' last call's: the
+            # frictional step reads them only from that call, MoreauJean._contact_outcome)
+            v[...], J[: rows.size] = state.v, rows.reshape(-1)
             gap[...], velocity[...] = state.gap, state.normal_velocity
         self._run(tau, state.kinetic_energy)
         out = self._last = self._out.copy()
@@ -242,8 +254,11 @@ class CompiledFreeStep:
         """
         q, v, out = rows.buffers()
         n, nv = self._sizes[1], v.size
-        if self._sizes[0] != nv:
-            raise ValueError(f"rows of nv = {nv} for a step of size {self._sizes[0]}")
+        if self._sizes[0] != nv or n + rows.tangential != self._rows:
+            raise ValueError(
+                f"rows of nv = {nv}, {n + rows.tangential} rows for a step of size "
+                f"{self._sizes[0]}, {self._rows} rows"
+            )
         function, index = self.function, self.function.index_in
         for name, buffer in (
             ("q", q), ("v", v), ("J_t", out[2 * n :]), ("gap", out[:n]), ("u", out[n : 2 * n])
@@ -257,10 +272,11 @@ class CompiledFreeStep:
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
         r""":math:`W^{-1} J_a^T` (N, m) and :math:`J_a W^{-1} J_a^T` (m, m) of rows ``indices``.
 
-        From the last :meth:`__call__` (the same step).
+        From the last :meth:`__call__` (the same step); ``indices`` among the n normal rows,
+        then the ``tangential`` ones.
         """
         assert self._last is not None
-        size, n = self._sizes
+        size, n = self._sizes[0], self._rows
         c, d, e = self._split[2:5]
         Winv_Jt = self._last[c:d].reshape((size, n), order="F")
         delassus = self._last[d:e].reshape((n, n), order="F")
@@ -329,20 +345,23 @@ def _free_step_function(
     elastic: tuple[bool, ...],
     single_rows: bool,
     positions: bool,
+    tangential: int,
 ) -> Any:
     """The casadi Function of :class:`CompiledFreeStep` (the module docstring's terms).
 
     ``elastic``: whether each row's restitution is non-zero (n,); the others read a constant 0
     (their rebound terms fold away). Without ``positions`` the Function has no input q (a
-    rigid robot's stiffness terms are 0) and no output :math:`q^{free}`.
+    rigid robot's stiffness terms are 0) and no output :math:`q^{free}`. ``tangential`` rows
+    follow the n normal ones in the input ``J_t`` and the Delassus terms.
     """
     import casadi as ca  # imported only for the steps that use it, and only to build
 
     q = ca.SX.sym("q", size) if positions else ca.SX.zeros(size)
     v, tau = ca.SX.sym("v", size), ca.SX.sym("tau", size)
     M_upper, nle = ca.SX.sym("M", nv, nv), ca.SX.sym("nle", nv)
-    # The rows as ConstraintRows writes them, row by row: the columns of Jᵀ (nv, n).
-    rows_t, gap, velocity = ca.SX.sym("J_t", nv, n), ca.SX.sym("gap", n), ca.SX.sym("u", n)
+    # The rows as ConstraintRows writes them, row by row: the columns of Jᵀ (nv, n + k).
+    rows_t = ca.SX.sym("J_t", nv, n + tangential)
+    gap, velocity = ca.SX.sym("gap", n), ca.SX.sym("u", n)
     rows = rows_t.T
     W0_s, Kq_s, F_s = (ca.SX.sym(name, size, size) for name in ("W0", "Kq", "F"))
     scalars = ca.SX.sym("scalars", 3)  # h, θ, γh
@@ -350,7 +369,7 @@ def _free_step_function(
     M = ca.triu(M_upper) + ca.triu(M_upper, False).T
     W = W0_s + ca.diagcat(M, ca.SX.zeros(size - nv, size - nv))
     force = tau - ca.vertcat(nle, ca.SX.zeros(size - nv)) - Kq_s @ q - F_s @ v
-    J = ca.horzcat(rows, ca.SX.zeros(n, size - nv))
+    J = ca.horzcat(rows, ca.SX.zeros(n + tangential, size - nv))
     R = ca.chol(W)  # W = RᵀR, R upper triangular: two triangular solves
     v_free = v + ca.solve(R, ca.solve(R.T, h * force))
     Winv_Jt = ca.solve(R, ca.solve(R.T, J.T))

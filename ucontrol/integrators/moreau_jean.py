@@ -196,8 +196,10 @@ one readable reference (numpy, Pinocchio, LAPACK) and at most one generated fast
 (casadi, compiled to C): the constraint rows with M and h on small robots
 (:mod:`~ucontrol.contact.compiled_rows`) and the free step with its one-row steps
 (:mod:`~ucontrol.integrators.compiled_free_step`), which apply the same definitions of the
-impact law, the predicted gaps and the energy guard on casadi's symbols. With friction the two
-give the normal rows' terms, and a contact step with tangential rows reads them from
+impact law, the predicted gaps and the energy guard on casadi's symbols. With friction the
+compiled rows also give the tangential rows of the frictional contacts (without a radius), and
+the free step, with plastic contacts, :math:`M^{-1} [J^T\ T^T]` and the Delassus matrix of all
+the rows ("tangent rows"); elsewhere a contact step with tangential rows reads them from
 Pinocchio's data and :math:`M^{-1} [J^T\ T^T]` from its Cholesky factor. The public switch
 ``compiled = False`` (or ``UCONTROL_NO_COMPILE=1``, or no C compiler) runs the references
 alone; ``tests/test_paths_agree.py`` runs every shipped scene both ways and compares the logs
@@ -504,8 +506,9 @@ class MoreauJean:
         a rigid robot with a free-flyer root it gives the velocity terms alone (the
         configuration is advanced by :meth:`_advance`). With friction, for a rigid robot
         without joint friction (W = M), with plastic contacts (e = 0) and without one-row
-        steps (frictionless): a contact step with tangential rows takes
-        :math:`M^{-1} [J^T T^T]` from Pinocchio's Cholesky factor (:meth:`_contact_outcome`).
+        steps (frictionless): with the tangential rows of the compiled rows, the same call
+        gives :math:`M^{-1} [J^T T^T]` and the Delassus matrix of all the rows
+        (:meth:`_contact_outcome`).
         With rebounds and friction, the tilted table of
         ``tests/integrators/test_friction.py`` gained 1.1e-5 J at its impacts in some
         processes through this path, none in others (none through the reference; cause not
@@ -542,6 +545,7 @@ class MoreauJean:
             and not friction
             and getattr(self.solver, "exact_single", False) is True,
             positions=vector_space,
+            tangential=self._rows.tangential,
         )
         return step if step.compiled else None
 
@@ -551,17 +555,20 @@ class MoreauJean:
 
         ``"constraint rows"`` (gaps, rows and, on small robots, M and h in one compiled call),
         ``"free step"`` (the free velocity, predicted gaps and Delassus terms) and
-        ``"single row"`` (a step with one active row), ``"active-set start"`` (the
+        ``"single row"`` (a step with one active row), ``"tangent rows"`` (with friction, the
+        tangential rows from the compiled rows' call, with the free step's Delassus terms
+        where it runs), ``"active-set start"`` (the
         frictionless problem solved on the last step's active set first, the QP only when
         that fails: :meth:`~ucontrol.solvers.ProxsuiteLCPSolver.solve`); none with
-        ``compiled = False`` or ``UCONTROL_NO_COMPILE``, the first three none without a C
+        ``compiled = False`` or ``UCONTROL_NO_COMPILE``, the first four none without a C
         compiler.
         """
-        free = self._free_step
+        free, rows = self._free_step, self._rigid_rows
         paths = (
             ("constraint rows", self._rows is not None),
             ("free step", free is not None),
             ("single row", free is not None and free.single_rows),
+            ("tangent rows", rows is not None and rows.tangential > 0),
             ("active-set start", self._guessing_solver is not None),
         )
         return tuple(name for name, used in paths if used)
@@ -725,15 +732,27 @@ class MoreauJean:
         rows = indices.tolist()  # (Python ints: the loops over the active rows below)
         free_step = self._free_step if inverse_inertia is None else None  # its terms computed
         tangents: NDArray[np.intp] | None = None
+        terms_rows = indices  # the rows of the free step's Delassus terms
         counts = constraints.tangent_count[indices]
+        compiled = self._rigid_rows
         if self._friction and np.count_nonzero(counts):  # normal and tangential rows together
-            if self._rigid_rows is not None:  # the frame Jacobians, which the rows do not read
-                pin.computeJointJacobians(self._model, data, state.q)
-            J, T, directions = constraints.contact_rows(data, indices)
-            J, tangents = np.concatenate((J, T)), counts
-            if inverse_inertia is None:  # W = M (_compiled_free_step): M⁻¹ [Jᵀ Tᵀ] as stage 1's
-                pin.cholesky.decompose(self._model, data)
-                inverse_inertia = self._rigid_inverse_inertia
+            tangents = counts
+            if (
+                compiled is not None
+                and compiled.tangential
+                and state.normal_rows is compiled.last_rows
+                and compiled.last_contact_rows is not None
+            ):  # the state's compiled call holds them (and the free step their terms)
+                terms_rows, directions = compiled.contact_selection(indices)
+                J = compiled.last_contact_rows[terms_rows]
+            else:
+                if compiled is not None:  # the frame Jacobians, which the rows do not read
+                    pin.computeJointJacobians(self._model, data, state.q)
+                J, T, directions = constraints.contact_rows(data, indices)
+                J = np.concatenate((J, T))
+                if inverse_inertia is None:  # W = M (_compiled_free_step): M⁻¹ [Jᵀ Tᵀ]
+                    pin.cholesky.decompose(self._model, data)
+                    inverse_inertia = self._rigid_inverse_inertia
         elif state.normal_rows is not None:
             J = state.normal_rows[indices]
         else:
@@ -748,9 +767,9 @@ class MoreauJean:
             if self.flexible is not None:
                 J_b = np.hstack((J_b, np.zeros((J_b.shape[0], self.flexible.nf))))
             J, m_b = np.vstack((J, J_b)), J_b.shape[0]
-        if inverse_inertia is None:  # the compiled free step's terms (normal rows only)
+        if inverse_inertia is None:  # the compiled free step's terms
             assert free_step is not None
-            Minv_Jt, D = free_step.contact_terms(indices)
+            Minv_Jt, D = free_step.contact_terms(terms_rows)
         else:
             Minv_Jt = inverse_inertia(J)
             D = J.dot(Minv_Jt)
