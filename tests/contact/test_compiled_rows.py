@@ -98,12 +98,12 @@ def test_tangent_rows_equal_pinocchio_and_finite_differences(
         pin.updateFramePlacements(model, data)
         J, T, tangents = constraints.contact_rows(data, every)
         rows(q, v)
-        selected, tangents_c = rows.contact_selection(every)
+        selected, friction_map = rows.contact_selection(every)
         assert rows.last_contact_rows is not None
         rows_c = rows.last_contact_rows[selected]
-        # Measured: 2.8e-17 (the frame compositions' round-off); the tangents are the same.
+        # Measured: 2.8e-17 (the frame compositions' round-off).
         np.testing.assert_allclose(rows_c, np.concatenate((J, T)), rtol=0, atol=1e-14)
-        np.testing.assert_array_equal(tangents_c, tangents)
+        _check_friction_map(constraints, every, friction_map, tangents, rng)
         # Each row t · ∂p_F/∂q along v, by central differences on the manifold (~eps²).
         owners = np.repeat(np.arange(len(frames)), constraints.tangent_count[: len(frames)])
         eps = 1e-6
@@ -134,11 +134,27 @@ def test_tangent_rows_of_an_active_subset_in_the_order_of_contact_rows(
     for indices in ([2], [3, 0], [1, 2, 3], [2, 0, 1]):
         active = np.array(indices, dtype=np.intp)
         J, T, tangents = constraints.contact_rows(data, active)
-        selected, tangents_c = rows.contact_selection(active)
+        selected, friction_map = rows.contact_selection(active)
         np.testing.assert_allclose(
             rows.last_contact_rows[selected], np.concatenate((J, T)), rtol=0, atol=1e-14
         )
-        np.testing.assert_array_equal(tangents_c, tangents)
+        _check_friction_map(constraints, active, friction_map, tangents, rng)
+
+
+def _check_friction_map(  # type: ignore[no-untyped-def]
+    constraints: ConstraintSet, active, friction_map, tangents, rng: np.random.Generator
+) -> None:
+    """The map of the rows' impulses to friction impulses: Σ P_t t per constraint, by hand."""
+    impulses = rng.normal(size=friction_map.shape[1])  # normal rows, then tangential ones
+    expected, row = np.zeros((constraints.size, 3)), len(active)
+    for i in active:
+        for _ in range(constraints.tangent_count[i]):
+            expected[i] += impulses[row] * tangents[row - len(active)]
+            row += 1
+    assert row == impulses.size
+    np.testing.assert_allclose(
+        (friction_map @ impulses).reshape(-1, 3), expected, rtol=0, atol=1e-15
+    )
 
 
 @needs_compiled_code

@@ -177,19 +177,25 @@ class ConstraintRows:
         Returns:
             Their normal rows' positions, then those of their tangential rows, in the order of
             ``indices`` (as :meth:`~ucontrol.contact.ConstraintSet.contact_rows` stacks
-            them), shape (m + k_a,), and the world tangent of each tangential row, shape
-            (k_a, 3) (read-only). Kept for each active set met (a few sets of feet).
+            them), shape (m + k_a,), and the map of the impulses of these rows (m + k_a,) to
+            the world friction impulse of every constraint (n, 3), row by row: the sum of
+            each tangential impulse times its tangent (constant on a fixed plane), shape
+            (3 n, m + k_a) (read-only). Kept for each active set met (a few sets of feet).
         """
         key = tuple(indices.tolist())
         selection = self._selections.get(key)
         if selection is None:
             if len(self._selections) >= _SELECTIONS:
                 self._selections.clear()
-            counts, first = self._counts, self._first_tangent
+            counts, first, m = self._counts, self._first_tangent, len(key)
+            owners = [i for i in key for _ in range(counts[i])]
             tangential = [first[i] + j for i in key for j in range(counts[i])]
             selected = np.array(key + tuple(tangential), dtype=np.intp)
-            tangents = _read_only(self._tangents[np.asarray(tangential, dtype=np.intp) - self._n])
-            selection = self._selections[key] = selected, tangents
+            friction_map = np.zeros((self._n, 3, selected.size))
+            for column, (i, row) in enumerate(zip(owners, tangential, strict=True)):
+                friction_map[i, :, m + column] = self._tangents[row - self._n]
+            selection = selected, _read_only(friction_map.reshape(3 * self._n, -1))
+            self._selections[key] = selection
         return selection
 
 

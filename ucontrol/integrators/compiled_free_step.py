@@ -186,7 +186,7 @@ class CompiledFreeStep:
         # Ends of the outputs v_free, q_free (none without positions), predicted gaps, W⁻¹Jᵀ,
         # JW⁻¹Jᵀ (of every row), rebound and closure terms (Python ints).
         q_size, r = (size if positions else 0), self._rows
-        self._split = tuple(np.cumsum([size, q_size, n, size * r, r * r, n, n]).tolist())
+        self._split = tuple(np.cumsum([size, q_size, n, size * r, r * r, r, r]).tolist())
         self._ends = self._split[:3]  # those of the outputs every call returns
         self._positions = positions
         buffer = self.function.input_buffer
@@ -288,7 +288,8 @@ class CompiledFreeStep:
         r"""The impact law of rows ``indices``: rebound and closure terms (m,) each, in [m/s].
 
         :func:`~ucontrol.integrators.step_stages.newton_offsets` of the last
-        :meth:`__call__`, with the rows held by its ``activation``.
+        :meth:`__call__`, with the rows held by its ``activation``; 0 on the ``tangential``
+        rows (``indices`` as in :meth:`contact_terms`).
         """
         assert self._last is not None
         e, f, g = self._split[4:7]
@@ -397,7 +398,7 @@ def _free_step_function(
         predicted_gaps(gap, velocity, gh),
         ca.vec(Winv_Jt),
         ca.vec(delassus),
-        *offsets,
+        *(ca.vertcat(offset, ca.SX.zeros(tangential)) for offset in offsets),
     ]
     inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
     inputs += [activation, kinetic, restitution_s]

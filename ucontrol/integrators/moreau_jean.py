@@ -733,6 +733,7 @@ class MoreauJean:
         free_step = self._free_step if inverse_inertia is None else None  # its terms computed
         tangents: NDArray[np.intp] | None = None
         terms_rows = indices  # the rows of the free step's Delassus terms
+        friction_map: Vector | None = None  # the compiled rows' friction impulses, if read
         counts = constraints.tangent_count[indices]
         compiled = self._rigid_rows
         if self._friction and np.count_nonzero(counts):  # normal and tangential rows together
@@ -743,7 +744,7 @@ class MoreauJean:
                 and state.normal_rows is compiled.last_rows
                 and compiled.last_contact_rows is not None
             ):  # the state's compiled call holds them (and the free step their terms)
-                terms_rows, directions = compiled.contact_selection(indices)
+                terms_rows, friction_map = compiled.contact_selection(indices)
                 J = compiled.last_contact_rows[terms_rows]
             else:
                 if compiled is not None:  # the frame Jacobians, which the rows do not read
@@ -782,7 +783,8 @@ class MoreauJean:
             u_free[:r] += _pad(rate_next, r)
         held_rows: NDArray[np.bool_] | None = None
         if free_step is not None and activation is self.memory.activation:
-            rebound, closure = free_step.offsets(indices)  # by the free step, same activation
+            # by the free step, same activation (0 on the tangential rows)
+            rebound, closure = free_step.offsets(terms_rows)
         else:  # the impact law on the normal rows
             held_rows = activation[indices] > 0.0
             rebound, closure = newton_offsets(
@@ -796,13 +798,13 @@ class MoreauJean:
                 self.newton_law == "siconos",
                 self._plastic,
             )
-        if u_free.size > m:  # no offsets on the other rows but the midpoint's closures
+        if u_free.size > rebound.size:  # no offsets on the other rows but bilateral closures
             rebound, closure = _pad(rebound, u_free.size), _pad(closure, u_free.size)
             if m_b and bilateral_offset is not None:  # (module docstring)
                 closure[-m_b:] = bilateral_offset
         b = u_free + closure
         guess = None
-        if self._guessing_solver is not None:  # the last step's active rows
+        if self._guessing_solver is not None and tangents is None:  # the last step's active rows
             guess = activation[indices] > 0.0 if held_rows is None else held_rows
         solution = self._solve(D, b + rebound, indices, tangents, m_b, guess)
         plastic = False
@@ -816,9 +818,14 @@ class MoreauJean:
                 solution, plastic = self._solve(D, b, indices, tangents, m_b, guess), True
         impulse = np.zeros(constraints.size)
         impulse[indices] = solution.impulses[:m]
-        friction_impulse = np.zeros((constraints.size, 3)) if self._friction else None
-        if tangents is not None and friction_impulse is not None:
-            _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
+        friction_impulse: Vector | None = None
+        if friction_map is not None:  # the active set's map (constant tangents), (n, 3)
+            contact_impulses = solution.impulses[: friction_map.shape[1]]
+            friction_impulse = friction_map.dot(contact_impulses).reshape(-1, 3)
+        elif self._friction:
+            friction_impulse = np.zeros((constraints.size, 3))
+            if tangents is not None:
+                _add_friction_impulses(friction_impulse, indices, tangents, directions, solution)
         v_next = v_free + Minv_Jt.dot(solution.impulses)
         q_next = self._advance_theta(state, v_next)
         if constraints.clearances:  # journals back into their bearings (clearance_joint)
