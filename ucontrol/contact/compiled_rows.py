@@ -159,8 +159,9 @@ class ConstraintRows:
         self._run(q, v)
         out = self._out.copy()
         gaps, velocities, rows = self._parts
-        self.last_contact_rows = out[rows].reshape(-1, self._nv)
-        self.last_rows = self.last_contact_rows[: self._n]
+        self.last_contact_rows = contact_rows = out[rows].reshape(-1, self._nv)
+        # (the normal rows alone: the same array, without a view more)
+        self.last_rows = contact_rows[: self._n] if self.tangential else contact_rows
         return out[gaps], out[velocities], self.last_rows
 
     def buffers(self) -> tuple[Vector, Vector, Vector]:
