@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -210,7 +211,9 @@ def test_bench_alternating_runs(capsys: pytest.CaptureFixture[str]) -> None:
     assert [row["item"] for row in rows] == ["scene:block_incline", "beads:2"]
     for row in rows:
         smallest, median = row["after"]
-        assert 0.0 < smallest <= median  # two rounds of two runs each
+        # two rounds of two runs each, ordered; the scene's cost is a difference of two CPU
+        # times of runs this short, whose sign the machine's noise decides: finite, not positive
+        assert math.isfinite(smallest) and math.isfinite(median) and smallest <= median
     assert "| beads:2 |" in capsys.readouterr().out
 
 
