@@ -52,7 +52,7 @@ from ucontrol.model.compile_cache import build_library, definition_key
 from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.model.native_call import native_runner
 from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION
-from ucontrol.solvers.coulomb_problem import CoulombProblem
+from ucontrol.solvers.coulomb_problem import ConeOps, CoulombProblem, natural_map_errors
 
 if TYPE_CHECKING:
     import casadi as ca
@@ -209,7 +209,7 @@ def _library(tangents: tuple[int, ...]) -> Path:
         generator.add(newton_step_function(tangents))
         return str(generator.dump())
 
-    key = definition_key([_name(tangents)], [__name__])
+    key = definition_key([_name(tangents)], [__name__, CoulombProblem.__module__])
     return build_library(_name(tangents), key, source)
 
 
@@ -274,6 +274,24 @@ def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
     )
 
 
+def _casadi_ops() -> ConeOps:
+    """The cone's operations (:class:`~ucontrol.solvers.coulomb_problem.ConeOps`) on casadi SX.
+
+    The norm is the square root of the sum of squares (no call to the C library's ``hypot``),
+    equal to ``hypot`` to round-off.
+    """
+    import casadi as ca
+
+    return ConeOps(
+        lambda x, y: ca.sqrt(x**2 + y**2),
+        ca.fmax,
+        ca.fabs,
+        ca.logic_and,
+        ca.if_else,
+        lambda x, y, skip: ca.if_else(y > 0.0, x / y, 0.0),  # skip: the caller's where
+    )
+
+
 def _residual(
     P: ca.SX,
     u: ca.SX,
@@ -284,28 +302,25 @@ def _residual(
 ) -> tuple[ca.SX, ca.SX]:
     """Natural-map residual [m/s] of (P, u) and the marginal flag, as expressions.
 
-    The expressions of :meth:`CoulombProblem.residual` (projection on each contact's cone by
-    :func:`~ucontrol.solvers.coulomb_problem.project_on_cones`) and of the marginal test of
-    :mod:`~ucontrol.solvers.proxsuite_coulomb`, contact by contact.
+    The residual of :meth:`CoulombProblem.residual`, contact by contact from the same terms
+    (:func:`~ucontrol.solvers.coulomb_problem.natural_map_errors`), and the marginal test of
+    :mod:`~ucontrol.solvers.proxsuite_coulomb`.
     """
     import casadi as ca
 
+    ops = _casadi_ops()
     residual, marginal = ca.SX(0.0), ca.SX(0.0)
     for a, tangent in enumerate(rows):
         u_t = [u[i] for i in tangent] + [ca.SX(0.0)] * (2 - len(tangent))
         P_t = [P[i] for i in tangent] + [ca.SX(0.0)] * (2 - len(tangent))
-        speed = ca.sqrt(u_t[0] ** 2 + u_t[1] ** 2)  # [m/s]
-        z_n = sigma[a] * P[a] - (u[a] + mu[a] * speed)
-        z_t = [sigma[a] * P_t[i] - u_t[i] for i in range(2)]
-        t = ca.sqrt(z_t[0] ** 2 + z_t[1] ** 2)
-        boundary_n = ca.fmax((z_n + mu[a] * t) / (1.0 + mu[a] ** 2), 0.0)
-        inside = ca.logic_and(t <= mu[a] * z_n, z_n >= 0.0)
-        ratio = ca.if_else(inside, 1.0, ca.if_else(t > 0.0, mu[a] * boundary_n / t, 0.0))
-        residual = ca.fmax(residual, ca.fabs(sigma[a] * P[a] - ca.if_else(inside, z_n, boundary_n)))
-        for i in range(len(tangent)):
-            residual = ca.fmax(residual, ca.fabs(sigma[a] * P_t[i] - ratio * z_t[i]))
+        errors = natural_map_errors(
+            ops, sigma[a], (P[a], P_t[0], P_t[1]), (u[a], u_t[0], u_t[1]), mu[a]
+        )
+        for error in errors[: 1 + len(tangent)]:  # the missing rows' terms are 0
+            residual = ca.fmax(residual, error)
+        speed = ops.hypot(u_t[0], u_t[1])  # [m/s]
         bound = mu[a] * P[a]  # [N s]
-        at_bound = ca.sqrt(P_t[0] ** 2 + P_t[1] ** 2) >= (1.0 - MARGIN) * bound
+        at_bound = ops.hypot(P_t[0], P_t[1]) >= (1.0 - MARGIN) * bound
         slow = ca.logic_and(speed > 0.0, speed <= tolerance)
         marginal = ca.fmax(marginal, ca.logic_and(ca.logic_and(slow, bound > 0.0), at_bound))
     return residual, marginal
