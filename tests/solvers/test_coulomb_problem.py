@@ -90,6 +90,9 @@ def test_layout_and_gathers() -> None:
     assert problem.tangent_rows.tolist() == [[3, 4], [6, 6], [5, 6]]
     assert problem.mu.tolist() == [0.5, 0.0, 0.2]  # no tangential row: frictionless
     assert problem.tangential(np.arange(6.0)).tolist() == [[3.0, 4.0], [0.0, 0.0], [5.0, 0.0]]
+    assert problem.row_groups.tolist() == [0, 1, 2, 0, 0, 2]  # each row's contact
+    closed = CoulombProblem(np.eye(8), np.zeros(8), np.array([0.5, 0.5, 0.2]), tangents, 2)
+    assert closed.row_groups.tolist() == [0, 1, 2, 0, 0, 2, 3, 4]  # then the bilateral rows
 
 
 def test_layouts_are_shared_read_only_and_mu_is_the_problems_own() -> None:

@@ -150,11 +150,7 @@ def _jacobian_pattern(problem: CoulombProblem) -> Pattern | None:
     A row of J combines the rows of D of its own contact (bilateral rows: their own) and the
     contact's own columns; None where that pattern is denser than :data:`SPARSE_DENSITY`.
     """
-    m, size = problem.m, problem.size
-    group = np.empty(size, dtype=np.intp)
-    group[:m] = np.arange(m)
-    group[m : size - problem.equalities] = np.repeat(np.arange(m), problem.tangents)
-    group[size - problem.equalities :] = m + np.arange(problem.equalities)
+    m, group = problem.m, problem.row_groups
     order = np.argsort(group, kind="stable")  # each group's rows together, groups in order
     starts = np.searchsorted(group[order], np.arange(m + problem.equalities))
     touched = np.logical_or.reduceat((problem.D != 0.0)[order], starts, axis=0)
@@ -175,10 +171,10 @@ class AlartCurnier:
 
     def __init__(self, problem: CoulombProblem) -> None:
         self.problem = problem
-        m, size = problem.m, problem.size
+        size = problem.size
+        contacts = size - problem.equalities  # rows of the contacts
         rho = np.empty(size)
-        rho[:m] = 1.0 / problem.normal_scale
-        rho[m : size - problem.equalities] = np.repeat(rho[:m], problem.tangents)
+        rho[:contacts] = (1.0 / problem.normal_scale)[problem.row_groups[:contacts]]
         equal = problem.equality_rows
         if equal.size:
             rho[equal] = 1.0 / velocity_scale(problem.D[np.ix_(equal, equal)])

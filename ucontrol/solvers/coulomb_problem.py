@@ -74,6 +74,8 @@ class CoulombProblem:
         size: Number of rows r = m + sum(tangents) + equalities.
         tangent_rows: Row of the first and second tangential component of each contact,
             shape (m, 2); ``size`` where the contact has no such row (gathers read a 0 there).
+        row_groups: The group of each row, shape (r,): its contact's index, or m + j for
+            bilateral row j (:func:`row_groups`).
         spatial: Whether any contact has two tangential rows.
 
     Raises:
@@ -115,6 +117,7 @@ class CoulombProblem:
         self.tangent_rows = layout.tangent_rows
         self.spatial = layout.spatial
         self.equality_rows = layout.equality_rows
+        self.row_groups = layout.row_groups
         self._layout = layout
 
     @functools.cached_property
@@ -207,6 +210,7 @@ class _Layout(NamedTuple):
     frictional: NDArray[np.bool_]
     all_frictional: bool
     row_pairs: tuple[tuple[int, int], ...]
+    row_groups: NDArray[np.intp]
 
 
 @functools.lru_cache(maxsize=LAYOUTS)
@@ -229,7 +233,8 @@ def _layout(tangents: bytes, equalities: int) -> _Layout:
     )
     equality_rows = np.arange(size - equalities, size)
     frictional = counts > 0
-    for array in (tangent_rows, equality_rows, frictional):
+    groups = row_groups(counts, equalities)
+    for array in (tangent_rows, equality_rows, frictional, groups):
         array.flags.writeable = False
     return _Layout(
         counts,
@@ -242,7 +247,21 @@ def _layout(tangents: bytes, equalities: int) -> _Layout:
         frictional,
         bool(frictional.all()),
         tuple((int(i), int(j)) for i, j in tangent_rows.tolist()),
+        groups,
     )
+
+
+def row_groups(tangents: NDArray[np.intp], equalities: int) -> NDArray[np.intp]:
+    """The group of each row (r,): its contact's index, or m + j for bilateral row j.
+
+    Args:
+        tangents: Tangential rows of each contact (0, 1 or 2), shape (m,).
+        equalities: Number of bilateral rows, the last ones.
+    """
+    m = tangents.size
+    return np.concatenate(
+        (np.arange(m), np.repeat(np.arange(m), tangents), m + np.arange(equalities))
+    ).astype(np.intp)
 
 
 def tangential_norms(x_t: Vector) -> Vector:
