@@ -94,6 +94,15 @@ Index = NDArray[np.int64]
 
 _REGULARIZATION = 1e-4  # ε of the force QP: the weight of ||f||² [N²] beside the wrench's residual
 _MIN_STROKE = 1e-9  # [m] guards the thrust law against a zero distance to the touchdown height
+#: The settings the law's input ``gains`` holds, in its order.
+_LAW_GAINS = (
+    "horizontal_stiffness",
+    "horizontal_damping",
+    "attitude_stiffness",
+    "attitude_damping",
+    "height_stiffness",
+    "height_damping",
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -366,28 +375,13 @@ class PronkingController:
 
     def _law_gains(self) -> list[float]:
         """The law's input ``gains``: k_xy, d_xy, k_R, d_R, k_h, d_h."""
-        s = self.settings
-        return [
-            s.horizontal_stiffness,
-            s.horizontal_damping,
-            s.attitude_stiffness,
-            s.attitude_damping,
-            s.height_stiffness,
-            s.height_damping,
-        ]
+        return [getattr(self.settings, name) for name in _LAW_GAINS]
 
     def _law_constants(self) -> list[float]:
         """The law's input ``constants``: m, |g|, h_s, h_td, ε, the least stroke, contact_gap."""
         s = self.settings
-        return [
-            self.mass,
-            self.g,
-            s.stand_height,
-            self.touchdown_height,
-            _REGULARIZATION,
-            _MIN_STROKE,
-            s.contact_gap,
-        ]
+        h_s, h_td, gap = s.stand_height, self.touchdown_height, s.contact_gap  # [m]
+        return [self.mass, self.g, h_s, h_td, _REGULARIZATION, _MIN_STROKE, gap]
 
     def _build_law(self) -> None:
         """Build the compiled law (:mod:`~ucontrol.control.pronking_law`), bind it by name."""

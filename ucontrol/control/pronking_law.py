@@ -107,43 +107,23 @@ class LawOps(NamedTuple):
     zeros: Callable[[int], Any]
 
 
-#: The law on numpy arrays and floats (the reference, ``compiled=False``).
+#: The law on numpy arrays and floats (the reference, ``compiled=False``), in the fields' order.
 NUMPY_LAW_OPS = LawOps(
-    dot=np.dot,
-    fmax=max,
-    where=lambda condition, x, y: x if condition else y,
-    logical_and=lambda a, b: a and b,
-    skew=pin.skew,
-    log3=pin.log3,
-    vertcat=lambda *arrays: np.concatenate(arrays),
-    horzcat=lambda *arrays: np.concatenate(arrays, axis=1),
-    eye=np.eye,
-    spd_solve=np.linalg.solve,
-    total=lambda x: float(np.sum(x)),
-    smallest=np.min,
-    zeros=np.zeros,
-)
+    np.dot, max, lambda condition, x, y: x if condition else y, lambda a, b: a and b,
+    pin.skew, pin.log3, lambda *arrays: np.concatenate(arrays),
+    lambda *arrays: np.concatenate(arrays, axis=1), np.eye, np.linalg.solve,
+    lambda x: float(np.sum(x)), np.min, np.zeros,
+)  # fmt: skip
 
 
 def casadi_law_ops() -> LawOps:
-    """The law on casadi SX expressions (the compiled path)."""
+    """The law on casadi SX expressions (the compiled path), in the fields' order."""
     import casadi as ca
 
     return LawOps(
-        dot=ca.dot,
-        fmax=ca.fmax,
-        where=ca.if_else,
-        logical_and=ca.logic_and,
-        skew=ca.skew,
-        log3=_log3,
-        vertcat=ca.vertcat,
-        horzcat=ca.horzcat,
-        eye=ca.SX.eye,
-        spd_solve=_spd_solve,
-        total=ca.sum1,
-        smallest=ca.mmin,
-        zeros=ca.SX.zeros,
-    )
+        ca.dot, ca.fmax, ca.if_else, ca.logic_and, ca.skew, _log3, ca.vertcat, ca.horzcat,
+        ca.SX.eye, _spd_solve, ca.sum1, ca.mmin, ca.SX.zeros,
+    )  # fmt: skip
 
 
 def foot_inputs(n_feet: int) -> list[str]:
