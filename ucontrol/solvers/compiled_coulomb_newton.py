@@ -52,7 +52,12 @@ from ucontrol.model.compile_cache import build_library, definition_key
 from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.model.native_call import native_runner
 from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION
-from ucontrol.solvers.coulomb_problem import ConeOps, CoulombProblem, natural_map_errors
+from ucontrol.solvers.coulomb_problem import (
+    ConeOps,
+    CoulombProblem,
+    natural_map_errors,
+    row_groups,
+)
 
 if TYPE_CHECKING:
     import casadi as ca
@@ -234,11 +239,11 @@ def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
     mu = ca.SX.sym("mu", m)
     P = ca.SX.sym("P", size)
     tolerance = ca.SX.sym("tolerance")
-    offsets = np.concatenate(([m], m + np.cumsum(tangents)))
-    rows = [list(range(offsets[a], offsets[a + 1])) for a in range(m)]
+    group = row_groups(np.array(tangents, dtype=np.intp), 0).tolist()  # each row's contact
+    rows = [[i for i in range(m, size) if group[i] == a] for a in range(m)]  # tangential
     sigma = [ca.if_else(D[a, a] > 0.0, D[a, a], 1.0) for a in range(m)]  # [m/s per N s]
-    rho = ca.vertcat(*(1.0 / sigma[a] for a in range(m)))
-    rho = ca.vertcat(rho, *(rho[a] for a in range(m) for _ in rows[a]))
+    inverse = [1.0 / sigma[a] for a in range(m)]
+    rho = ca.vertcat(*(inverse[a] for a in group))  # [N s per m/s]
 
     F = [ca.SX(0.0)] * size
     x = P - rho * (ca.mtimes(D, P) + b)  # [N s]
