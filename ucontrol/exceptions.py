@@ -13,6 +13,10 @@ from typing import Any
 class UControlError(Exception):
     """Base class of every error raised by ucontrol."""
 
+    def __str__(self) -> str:
+        """The message itself (KeyError's own text would be the message's repr)."""
+        return str(self.args[0]) if len(self.args) == 1 else super().__str__()
+
 
 class InvalidParameterError(UControlError, ValueError):
     """A parameter has a value outside its admissible set.
@@ -154,9 +158,6 @@ class NotFoundError(UControlError, KeyError):
         self.available = sorted(available)
         super().__init__(f"unknown {kind} {name!r}; available: {', '.join(self.available)}")
 
-    def __str__(self) -> str:  # KeyError would print the repr of the message
-        return str(self.args[0])
-
 
 class UserFunctionError(UControlError, LookupError):
     """A user function named ``module:function`` cannot be imported.
@@ -170,9 +171,6 @@ class UserFunctionError(UControlError, LookupError):
         self.spec = spec
         self.reason = reason
         super().__init__(f"cannot load the function {spec!r}: {reason}")
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 class FrameNotFoundError(NotFoundError):
@@ -742,9 +740,6 @@ class ParameterKeyError(CampaignError, KeyError):
         self.reason = reason
         super().__init__(f"parameter {key!r}: {reason}")
 
-    def __str__(self) -> str:  # KeyError would print the repr of the message
-        return str(self.args[0])
-
 
 class DistributionError(CampaignError, InvalidParameterError):
     """A distribution's parameters are out of range.
@@ -799,9 +794,6 @@ class UnknownMetricError(CampaignError, KeyError):
         listed = f"; available: {', '.join(self.available)}" if self.available else ""
         super().__init__(f"unknown metric {metric!r}: {reason}{listed}")
 
-    def __str__(self) -> str:
-        return str(self.args[0])
-
 
 class CriterionError(CampaignError, InvalidParameterError):
     """A success criterion is not a valid expression of the allowed form.
@@ -832,9 +824,6 @@ class OutputDirectoryError(CampaignError, OSError):
         self.directory = directory
         self.reason = reason
         UControlError.__init__(self, f"output directory {directory!r} is not writable: {reason}")
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 class CampaignMismatchError(CampaignError):
@@ -868,6 +857,3 @@ class SchedulerUnreachableError(CampaignError, ConnectionError):
         self.address = address
         self.reason = reason
         UControlError.__init__(self, f"no Dask scheduler reachable at {address!r}: {reason}")
-
-    def __str__(self) -> str:
-        return str(self.args[0])
