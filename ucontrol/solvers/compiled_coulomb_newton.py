@@ -10,10 +10,12 @@ expression for each row layout, compiled to C into the compile cache
 (:mod:`ucontrol.model.native_call`); without a C compiler the numpy polish runs alone. One
 call computes, from impulses :math:`P`,
 
-1. the Alart–Curnier function :math:`F(P)` and an element of its generalized Jacobian by
-   casadi's automatic differentiation (the branches of :math:`\max` and of the projection on
-   the disk of radius :math:`\mu \max(P_n, 0)` taken where the point lies, as
-   :meth:`~ucontrol.solvers.alart_curnier.AlartCurnier.value` assembles it by hand);
+1. the Alart–Curnier function :math:`F(P)`
+   (:func:`~ucontrol.solvers.alart_curnier.alart_curnier_terms`, the numpy polish's own) and an
+   element of its generalized Jacobian by casadi's automatic differentiation (the branches of
+   :math:`\max` and of the projection on the disk of radius :math:`\mu \max(P_n, 0)` taken
+   where the point lies, as :meth:`~ucontrol.solvers.alart_curnier.AlartCurnier.value`
+   assembles it by hand);
 2. the full Newton step :math:`P^+ = P - J^{-1} F(P)` (casadi's QR of J, unrolled), or no
    step where the diagonal of R says J is singular to
    :data:`~ucontrol.solvers.alart_curnier.LSTSQ_CONDITION` (redundant contacts: the numpy
@@ -51,7 +53,7 @@ from ucontrol.exceptions import CompiledCallError
 from ucontrol.model.compile_cache import build_library, definition_key
 from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.model.native_call import native_runner
-from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION
+from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION, alart_curnier_terms
 from ucontrol.solvers.coulomb_problem import (
     ConeOps,
     CoulombProblem,
@@ -70,9 +72,6 @@ MAX_ROWS = 12
 #: :data:`ucontrol.solvers.proxsuite_coulomb.MARGIN`, which re-exports it).
 MARGIN = 1e-9
 _logger = logging.getLogger(__name__)
-
-#: Floor of squared norms under a square root or a division (0 / 0 and its derivative).
-_TINY = 1e-300
 
 
 class CompiledCoulombNewton:
@@ -214,7 +213,8 @@ def _library(tangents: tuple[int, ...]) -> Path:
         generator.add(newton_step_function(tangents))
         return str(generator.dump())
 
-    key = definition_key([_name(tangents)], [__name__, CoulombProblem.__module__])
+    modules = [__name__, CoulombProblem.__module__, alart_curnier_terms.__module__]
+    key = definition_key([_name(tangents)], modules)
     return build_library(_name(tangents), key, source)
 
 
@@ -246,18 +246,17 @@ def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
     rho = ca.vertcat(*(inverse[a] for a in group))  # [N s per m/s]
 
     F = [ca.SX(0.0)] * size
-    x = P - rho * (ca.mtimes(D, P) + b)  # [N s]
+    rho_u = rho * (ca.mtimes(D, P) + b)  # [N s]
+    x = P - rho_u
+    ops, zero = _casadi_ops(), ca.SX(0.0)
     for a in range(m):
-        F[a] = P[a] - ca.fmax(x[a], 0.0)
-        radius = mu[a] * ca.fmax(P[a], 0.0)
-        if len(rows[a]) == 1:
-            t = rows[a][0]
-            F[t] = P[t] - ca.fmin(ca.fmax(x[t], -radius), radius)
-        elif len(rows[a]) == 2:
-            t1, t2 = rows[a]
-            norm = ca.sqrt(ca.fmax(x[t1] ** 2 + x[t2] ** 2, _TINY))
-            ratio = ca.fmin(1.0, radius / norm)
-            F[t1], F[t2] = P[t1] - ratio * x[t1], P[t2] - ratio * x[t2]
+        tangent = rows[a] + [size] * (2 - len(rows[a]))  # size: a missing row, 0
+        P_a, x_a, rho_u_a = (
+            [y[a], *(y[i] if i < size else zero for i in tangent)] for y in (P, x, rho_u)
+        )
+        terms = alart_curnier_terms(ops, P_a, x_a, rho_u_a, mu[a])
+        for i, term in zip([a, *rows[a]], terms, strict=False):
+            F[i] = term
     F_P = ca.vertcat(*F)
     Q, R = ca.qr(ca.jacobian(F_P, P))
     P_next = P + ca.solve(R, -ca.mtimes(Q.T, F_P))
@@ -290,6 +289,8 @@ def _casadi_ops() -> ConeOps:
     return ConeOps(
         lambda x, y: ca.sqrt(x**2 + y**2),
         ca.fmax,
+        ca.fmin,
+        ca.sqrt,
         ca.fabs,
         ca.logic_and,
         ca.if_else,

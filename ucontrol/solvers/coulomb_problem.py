@@ -272,14 +272,17 @@ def tangential_norms(x_t: Vector) -> Vector:
 class ConeOps(NamedTuple):
     """The operations the cone's expressions use, on one kind of number.
 
-    The definitions below (:func:`project_on_cone`, :func:`natural_map_errors`) are written
-    once over these, and evaluated on Python floats (:data:`FLOAT_OPS`, problems of a few
-    rows), numpy arrays of contacts (:data:`NUMPY_OPS`) and casadi expressions (the compiled
-    Newton step, :mod:`~ucontrol.solvers.compiled_coulomb_newton`).
+    The definitions written once over these (:func:`project_on_cone`,
+    :func:`natural_map_errors`, :func:`~ucontrol.solvers.alart_curnier.alart_curnier_terms`)
+    are evaluated on Python floats (:data:`FLOAT_OPS`, problems of a few rows), numpy arrays
+    of contacts (:data:`NUMPY_OPS`) and casadi expressions (the compiled Newton step,
+    :mod:`~ucontrol.solvers.compiled_coulomb_newton`).
 
     Attributes:
         hypot: Euclidean norm of two components.
         fmax: Elementwise larger of two values.
+        fmin: Elementwise smaller of two values.
+        sqrt: Square root.
         fabs: Absolute value.
         logical_and: Elementwise and of two conditions.
         where: ``where(condition, x, y)``.
@@ -289,6 +292,8 @@ class ConeOps(NamedTuple):
 
     hypot: Callable[[Any, Any], Any]
     fmax: Callable[[Any, Any], Any]
+    fmin: Callable[[Any, Any], Any]
+    sqrt: Callable[[Any], Any]
     fabs: Callable[[Any], Any]
     logical_and: Callable[[Any, Any], Any]
     where: Callable[[Any, Any, Any], Any]
@@ -307,10 +312,19 @@ def _array_ratio(x: Vector, y: Vector, skip: NDArray[np.bool_]) -> Vector:
 
 #: The cone's operations on Python floats.
 FLOAT_OPS = ConeOps(
-    math.hypot, max, abs, lambda a, b: a and b, lambda c, x, y: x if c else y, _float_ratio
+    math.hypot,
+    max,
+    min,
+    math.sqrt,
+    abs,
+    lambda a, b: a and b,
+    lambda c, x, y: x if c else y,
+    _float_ratio,
 )
 #: The cone's operations on numpy arrays (one entry per contact).
-NUMPY_OPS = ConeOps(np.hypot, np.maximum, np.abs, np.logical_and, np.where, _array_ratio)
+NUMPY_OPS = ConeOps(
+    np.hypot, np.maximum, np.minimum, np.sqrt, np.abs, np.logical_and, np.where, _array_ratio
+)
 
 
 def project_on_cone(ops: ConeOps, z_n: Any, z_1: Any, z_2: Any, mu: Any) -> tuple[Any, Any, Any]:
