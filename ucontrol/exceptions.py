@@ -587,7 +587,28 @@ class PhysicsWarning(UserWarning):
     """A run went on, but something in its physics deserves a look (the figure is given)."""
 
 
-class PenetrationWarning(PhysicsWarning):
+class _BeyondToleranceWarning(PhysicsWarning):
+    """A constraint left beyond its tolerance by some amount at some time (the message's form).
+
+    Attributes:
+        constraint: The constraint's name.
+        time: When it happened, in [s].
+        tolerance: The tolerance in [m] (or [rad]).
+    """
+
+    def __init__(
+        self, what: str, constraint: str, amount: float, time: float, tolerance: float, hint: str
+    ) -> None:
+        self.constraint = constraint
+        self.time = time
+        self.tolerance = tolerance
+        super().__init__(
+            f"{what.format(repr(constraint))} by {amount:.4g} at t = {time:.6g} s, beyond the "
+            f"tolerance {tolerance:.4g} ({hint})"
+        )
+
+
+class PenetrationWarning(_BeyondToleranceWarning):
     """A constraint was penetrated deeper than the scene's tolerance.
 
     Attributes:
@@ -598,15 +619,9 @@ class PenetrationWarning(PhysicsWarning):
     """
 
     def __init__(self, constraint: str, depth: float, time: float, tolerance: float) -> None:
-        self.constraint = constraint
         self.depth = depth
-        self.time = time
-        self.tolerance = tolerance
-        super().__init__(
-            f"constraint {constraint!r} penetrated by {depth:.4g} at t = {time:.6g} s, beyond "
-            f"the tolerance {tolerance:.4g} (set [integrator] penetration_tolerance; a smaller "
-            "dt reduces it)"
-        )
+        hint = "set [integrator] penetration_tolerance; a smaller dt reduces it"
+        super().__init__("constraint {} penetrated", constraint, depth, time, tolerance, hint)
 
 
 class PlasticRedoWarning(PhysicsWarning):
@@ -650,7 +665,7 @@ class EnergyGainWarning(PhysicsWarning):
         )
 
 
-class BilateralResidualWarning(PhysicsWarning):
+class BilateralResidualWarning(_BeyondToleranceWarning):
     """A bilateral constraint h(q) = 0 was left unsolved beyond the tolerance.
 
     Attributes:
@@ -661,15 +676,10 @@ class BilateralResidualWarning(PhysicsWarning):
     """
 
     def __init__(self, constraint: str, residual: float, time: float, tolerance: float) -> None:
-        self.constraint = constraint
         self.residual = residual
-        self.time = time
-        self.tolerance = tolerance
-        super().__init__(
-            f"bilateral constraint {constraint!r} left unsolved by {residual:.4g} at "
-            f"t = {time:.6g} s, beyond the tolerance {tolerance:.4g} (a singular closed chain, "
-            "or a step too large for it)"
-        )
+        hint = "a singular closed chain, or a step too large for it"
+        what = "bilateral constraint {} left unsolved"
+        super().__init__(what, constraint, residual, time, tolerance, hint)
 
 
 class SolverIterationCapWarning(PhysicsWarning):
