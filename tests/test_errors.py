@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from conftest import ROBOTS, ball_scene
 
+from ucontrol import exceptions
 from ucontrol.contact import JointStop, Plane, PointContact
 from ucontrol.exceptions import (
     FrameNotFoundError,
@@ -177,3 +178,21 @@ def test_theta_outside_its_range() -> None:
     scene = ball_scene(0.9)
     with pytest.raises(InvalidParameterError, match=r"`theta` must be in \[0.5, 1\]"):
         MoreauJean(scene.robot, scene.constraints, dt=1e-3, theta=0.3)
+
+
+@pytest.mark.parametrize(
+    ("error", "builtin"),
+    [
+        (NotFoundError("frame", "toe", ["foot", "hand"]), KeyError),
+        (exceptions.UserFunctionError("m:f", "no module m"), LookupError),
+        (exceptions.ParameterKeyError("contacts.0.mu", "no such key"), KeyError),
+        (exceptions.UnknownMetricError("gap", "not in summary.json", ["steps"]), KeyError),
+        (exceptions.OutputDirectoryError("/out", "read-only"), OSError),
+        (exceptions.SchedulerUnreachableError("tcp://x:1", "refused"), ConnectionError),
+    ],
+)
+def test_errors_read_as_their_message_whatever_builtin_they_extend(error, builtin) -> None:
+    """One message text for every error, not KeyError's repr of it (quotes, escapes)."""
+    assert isinstance(error, builtin)
+    assert str(error) == error.args[0]
+    assert not str(error).startswith(("'", '"'))

@@ -13,6 +13,10 @@ from typing import Any
 class UControlError(Exception):
     """Base class of every error raised by ucontrol."""
 
+    def __str__(self) -> str:
+        """The message itself (KeyError's own text would be the message's repr)."""
+        return str(self.args[0]) if len(self.args) == 1 else super().__str__()
+
 
 class InvalidParameterError(UControlError, ValueError):
     """A parameter has a value outside its admissible set.
@@ -154,9 +158,6 @@ class NotFoundError(UControlError, KeyError):
         self.available = sorted(available)
         super().__init__(f"unknown {kind} {name!r}; available: {', '.join(self.available)}")
 
-    def __str__(self) -> str:  # KeyError would print the repr of the message
-        return str(self.args[0])
-
 
 class UserFunctionError(UControlError, LookupError):
     """A user function named ``module:function`` cannot be imported.
@@ -170,9 +171,6 @@ class UserFunctionError(UControlError, LookupError):
         self.spec = spec
         self.reason = reason
         super().__init__(f"cannot load the function {spec!r}: {reason}")
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 class FrameNotFoundError(NotFoundError):
@@ -589,7 +587,28 @@ class PhysicsWarning(UserWarning):
     """A run went on, but something in its physics deserves a look (the figure is given)."""
 
 
-class PenetrationWarning(PhysicsWarning):
+class _BeyondToleranceWarning(PhysicsWarning):
+    """A constraint left beyond its tolerance by some amount at some time (the message's form).
+
+    Attributes:
+        constraint: The constraint's name.
+        time: When it happened, in [s].
+        tolerance: The tolerance in [m] (or [rad]).
+    """
+
+    def __init__(
+        self, what: str, constraint: str, amount: float, time: float, tolerance: float, hint: str
+    ) -> None:
+        self.constraint = constraint
+        self.time = time
+        self.tolerance = tolerance
+        super().__init__(
+            f"{what.format(repr(constraint))} by {amount:.4g} at t = {time:.6g} s, beyond the "
+            f"tolerance {tolerance:.4g} ({hint})"
+        )
+
+
+class PenetrationWarning(_BeyondToleranceWarning):
     """A constraint was penetrated deeper than the scene's tolerance.
 
     Attributes:
@@ -600,15 +619,9 @@ class PenetrationWarning(PhysicsWarning):
     """
 
     def __init__(self, constraint: str, depth: float, time: float, tolerance: float) -> None:
-        self.constraint = constraint
         self.depth = depth
-        self.time = time
-        self.tolerance = tolerance
-        super().__init__(
-            f"constraint {constraint!r} penetrated by {depth:.4g} at t = {time:.6g} s, beyond "
-            f"the tolerance {tolerance:.4g} (set [integrator] penetration_tolerance; a smaller "
-            "dt reduces it)"
-        )
+        hint = "set [integrator] penetration_tolerance; a smaller dt reduces it"
+        super().__init__("constraint {} penetrated", constraint, depth, time, tolerance, hint)
 
 
 class PlasticRedoWarning(PhysicsWarning):
@@ -652,7 +665,7 @@ class EnergyGainWarning(PhysicsWarning):
         )
 
 
-class BilateralResidualWarning(PhysicsWarning):
+class BilateralResidualWarning(_BeyondToleranceWarning):
     """A bilateral constraint h(q) = 0 was left unsolved beyond the tolerance.
 
     Attributes:
@@ -663,15 +676,10 @@ class BilateralResidualWarning(PhysicsWarning):
     """
 
     def __init__(self, constraint: str, residual: float, time: float, tolerance: float) -> None:
-        self.constraint = constraint
         self.residual = residual
-        self.time = time
-        self.tolerance = tolerance
-        super().__init__(
-            f"bilateral constraint {constraint!r} left unsolved by {residual:.4g} at "
-            f"t = {time:.6g} s, beyond the tolerance {tolerance:.4g} (a singular closed chain, "
-            "or a step too large for it)"
-        )
+        hint = "a singular closed chain, or a step too large for it"
+        what = "bilateral constraint {} left unsolved"
+        super().__init__(what, constraint, residual, time, tolerance, hint)
 
 
 class SolverIterationCapWarning(PhysicsWarning):
@@ -742,9 +750,6 @@ class ParameterKeyError(CampaignError, KeyError):
         self.reason = reason
         super().__init__(f"parameter {key!r}: {reason}")
 
-    def __str__(self) -> str:  # KeyError would print the repr of the message
-        return str(self.args[0])
-
 
 class DistributionError(CampaignError, InvalidParameterError):
     """A distribution's parameters are out of range.
@@ -799,9 +804,6 @@ class UnknownMetricError(CampaignError, KeyError):
         listed = f"; available: {', '.join(self.available)}" if self.available else ""
         super().__init__(f"unknown metric {metric!r}: {reason}{listed}")
 
-    def __str__(self) -> str:
-        return str(self.args[0])
-
 
 class CriterionError(CampaignError, InvalidParameterError):
     """A success criterion is not a valid expression of the allowed form.
@@ -832,9 +834,6 @@ class OutputDirectoryError(CampaignError, OSError):
         self.directory = directory
         self.reason = reason
         UControlError.__init__(self, f"output directory {directory!r} is not writable: {reason}")
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 class CampaignMismatchError(CampaignError):
@@ -868,6 +867,3 @@ class SchedulerUnreachableError(CampaignError, ConnectionError):
         self.address = address
         self.reason = reason
         UControlError.__init__(self, f"no Dask scheduler reachable at {address!r}: {reason}")
-
-    def __str__(self) -> str:
-        return str(self.args[0])

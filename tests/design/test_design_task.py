@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from ucontrol.design import DesignTask
+from ucontrol.design.design_task import FlightSpec
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError, UnknownKeyError
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
@@ -95,3 +96,13 @@ def test_bad_solver_setting_is_named(key: str, value: str) -> None:
     with pytest.raises(InvalidParameterError, match=key) as error:
         DesignTask.from_dict(table, base_dir=ROBOTS)
     assert error.value.value == value
+
+
+@pytest.mark.parametrize(
+    ("low", "high", "off"),
+    [(0.5, 0.4, "duration_max"), (0.0, 1.0, "duration_min"), (0.5, float("inf"), "duration_max")],
+)
+def test_flight_durations_out_of_order_or_not_positive_are_refused(low, high, off) -> None:
+    with pytest.raises(InvalidParameterError, match=f"`{off}`"):
+        FlightSpec(duration_min=low, duration_max=high)
+    assert (FlightSpec(duration_min=0.5, duration_max=0.5).duration_max) == 0.5  # equal bounds

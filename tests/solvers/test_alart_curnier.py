@@ -10,10 +10,12 @@ from ucontrol.solvers import CoulombProblem, ProxsuiteCoulombSolver
 from ucontrol.solvers.alart_curnier import (
     SPARSE_SIZE,
     AlartCurnier,
+    alart_curnier_terms,
     least_squares,
     solve_square,
     sparsity,
 )
+from ucontrol.solvers.coulomb_problem import FLOAT_OPS, NUMPY_OPS
 
 _FD_STEP = 1e-7  # [N s], central differences
 _FD_TOLERANCE = 1e-6  # relative to max |J|
@@ -103,3 +105,33 @@ def test_sparse_lu_agrees_with_dense_least_squares(singular: bool) -> None:
     assert sparsity(A != 0.0) is not None
     expected = np.linalg.lstsq(A, y, rcond=1e-10)[0]
     assert np.allclose(solve_square(A, y), expected, atol=1e-10)
+
+
+def test_terms_are_the_disk_projection_on_floats_and_arrays() -> None:
+    """F_t = P_t - Π(x_t) on the disk of radius μ max(P_n, 0), on floats and arrays alike.
+
+    The clip of a planar contact, the radial projection of a spatial one; the same bits on
+    floats and on numpy arrays.
+    """
+    rng = np.random.default_rng(5)
+    P, x = rng.normal(size=(3, 300)), rng.normal(size=(3, 300))
+    mu = rng.uniform(0.0, 1.5, 300)
+    x[2, :100] = 0.0  # planar contacts
+    x[1:, 100:120] = 0.0  # y = 0: a finite ratio
+    rho_u = P - x  # [N s]
+    arrays = np.array(alart_curnier_terms(NUMPY_OPS, P, x, rho_u, mu))
+    floats = np.array(
+        [
+            alart_curnier_terms(FLOAT_OPS, p, z, w, m)
+            for p, z, w, m in zip(P.T, x.T, rho_u.T, mu, strict=True)
+        ]
+    ).T
+    assert np.array_equal(arrays, floats)
+    np.testing.assert_allclose(arrays[0], P[0] - np.maximum(x[0], 0.0), rtol=0.0, atol=1e-15)
+    radius = mu * np.maximum(P[0], 0.0)
+    clipped = np.clip(x[1, :100], -radius[:100], radius[:100])
+    np.testing.assert_allclose(arrays[1, :100], P[1, :100] - clipped, rtol=0.0, atol=1e-15)
+    norm = np.hypot(x[1, 100:], x[2, 100:])
+    scale = np.where(norm > radius[100:], radius[100:] / np.where(norm > 0, norm, 1.0), 1.0)
+    projected = scale * x[1:, 100:]
+    np.testing.assert_allclose(arrays[1:, 100:], P[1:, 100:] - projected, rtol=0.0, atol=1e-15)

@@ -7,7 +7,7 @@ import pytest
 
 from ucontrol.exceptions import InvalidParameterError, ShapeError
 from ucontrol.solvers import CoulombProblem, complementarity_residual
-from ucontrol.solvers.coulomb_problem import project_on_cones
+from ucontrol.solvers.coulomb_problem import FLOAT_OPS, NUMPY_OPS, project_on_cone
 
 _ROUND_OFF = 1e-14  # [m/s] on problems of unit scale
 
@@ -63,6 +63,12 @@ def test_residual_is_positive_away_from_a_solution(P: list[float], reason: str) 
     assert problem.residual(np.array(P)) > 0.01, reason
 
 
+def project_on_cones(z_n: np.ndarray, z_t: np.ndarray, mu: np.ndarray) -> tuple:
+    """:func:`project_on_cone` on numpy arrays of contacts: normal (m,), tangential (m, 2)."""
+    p_n, p_1, p_2 = project_on_cone(NUMPY_OPS, z_n, z_t[:, 0], z_t[:, 1], mu)
+    return p_n, np.column_stack((p_1, p_2))
+
+
 def test_projection_on_cones() -> None:
     rng = np.random.default_rng(1)
     mu = rng.uniform(0.0, 1.5, 200)
@@ -84,6 +90,9 @@ def test_layout_and_gathers() -> None:
     assert problem.tangent_rows.tolist() == [[3, 4], [6, 6], [5, 6]]
     assert problem.mu.tolist() == [0.5, 0.0, 0.2]  # no tangential row: frictionless
     assert problem.tangential(np.arange(6.0)).tolist() == [[3.0, 4.0], [0.0, 0.0], [5.0, 0.0]]
+    assert problem.row_groups.tolist() == [0, 1, 2, 0, 0, 2]  # each row's contact
+    closed = CoulombProblem(np.eye(8), np.zeros(8), np.array([0.5, 0.5, 0.2]), tangents, 2)
+    assert closed.row_groups.tolist() == [0, 1, 2, 0, 0, 2, 3, 4]  # then the bilateral rows
 
 
 def test_layouts_are_shared_read_only_and_mu_is_the_problems_own() -> None:
@@ -173,3 +182,26 @@ def test_residual_is_nan_where_an_impulse_is() -> None:
     problem = _single(0.5, np.eye(3), np.array([-1.0, 0.3, -0.2]))
     assert np.isnan(problem.residual(np.array([np.nan, 0.0, 0.0])))
     assert np.isnan(problem.residual(np.array([1.0, 0.0, np.nan])))
+
+
+def test_projection_on_floats_is_the_numpy_one_bitwise() -> None:
+    """One definition on two kinds of numbers, the same bits.
+
+    Also at the apex, on the axis, for mu = 0, subnormal tangential parts and NaNs.
+    """
+    rng = np.random.default_rng(4)
+    z = rng.standard_normal((3, 400)) * rng.choice([1e-300, 1e-8, 1.0, 1e8], (3, 400))
+    mu = rng.choice([0.0, 0.3, 1.0, 2.5], 400)
+    z[1:, :40] = 0.0  # on the normal axis
+    z[1, 40:60], z[2, 40:60] = 5e-324, 0.0  # subnormal tangential parts
+    z[0, 60:70] = np.nan
+    z[1, 70:80] = np.nan
+    arrays = np.array(project_on_cone(NUMPY_OPS, z[0], z[1], z[2], mu))
+    floats = np.array(
+        [
+            project_on_cone(FLOAT_OPS, *column, aperture)
+            for column, aperture in zip(z.T.tolist(), mu.tolist(), strict=True)
+        ]
+    ).T
+    assert np.array_equal(arrays, floats, equal_nan=True)
+    assert np.isnan(arrays[:, 60:80]).any(axis=0).all()  # a NaN stays a NaN

@@ -50,10 +50,11 @@ After each flight the measured apex :math:`H_k` corrects the energy of the next 
 :math:`\delta_{k+1} = \delta_k + 2 g\, k_a (H - H_k)` (``apex_gain`` :math:`k_a`; 0 disables).
 Touchdown (phase CONSTRAINED again): a foot in contact while :math:`\dot h < 0`.
 
-**Paths.** The numpy code below is the law's readable reference (``compiled=False``); calls run
-the same law compiled to C (:mod:`~ucontrol.control.pronking_law`) where a C compiler is found,
-and in the closed loop read the plant's evaluation (:meth:`PronkingController.use_plant_data`).
-The phase machine and the QP beyond the pyramids are shared by both paths.
+**Paths.** The law is written once (:mod:`~ucontrol.control.pronking_law`) and evaluated on numpy
+arrays, its readable reference (``compiled=False``), or built on casadi expressions and compiled
+to C where a C compiler is found; compiled, in the closed loop it reads the plant's evaluation
+(:meth:`PronkingController.use_plant_data`). The phase machine and the QP beyond the pyramids
+are shared by both paths.
 """
 
 from __future__ import annotations
@@ -71,6 +72,14 @@ from ucontrol._validation import as_float, as_int, as_non_negative, as_positive,
 from ucontrol.contact.tangent_basis import tangent_basis
 from ucontrol.control.controller import ContactState, Vector
 from ucontrol.control.phase import Phase
+from ucontrol.control.pronking_law import (
+    NUMPY_LAW_OPS,
+    distribute_forces,
+    height_acceleration,
+    joint_torques,
+    law_measures,
+    stance_wrench,
+)
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.solvers.proxsuite_qp import INFINITY, WarmStartedQP
@@ -82,11 +91,18 @@ if TYPE_CHECKING:
 
 Mask = NDArray[np.bool_]
 Index = NDArray[np.int64]
-#: The force columns, the inequality rows and their bounds of one set of feet in contact.
-_StanceRows = tuple[Mask, Vector, Vector, Vector]
 
 _REGULARIZATION = 1e-4  # ε of the force QP: the weight of ||f||² [N²] beside the wrench's residual
 _MIN_STROKE = 1e-9  # [m] guards the thrust law against a zero distance to the touchdown height
+#: The settings the law's input ``gains`` holds, in its order.
+_LAW_GAINS = (
+    "horizontal_stiffness",
+    "horizontal_damping",
+    "attitude_stiffness",
+    "attitude_damping",
+    "height_stiffness",
+    "height_damping",
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -160,8 +176,8 @@ class PronkingController:
             orientation is the attitude R_d held in stance.
         settings: Heights, hops and gains.
         compiled: Run the law compiled to C (:mod:`~ucontrol.control.pronking_law`); False
-            runs the numpy reference below; None (default) compiles where a C compiler is
-            found and ``UCONTROL_NO_COMPILE`` is not set.
+            runs it on numpy arrays (the reference); None (default) compiles where a C
+            compiler is found and ``UCONTROL_NO_COMPILE`` is not set.
 
     Attributes:
         compiled: Whether the calls run the compiled law.
@@ -205,14 +221,16 @@ class PronkingController:
         self._legs = [self._leg(frame, name) for frame, name in zip(self._frames, feet)]
         in_legs = np.concatenate(self._legs)
         self._others = np.setdiff1d(self._actuated, in_legs)
-        self._q_of_v = _configuration_index(model)
-        if np.any(self._q_of_v[self._actuated] < 0):
+        q_of_v = _configuration_index(model)
+        if np.any(q_of_v[self._actuated] < 0):
             raise InvalidParameterError(
                 "robot",
                 robot.name,
                 "actuated joints with one configuration coordinate per velocity (revolute, "
                 "prismatic) for the pronking controller",
             )
+        #: The legs, the actuated joints on no leg and the configuration index of each velocity.
+        self._structure = (self._legs, self._others, q_of_v)
         self.g = float(np.linalg.norm(robot.gravity))
         self.up = -robot.gravity / self.g
         self.mass = float(pin.computeTotalMass(model))  # [kg]
@@ -289,71 +307,81 @@ class PronkingController:
             C[5 * i + 4, cols] = normal
             upper[5 * i + 4] = self.settings.max_normal_force
         self._C = C
-        self._A = np.zeros((6, 3 * n))  # the wrench of the feet's forces about the centre of mass
-        self._A[:3] = np.tile(np.eye(3), n)
-        self._eps6 = _REGULARIZATION * np.eye(6)
-        self._stance_cache: dict[bytes, _StanceRows] = {}
+        self._pyramids = np.zeros((5, 3 * n))  # foot i's five rows on its three columns
+        for i in range(n):
+            self._pyramids[:, 3 * i : 3 * i + 3] = C[5 * i : 5 * i + 5, 3 * i : 3 * i + 3]
+        self._A = np.zeros((6, 3 * n))  # the wrench matrix of the last stance call
         self._lower = np.full(5 * n, -INFINITY)
         self._lower[4::5] = 0.0
         self._upper = upper
-
-    def _stance_rows(self, touching: Mask) -> _StanceRows:
-        """The force columns, constraint rows and bounds of the feet in contact (cached)."""
-        key = touching.tobytes()
-        cached = self._stance_cache.get(key)
-        if cached is not None:
-            return cached
-        columns = np.repeat(touching, 3)
-        inequalities = np.repeat(touching, 5)
-        rows: _StanceRows = (
-            columns,
-            self._C[np.ix_(inequalities, columns)],
-            self._lower[inequalities],
-            self._upper[inequalities],
-        )
-        self._stance_cache[key] = rows
-        return rows
 
     def __call__(self, t: float, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """Joint torques, shape (nu,)."""
         if self.compiled:
             return self._compiled_call(q, v, contacts)
-        model, data, s = self._model, self._data, self.settings
-        pin.ccrba(model, data, q, v)  # centre of mass, centroidal inertia and momentum
-        c = data.com[0].copy()
-        c_dot = data.hg.linear / self.mass  # [m/s]
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
-        feet = np.array([data.oMf[f].translation for f in self._frames])  # (n_feet, 3)
+        ops, data = NUMPY_LAW_OPS, self._data
+        self._evaluate(data, q, v)
+        c, momentum = data.com[0], data.hg.linear
+        feet = [data.oMf[f].translation for f in self._frames]  # [m]
         gaps = contacts.gap[self._contacts]
-        touching = gaps <= s.contact_gap
-        ground = (
-            float((feet @ self.up - gaps).sum()) / gaps.size
-        )  # feet centres' level on the ground [m]
-        h, h_dot = float(c @ self.up) - ground, float(c_dot @ self.up)
+        constants = self._law_constants()
+        h, h_dot, touching = law_measures(ops, c, momentum, gaps, feet, self.up, constants)
         if self._c0 is None:
             self._c0 = c.copy()
         self._update_phase(h, h_dot, bool(touching.any()))
         self._height = h
-        tau = np.zeros(model.nv)
-        gravity = pin.computeGeneralizedGravity(model, data, q)
-        self._forces[:] = 0.0
-        if self.phase != Phase.FREE and touching.any():
-            offset = c - self._c0  # [m] from where the centre of mass was at the first call
-            self._forces = self._distribute(v, c, c_dot, offset, h, h_dot, feet, touching)
-        for i, leg in enumerate(self._legs):
-            if self.phase != Phase.FREE and touching[i]:
-                J = pin.getFrameJacobian(
-                    model, data, self._frames[i], pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-                )[:3]
-                tau[leg] = gravity[leg] - J[:, leg].T @ self._forces[i]
-            else:
-                tau[leg] = self._hold(q, v, leg)
-                if self.phase != Phase.FREE:
-                    tau[leg] += gravity[leg]
-        if self._others.size:
-            tau[self._others] = self._hold(q, v, self._others) + gravity[self._others]
+        supported = self.phase != Phase.FREE
+        self._forces = np.zeros((len(feet), 3))
+        if supported and touching.any():
+            state = self._law_state_values()
+            R = data.oMi[1].rotation
+            wrench = stance_wrench(
+                ops, self._height_acceleration(h, h_dot), c, momentum, data.Ag, R, v, state,
+                self._law_gains(), constants, self.up, self._R_d,
+            )  # fmt: skip
+            self._A, f, feasible = distribute_forces(
+                ops, wrench, c, feet, touching, self._pyramids, self._lower, self._upper,
+                constants,
+            )  # fmt: skip
+            columns = np.repeat(touching, 3)
+            self._forces = (
+                f.reshape(-1, 3) if feasible else self._constrained_forces(self._A, wrench, columns)
+            )
+        s = self.settings
+        tau = joint_torques(
+            ops, self._forces.ravel(), data.J, data.g, q, v, gaps, float(supported),
+            (s.kp, s.kd, s.contact_gap), self.posture, feet, self._structure,
+        )  # fmt: skip
         return tau[self._actuated]
+
+    def _evaluate(self, data: pin.Data, q: Vector, v: Vector) -> None:
+        """Pinocchio's passes the law reads: centroidal terms, Jacobians, feet, gravity."""
+        model = self._model
+        pin.ccrba(model, data, q, v)  # centre of mass, centroidal momentum and its matrix
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        pin.computeGeneralizedGravity(model, data, q)
+
+    def _law_state_values(self) -> Vector:
+        """The law's input ``state``: c_0 [m], 1 in thrust else 0, v_to [m/s], shape (5,)."""
+        assert self._c0 is not None
+        return np.array([*self._c0, self.phase == Phase.TAKEOFF, self.takeoff_speed()])
+
+    def _height_acceleration(self, h: float, h_dot: float) -> float:
+        """The desired vertical acceleration of the centre of mass in this phase, in [m/s²]."""
+        takeoff, v_to = float(self.phase == Phase.TAKEOFF), self.takeoff_speed()
+        gains, constants = self._law_gains(), self._law_constants()
+        return float(height_acceleration(NUMPY_LAW_OPS, h, h_dot, takeoff, v_to, gains, constants))
+
+    def _law_gains(self) -> list[float]:
+        """The law's input ``gains``: k_xy, d_xy, k_R, d_R, k_h, d_h."""
+        return [getattr(self.settings, name) for name in _LAW_GAINS]
+
+    def _law_constants(self) -> list[float]:
+        """The law's input ``constants``: m, |g|, h_s, h_td, ε, the least stroke, contact_gap."""
+        s = self.settings
+        h_s, h_td, gap = s.stand_height, self.touchdown_height, s.contact_gap  # [m]
+        return [self.mass, self.g, h_s, h_td, _REGULARIZATION, _MIN_STROKE, gap]
 
     def _build_law(self) -> None:
         """Build the compiled law (:mod:`~ucontrol.control.pronking_law`), bind it by name."""
@@ -362,9 +390,7 @@ class PronkingController:
 
         model, s, n = self._model, self.settings, len(self._frames)
         forces = pronking_law.force_law_function(n, model.nv)
-        torques = pronking_law.torque_function(
-            model.nq, model.nv, self._legs, self._others, self._q_of_v, self._actuated
-        )
+        torques = pronking_law.torque_function(model.nq, model.nv, *self._structure, self._actuated)
         law, torque_law = CompiledFunction(forces), CompiledFunction(torques)
         self._laws: tuple[CompiledFunction, CompiledFunction] = (law, torque_law)
         self._law_index = (forces.index_in, torques.index_in)
@@ -389,27 +415,11 @@ class PronkingController:
         self._feasible_out = law.output_buffer(forces.index_out("feasible"))
         self._tau_out = torque_law.output_buffer(torques.index_out("tau"))
         # Constant inputs.
-        law_in["gains"][:] = [
-            s.horizontal_stiffness,
-            s.horizontal_damping,
-            s.attitude_stiffness,
-            s.attitude_damping,
-            s.height_stiffness,
-            s.height_damping,
-        ]
-        law_in["constants"][:] = [
-            self.mass,
-            self.g,
-            s.stand_height,
-            self.touchdown_height,
-            _REGULARIZATION,
-            _MIN_STROKE,
-            s.contact_gap,
-        ]
+        law_in["gains"][:] = self._law_gains()
+        law_in["constants"][:] = self._law_constants()
         law_in["up"][:] = self.up
         law_in["attitude"][...] = self._R_d
-        for i in range(n):  # foot i's five rows on its three columns
-            law_in["pyramids"][:, 3 * i : 3 * i + 3] = self._C[5 * i : 5 * i + 5, 3 * i : 3 * i + 3]
+        law_in["pyramids"][...] = self._pyramids
         law_in["lower"][:], law_in["upper"][:] = self._lower, self._upper
         torque_in["gains"][:] = [s.kp, s.kd, s.contact_gap]
         torque_in["posture"][:] = self.posture
@@ -460,14 +470,11 @@ class PronkingController:
 
     def _compiled_call(self, q: Vector, v: Vector, contacts: ContactState) -> Vector:
         """:meth:`__call__` by the compiled law: the same law as the reference, to round-off."""
-        model, data = self._model, self._law_data
+        data = self._law_data
         if self._plant_data:
-            pin.updateFramePlacements(model, data)
+            pin.updateFramePlacements(self._model, data)
         else:
-            pin.ccrba(model, data, q, v)
-            pin.computeJointJacobians(model, data, q)
-            pin.updateFramePlacements(model, data)
-            pin.computeGeneralizedGravity(model, data, q)
+            self._evaluate(data, q, v)
         self._q_in[:] = q
         self._v_in[:] = v
         self._gaps_in[:] = contacts.gap[self._contacts]
@@ -499,16 +506,8 @@ class PronkingController:
         if key == self._law_state:
             return False
         self._law_state = key
-        assert self._c0 is not None
-        self._state_in[:3] = self._c0
-        self._state_in[3] = self.phase == Phase.TAKEOFF
-        self._state_in[4] = self.takeoff_speed()
+        self._state_in[:] = self._law_state_values()
         return True
-
-    def _hold(self, q: Vector, v: Vector, joints: Index) -> Vector:
-        """Joint PD toward the posture on velocity indices ``joints``, shape (len(joints),)."""
-        s, rows = self.settings, self._q_of_v[joints]
-        return s.kp * (self.posture[rows] - q[rows]) - s.kd * v[joints]
 
     def _update_phase(self, h: float, h_dot: float, touching: bool) -> None:
         s = self.settings
@@ -540,53 +539,6 @@ class PronkingController:
         s = self.settings
         energy = 2.0 * self.g * (s.apex - self.touchdown_height) + self._energy_correction
         return math.sqrt(max(energy, 0.0))
-
-    def _height_acceleration(self, h: float, h_dot: float) -> float:
-        """The desired vertical acceleration of the centre of mass, in [m/s²]."""
-        s = self.settings
-        if self.phase == Phase.TAKEOFF:
-            stroke = max(self.touchdown_height - h, _MIN_STROKE)  # [m]
-            return max((self.takeoff_speed() ** 2 - h_dot * h_dot) / (2.0 * stroke), 0.0)
-        return s.height_stiffness * (s.stand_height - h) - s.height_damping * h_dot
-
-    def _distribute(
-        self,
-        v: Vector,
-        c: Vector,
-        c_dot: Vector,
-        offset: Vector,
-        h: float,
-        h_dot: float,
-        feet: Vector,
-        touching: Mask,
-    ) -> Vector:
-        """The feet's forces (world) realizing the desired momentum rate, shape (n_feet, 3)."""
-        s, data = self.settings, self._data
-        horizontal = -s.horizontal_stiffness * offset - s.horizontal_damping * c_dot
-        horizontal -= (horizontal @ self.up) * self.up
-        acceleration = self._height_acceleration(h, h_dot) * self.up + horizontal
-        force = self.mass * (acceleration + self.g * self.up)  # [N]
-        R = data.oMi[1].rotation
-        omega = R @ v[3:6]  # base angular velocity, world [rad/s]
-        attitude = pin.log3(R @ self._R_d.T)  # [rad], world
-        inertia = data.Ig.inertia  # centroidal rotational inertia [kg m²]
-        torque = inertia @ (-s.attitude_stiffness * attitude - s.attitude_damping * omega)
-        A, r = self._A, feet - c  # A = [I ... I; [r_1]x ... [r_n]x], r [m]
-        A[3, 1::3], A[3, 2::3] = -r[:, 2], r[:, 1]
-        A[4, 0::3], A[4, 2::3] = r[:, 2], -r[:, 0]
-        A[5, 0::3], A[5, 1::3] = -r[:, 1], r[:, 0]
-        wrench = np.concatenate([force, torque])
-        columns, C, lower, upper = self._stance_rows(touching)
-        A_touching = A[:, columns]
-        # The unconstrained optimum (A^T A + eps I)^-1 A^T w = A^T (A A^T + eps I)^-1 w: when it
-        # is feasible it is the (strictly convex) QP's solution, without proxsuite.
-        f = A_touching.T @ np.linalg.solve(A_touching @ A_touching.T + self._eps6, wrench)
-        Cf = C @ f
-        if np.all(Cf >= lower) and np.all(Cf <= upper):
-            forces = np.zeros(A.shape[1])
-            forces[columns] = f
-            return forces.reshape(-1, 3)
-        return self._constrained_forces(A, wrench, columns)
 
     def _constrained_forces(self, A: Vector, wrench: Vector, columns: Mask) -> Vector:
         """The force QP's solution by proxsuite (its optimum is outside the pyramids), (n_feet, 3).

@@ -78,7 +78,13 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from ucontrol._validation import as_float, as_positive, as_vector, check_keys, require_key
+from ucontrol._validation import (
+    as_non_negative,
+    as_positive,
+    as_vector,
+    check_keys,
+    require_key,
+)
 from ucontrol.contact.point_contact import PointContact
 from ucontrol.exceptions import DesignError, InvalidParameterError, NotFoundError, SceneError
 from ucontrol.model.robot_model import RobotModel
@@ -137,11 +143,16 @@ _SOLVER_KEYS = {"max_iter", "tol", "print_level", "progress_every", "hessian", "
 HESSIANS = ("exact", "limited-memory")
 
 
-def _non_negative(name: str, value: Any) -> float:
-    number = as_float(name, value)
-    if number < 0.0:
-        raise InvalidParameterError(name, value, ">= 0")
-    return number
+def positive_range(low_name: str, low: Any, high_name: str, high: Any) -> tuple[float, float]:
+    """``low`` and ``high`` as floats with 0 < low <= high, or a typed error naming the one off.
+
+    Raises:
+        InvalidParameterError: A bound is not a finite number > 0, or ``high < low``.
+    """
+    low, high = as_positive(low_name, low), as_positive(high_name, high)
+    if high < low:
+        raise InvalidParameterError(high_name, high, f">= {low_name} = {low}")
+    return low, high
 
 
 def _count(name: str, value: Any, low: int) -> int:
@@ -178,7 +189,7 @@ class ContactPhaseSpec:
     takeoff_acceleration: float = 0.5
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "force_min", _non_negative("force_min", self.force_min))
+        object.__setattr__(self, "force_min", as_non_negative("force_min", self.force_min))
         object.__setattr__(self, "force_max", as_positive("force_max", self.force_max))
         object.__setattr__(self, "force", as_positive("force", self.force))
         if not self.force_max > self.force_min:
@@ -189,12 +200,11 @@ class ContactPhaseSpec:
             value = getattr(self, name)
             if value is not None:
                 object.__setattr__(self, name, as_vector(name, value, 3))
-        object.__setattr__(self, "duration_min", as_positive("duration_min", self.duration_min))
-        object.__setattr__(self, "duration_max", as_positive("duration_max", self.duration_max))
-        if self.duration_max < self.duration_min:
-            raise InvalidParameterError(
-                "duration_max", self.duration_max, f">= duration_min = {self.duration_min}"
-            )
+        low, high = positive_range(
+            "duration_min", self.duration_min, "duration_max", self.duration_max
+        )
+        object.__setattr__(self, "duration_min", low)
+        object.__setattr__(self, "duration_max", high)
         object.__setattr__(
             self,
             "takeoff_acceleration",
@@ -218,13 +228,12 @@ class FlightSpec:
     clearance: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "duration_min", as_positive("duration_min", self.duration_min))
-        object.__setattr__(self, "duration_max", as_positive("duration_max", self.duration_max))
-        if self.duration_max < self.duration_min:
-            raise InvalidParameterError(
-                "duration_max", self.duration_max, f">= duration_min = {self.duration_min}"
-            )
-        object.__setattr__(self, "clearance", _non_negative("clearance", self.clearance))
+        low, high = positive_range(
+            "duration_min", self.duration_min, "duration_max", self.duration_max
+        )
+        object.__setattr__(self, "duration_min", low)
+        object.__setattr__(self, "duration_max", high)
+        object.__setattr__(self, "clearance", as_non_negative("clearance", self.clearance))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -240,7 +249,7 @@ class CostWeights:
 
     def __post_init__(self) -> None:
         for name in _COST_KEYS:
-            object.__setattr__(self, name, _non_negative(name, getattr(self, name)))
+            object.__setattr__(self, name, as_non_negative(name, getattr(self, name)))
         if not any(getattr(self, name) > 0.0 for name in _COST_KEYS):
             raise InvalidParameterError("[cost]", {}, "at least one weight > 0")
 
@@ -369,7 +378,7 @@ class DesignTask:
         object.__setattr__(self, "torque_limit", torque)
         if self.period is not None:
             object.__setattr__(self, "period", as_positive("period", self.period))
-        object.__setattr__(self, "period_min", _non_negative("period_min", self.period_min))
+        object.__setattr__(self, "period_min", as_non_negative("period_min", self.period_min))
         period_max = float(self.period_max)
         if not period_max > self.period_min:
             raise InvalidParameterError("period_max", self.period_max, f"> {self.period_min}")

@@ -70,6 +70,7 @@ from ucontrol._validation import (
     check_keys,
     require_key,
 )
+from ucontrol.design.design_task import positive_range
 from ucontrol.design.designed_gait import output_indices, relabelling_matrix
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError
 from ucontrol.model.robot_model import RobotModel
@@ -189,12 +190,11 @@ class GaitTask:
         object.__setattr__(self, "step_length", as_positive("step_length", self.step_length))
         if self.speed is not None:
             object.__setattr__(self, "speed", as_positive("speed", self.speed))
-        object.__setattr__(self, "step_time_min", as_positive("step_time_min", self.step_time_min))
-        object.__setattr__(self, "step_time_max", as_positive("step_time_max", self.step_time_max))
-        if self.step_time_max < self.step_time_min:
-            raise InvalidParameterError(
-                "step_time_max", self.step_time_max, f">= step_time_min = {self.step_time_min}"
-            )
+        low, high = positive_range(
+            "step_time_min", self.step_time_min, "step_time_max", self.step_time_max
+        )
+        object.__setattr__(self, "step_time_min", low)
+        object.__setattr__(self, "step_time_max", high)
         object.__setattr__(self, "friction", as_positive("friction", self.friction))
         if self.scene_friction is not None:
             object.__setattr__(

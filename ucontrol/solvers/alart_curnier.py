@@ -32,13 +32,14 @@ SuperLU runs in one.) Where the contact statuses are right Newton converges quad
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.solvers.contact_solution import velocity_scale
-from ucontrol.solvers.coulomb_problem import CoulombProblem
+from ucontrol.solvers.coulomb_problem import NUMPY_OPS, ConeOps, CoulombProblem
 
 Vector = NDArray[np.float64]
 
@@ -50,6 +51,9 @@ MIN_STEP = 1.0 / 64.0
 SPARSE_SIZE = 64
 #: Largest fraction of non-zero entries of J factorized by sparse LU.
 SPARSE_DENSITY = 0.1
+#: Floor of the squared norm of :math:`y` under the square root: a finite ratio (and, in the
+#: compiled step's automatic derivative, no 0 / 0) where :math:`y = 0`.
+NORM_FLOOR = 1e-300
 
 
 #: Non-zero entries of a square matrix in compressed columns: row indices, column pointers,
@@ -150,16 +154,42 @@ def _jacobian_pattern(problem: CoulombProblem) -> Pattern | None:
     A row of J combines the rows of D of its own contact (bilateral rows: their own) and the
     contact's own columns; None where that pattern is denser than :data:`SPARSE_DENSITY`.
     """
-    m, size = problem.m, problem.size
-    group = np.empty(size, dtype=np.intp)
-    group[:m] = np.arange(m)
-    group[m : size - problem.equalities] = np.repeat(np.arange(m), problem.tangents)
-    group[size - problem.equalities :] = m + np.arange(problem.equalities)
+    m, group = problem.m, problem.row_groups
     order = np.argsort(group, kind="stable")  # each group's rows together, groups in order
     starts = np.searchsorted(group[order], np.arange(m + problem.equalities))
     touched = np.logical_or.reduceat((problem.D != 0.0)[order], starts, axis=0)
     own = group[:, None] == group[None, :]  # a contact's own block
     return sparsity(touched[group] | own)
+
+
+def alart_curnier_terms(
+    ops: ConeOps, P: Sequence[Any], x: Sequence[Any], rho_u: Sequence[Any], mu: Any
+) -> tuple[Any, Any, Any]:
+    r"""The Alart–Curnier function of a contact: its normal and two tangential terms, [N s].
+
+    :math:`F_n = P_n - \max(x_n, 0)` and :math:`F_t = P_t - \Pi_{B(r)}(x_t)`,
+    :math:`r = \mu \max(P_n, 0)` (module docstring, :math:`x = P - \rho u`), written as
+    :math:`\rho u` where the point is not projected (a closed normal row, a sticking
+    contact: no cancellation in :math:`P - x`); a planar contact's second components are 0,
+    and the squared norm under the ratio is floored at :data:`NORM_FLOOR`.
+
+    Args:
+        ops: The operations of the numbers given
+            (:class:`~ucontrol.solvers.coulomb_problem.ConeOps`).
+        P: Normal and two tangential impulses in [N s].
+        x: Normal and two tangential components of :math:`P - \rho u` in [N s].
+        rho_u: Normal and two tangential components of :math:`\rho u` in [N s].
+        mu: Friction coefficient(s) >= 0.
+    """
+    radius = mu * ops.fmax(P[0], 0.0)  # [N s]
+    square = x[1] ** 2 + x[2] ** 2  # [N² s²]
+    slide = ops.sqrt(square) > radius
+    ratio = radius / ops.sqrt(ops.fmax(square, NORM_FLOOR))
+    return (
+        ops.where(x[0] <= 0.0, P[0], rho_u[0]),
+        ops.where(slide, P[1] - ratio * x[1], rho_u[1]),
+        ops.where(slide, P[2] - ratio * x[2], rho_u[2]),
+    )
 
 
 class AlartCurnier:
@@ -175,10 +205,10 @@ class AlartCurnier:
 
     def __init__(self, problem: CoulombProblem) -> None:
         self.problem = problem
-        m, size = problem.m, problem.size
+        size = problem.size
+        contacts = size - problem.equalities  # rows of the contacts
         rho = np.empty(size)
-        rho[:m] = 1.0 / problem.normal_scale
-        rho[m : size - problem.equalities] = np.repeat(rho[:m], problem.tangents)
+        rho[:contacts] = (1.0 / problem.normal_scale)[problem.row_groups[:contacts]]
         equal = problem.equality_rows
         if equal.size:
             rho[equal] = 1.0 / velocity_scale(problem.D[np.ix_(equal, equal)])
@@ -193,18 +223,29 @@ class AlartCurnier:
         """F (r,) at impulses P (r,) with velocities u = D P + b (r,), and an element J (r, r)."""
         problem, rho = self.problem, self.rho
         m, size = problem.m, problem.size
-        x = P - rho * u
-        F = rho * u  # closed normal, sticking and bilateral rows: F = P - x
+        rho_u = rho * u
+        x = P - rho_u
+        F = np.append(rho_u, 0.0)  # bilateral rows; last entry: sink of the missing rows
+        pairs = problem.tangent_rows  # (m, 2), size where missing
+        P_ext, x_ext = np.append(P, 0.0), np.append(x, 0.0)
+        terms = alart_curnier_terms(
+            NUMPY_OPS,
+            (P[:m], P_ext[pairs[:, 0]], P_ext[pairs[:, 1]]),
+            (x[:m], x_ext[pairs[:, 0]], x_ext[pairs[:, 1]]),
+            (rho_u[:m], F[pairs[:, 0]], F[pairs[:, 1]]),
+            problem.mu,
+        )
+        F[:m] = terms[0]
+        F[pairs[:, 0]], F[pairs[:, 1]] = terms[1], terms[2]
+        F = F[:size]
         J = self._scaled.copy()
         open_ = np.flatnonzero(x[:m] <= 0.0)
-        F[open_] = P[open_]
         J[open_] = 0.0
         J[open_, open_] = 1.0
         frictional = self._frictional
         if frictional.size == 0:
             return F, J[:size, :size]
-        rows = problem.tangent_rows[frictional]  # (f, 2), size where missing
-        x_ext = np.append(x, 0.0)
+        rows = pairs[frictional]
         y = x_ext[rows]
         norm_y = np.sqrt(np.einsum("ij,ij->i", y, y))
         P_n = P[frictional]
@@ -217,9 +258,6 @@ class AlartCurnier:
         rows, y, norm_y, mu, P_n = rows[s], y[s], norm_y[s], mu[s], P_n[s]
         ratio = radius[s] / norm_y
         d = y / norm_y[:, None]  # (k, 2)
-        P_t = np.append(P, 0.0)[rows]
-        F_ext = np.append(F, 0.0)
-        F_ext[rows] = P_t - ratio[:, None] * y
         eye = np.eye(2)
         Q = ratio[:, None, None] * (eye - d[:, :, None] * d[:, None, :])  # (k, 2, 2)
         block = np.einsum("kij,kjc->kic", Q, self._scaled[rows])  # (k, 2, size + 1)
@@ -231,7 +269,7 @@ class AlartCurnier:
         pressed = np.where(P_n > 0.0, mu, 0.0)
         block[k, np.arange(2), normal[:, None]] -= pressed[:, None] * d
         J[rows] = block
-        return F_ext[:size], J[:size, :size]
+        return F, J[:size, :size]
 
     def newton(
         self, P: Vector, u: Vector, residual: float, iterations: int, target: float

@@ -50,7 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION
-from ucontrol.solvers.coulomb_problem import CoulombProblem, tangential_norms
+from ucontrol.solvers.coulomb_problem import CoulombProblem, row_groups, tangential_norms
 
 Vector = NDArray[np.float64]
 
@@ -197,14 +197,6 @@ def _band_order(tangents: bytes, equalities: int, pattern: bytes) -> BandOrder |
     for array in band[:2] + band[3:]:
         array.flags.writeable = False  # shared by every problem of the same pattern
     return band
-
-
-def row_groups(tangents: NDArray[np.intp], equalities: int) -> NDArray[np.intp]:
-    """The node of each row (r,): its contact's index, or m + j for bilateral row j."""
-    m = tangents.size
-    return np.concatenate(
-        (np.arange(m), np.repeat(np.arange(m), tangents), m + np.arange(equalities))
-    ).astype(np.intp)
 
 
 def contact_statuses(

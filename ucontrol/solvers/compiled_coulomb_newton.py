@@ -10,10 +10,12 @@ expression for each row layout, compiled to C into the compile cache
 (:mod:`ucontrol.model.native_call`); without a C compiler the numpy polish runs alone. One
 call computes, from impulses :math:`P`,
 
-1. the Alart–Curnier function :math:`F(P)` and an element of its generalized Jacobian by
-   casadi's automatic differentiation (the branches of :math:`\max` and of the projection on
-   the disk of radius :math:`\mu \max(P_n, 0)` taken where the point lies, as
-   :meth:`~ucontrol.solvers.alart_curnier.AlartCurnier.value` assembles it by hand);
+1. the Alart–Curnier function :math:`F(P)`
+   (:func:`~ucontrol.solvers.alart_curnier.alart_curnier_terms`, the numpy polish's own) and an
+   element of its generalized Jacobian by casadi's automatic differentiation (the branches of
+   :math:`\max` and of the projection on the disk of radius :math:`\mu \max(P_n, 0)` taken
+   where the point lies, as :meth:`~ucontrol.solvers.alart_curnier.AlartCurnier.value`
+   assembles it by hand);
 2. the full Newton step :math:`P^+ = P - J^{-1} F(P)` (casadi's QR of J, unrolled), or no
    step where the diagonal of R says J is singular to
    :data:`~ucontrol.solvers.alart_curnier.LSTSQ_CONDITION` (redundant contacts: the numpy
@@ -51,8 +53,13 @@ from ucontrol.exceptions import CompiledCallError
 from ucontrol.model.compile_cache import build_library, definition_key
 from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.model.native_call import native_runner
-from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION
-from ucontrol.solvers.coulomb_problem import CoulombProblem
+from ucontrol.solvers.alart_curnier import LSTSQ_CONDITION, alart_curnier_terms
+from ucontrol.solvers.coulomb_problem import (
+    ConeOps,
+    CoulombProblem,
+    natural_map_errors,
+    row_groups,
+)
 
 if TYPE_CHECKING:
     import casadi as ca
@@ -65,9 +72,6 @@ MAX_ROWS = 12
 #: :data:`ucontrol.solvers.proxsuite_coulomb.MARGIN`, which re-exports it).
 MARGIN = 1e-9
 _logger = logging.getLogger(__name__)
-
-#: Floor of squared norms under a square root or a division (0 / 0 and its derivative).
-_TINY = 1e-300
 
 
 class CompiledCoulombNewton:
@@ -209,7 +213,8 @@ def _library(tangents: tuple[int, ...]) -> Path:
         generator.add(newton_step_function(tangents))
         return str(generator.dump())
 
-    key = definition_key([_name(tangents)], [__name__])
+    modules = [__name__, CoulombProblem.__module__, alart_curnier_terms.__module__]
+    key = definition_key([_name(tangents)], modules)
     return build_library(_name(tangents), key, source)
 
 
@@ -234,25 +239,24 @@ def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
     mu = ca.SX.sym("mu", m)
     P = ca.SX.sym("P", size)
     tolerance = ca.SX.sym("tolerance")
-    offsets = np.concatenate(([m], m + np.cumsum(tangents)))
-    rows = [list(range(offsets[a], offsets[a + 1])) for a in range(m)]
+    group = row_groups(np.array(tangents, dtype=np.intp), 0).tolist()  # each row's contact
+    rows = [[i for i in range(m, size) if group[i] == a] for a in range(m)]  # tangential
     sigma = [ca.if_else(D[a, a] > 0.0, D[a, a], 1.0) for a in range(m)]  # [m/s per N s]
-    rho = ca.vertcat(*(1.0 / sigma[a] for a in range(m)))
-    rho = ca.vertcat(rho, *(rho[a] for a in range(m) for _ in rows[a]))
+    inverse = [1.0 / sigma[a] for a in range(m)]
+    rho = ca.vertcat(*(inverse[a] for a in group))  # [N s per m/s]
 
     F = [ca.SX(0.0)] * size
-    x = P - rho * (ca.mtimes(D, P) + b)  # [N s]
+    rho_u = rho * (ca.mtimes(D, P) + b)  # [N s]
+    x = P - rho_u
+    ops, zero = _casadi_ops(), ca.SX(0.0)
     for a in range(m):
-        F[a] = P[a] - ca.fmax(x[a], 0.0)
-        radius = mu[a] * ca.fmax(P[a], 0.0)
-        if len(rows[a]) == 1:
-            t = rows[a][0]
-            F[t] = P[t] - ca.fmin(ca.fmax(x[t], -radius), radius)
-        elif len(rows[a]) == 2:
-            t1, t2 = rows[a]
-            norm = ca.sqrt(ca.fmax(x[t1] ** 2 + x[t2] ** 2, _TINY))
-            ratio = ca.fmin(1.0, radius / norm)
-            F[t1], F[t2] = P[t1] - ratio * x[t1], P[t2] - ratio * x[t2]
+        tangent = rows[a] + [size] * (2 - len(rows[a]))  # size: a missing row, 0
+        P_a, x_a, rho_u_a = (
+            [y[a], *(y[i] if i < size else zero for i in tangent)] for y in (P, x, rho_u)
+        )
+        terms = alart_curnier_terms(ops, P_a, x_a, rho_u_a, mu[a])
+        for i, term in zip([a, *rows[a]], terms, strict=False):
+            F[i] = term
     F_P = ca.vertcat(*F)
     Q, R = ca.qr(ca.jacobian(F_P, P))
     P_next = P + ca.solve(R, -ca.mtimes(Q.T, F_P))
@@ -274,6 +278,26 @@ def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
     )
 
 
+def _casadi_ops() -> ConeOps:
+    """The cone's operations (:class:`~ucontrol.solvers.coulomb_problem.ConeOps`) on casadi SX.
+
+    The norm is the square root of the sum of squares (no call to the C library's ``hypot``),
+    equal to ``hypot`` to round-off.
+    """
+    import casadi as ca
+
+    return ConeOps(
+        lambda x, y: ca.sqrt(x**2 + y**2),
+        ca.fmax,
+        ca.fmin,
+        ca.sqrt,
+        ca.fabs,
+        ca.logic_and,
+        ca.if_else,
+        lambda x, y, skip: ca.if_else(y > 0.0, x / y, 0.0),  # skip: the caller's where
+    )
+
+
 def _residual(
     P: ca.SX,
     u: ca.SX,
@@ -284,28 +308,25 @@ def _residual(
 ) -> tuple[ca.SX, ca.SX]:
     """Natural-map residual [m/s] of (P, u) and the marginal flag, as expressions.
 
-    The expressions of :meth:`CoulombProblem.residual` (projection on each contact's cone by
-    :func:`~ucontrol.solvers.coulomb_problem.project_on_cones`) and of the marginal test of
-    :mod:`~ucontrol.solvers.proxsuite_coulomb`, contact by contact.
+    The residual of :meth:`CoulombProblem.residual`, contact by contact from the same terms
+    (:func:`~ucontrol.solvers.coulomb_problem.natural_map_errors`), and the marginal test of
+    :mod:`~ucontrol.solvers.proxsuite_coulomb`.
     """
     import casadi as ca
 
+    ops = _casadi_ops()
     residual, marginal = ca.SX(0.0), ca.SX(0.0)
     for a, tangent in enumerate(rows):
         u_t = [u[i] for i in tangent] + [ca.SX(0.0)] * (2 - len(tangent))
         P_t = [P[i] for i in tangent] + [ca.SX(0.0)] * (2 - len(tangent))
-        speed = ca.sqrt(u_t[0] ** 2 + u_t[1] ** 2)  # [m/s]
-        z_n = sigma[a] * P[a] - (u[a] + mu[a] * speed)
-        z_t = [sigma[a] * P_t[i] - u_t[i] for i in range(2)]
-        t = ca.sqrt(z_t[0] ** 2 + z_t[1] ** 2)
-        boundary_n = ca.fmax((z_n + mu[a] * t) / (1.0 + mu[a] ** 2), 0.0)
-        inside = ca.logic_and(t <= mu[a] * z_n, z_n >= 0.0)
-        ratio = ca.if_else(inside, 1.0, ca.if_else(t > 0.0, mu[a] * boundary_n / t, 0.0))
-        residual = ca.fmax(residual, ca.fabs(sigma[a] * P[a] - ca.if_else(inside, z_n, boundary_n)))
-        for i in range(len(tangent)):
-            residual = ca.fmax(residual, ca.fabs(sigma[a] * P_t[i] - ratio * z_t[i]))
+        errors = natural_map_errors(
+            ops, sigma[a], (P[a], P_t[0], P_t[1]), (u[a], u_t[0], u_t[1]), mu[a]
+        )
+        for error in errors[: 1 + len(tangent)]:  # the missing rows' terms are 0
+            residual = ca.fmax(residual, error)
+        speed = ops.hypot(u_t[0], u_t[1])  # [m/s]
         bound = mu[a] * P[a]  # [N s]
-        at_bound = ca.sqrt(P_t[0] ** 2 + P_t[1] ** 2) >= (1.0 - MARGIN) * bound
+        at_bound = ops.hypot(P_t[0], P_t[1]) >= (1.0 - MARGIN) * bound
         slow = ca.logic_and(speed > 0.0, speed <= tolerance)
         marginal = ca.fmax(marginal, ca.logic_and(ca.logic_and(slow, bound > 0.0), at_bound))
     return residual, marginal

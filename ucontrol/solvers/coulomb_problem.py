@@ -23,8 +23,12 @@ with :math:`\sigma_a = D_{n_a n_a}` turning impulses into velocities; it vanishe
 solutions of the true (non-convex) Coulomb problem, and for frictionless contacts it is the
 LCP's :math:`|\min(\sigma P, u)|` of :func:`~ucontrol.solvers.complementarity_residual`.
 Up to :data:`~ucontrol.solvers.contact_solution.PYTHON_RESIDUAL_SIZE` rows it is computed
-by a loop on Python floats (:func:`project_on_cone`), whose cost is a fraction of the numpy
-expression's fixed costs per call on so few rows (a Panda's one contact: docs/benchmarks.md).
+by a loop on Python floats, whose cost is a fraction of the numpy expression's fixed costs per
+call on so few rows (a Panda's one contact: docs/benchmarks.md). Both, and the compiled Newton
+step of :mod:`~ucontrol.solvers.compiled_coulomb_newton`, evaluate one definition of a
+contact's terms, :func:`natural_map_errors` (with :func:`project_on_cone`), written once over
+the operations of each kind of number (:class:`ConeOps`: :data:`FLOAT_OPS`,
+:data:`NUMPY_OPS`, casadi's).
 
 **Bilateral rows.** A closed chain adds ``equalities`` rows :math:`J_b` **last** (after the
 tangential rows), whose impulses :math:`P_b` are free in sign and whose velocities vanish,
@@ -37,7 +41,8 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -69,6 +74,8 @@ class CoulombProblem:
         size: Number of rows r = m + sum(tangents) + equalities.
         tangent_rows: Row of the first and second tangential component of each contact,
             shape (m, 2); ``size`` where the contact has no such row (gathers read a 0 there).
+        row_groups: The group of each row, shape (r,): its contact's index, or m + j for
+            bilateral row j (:func:`row_groups`).
         spatial: Whether any contact has two tangential rows.
 
     Raises:
@@ -110,6 +117,7 @@ class CoulombProblem:
         self.tangent_rows = layout.tangent_rows
         self.spatial = layout.spatial
         self.equality_rows = layout.equality_rows
+        self.row_groups = layout.row_groups
         self._layout = layout
 
     @functools.cached_property
@@ -155,19 +163,18 @@ class CoulombProblem:
         m, padded, sigma = self.m, self._padded, self.normal_scale  # padded[-1] stays 0
         padded[: self.size] = u
         u_t = padded[self.tangent_rows]
-        sigma_P_n = sigma * P[:m]
-        z_n = sigma_P_n - (u[:m] + self.mu * tangential_norms(u_t))
         padded[: self.size] = P
-        sigma_P_t = sigma[:, None] * padded[self.tangent_rows]
-        pi_n, pi_t = project_on_cones(z_n, sigma_P_t - u_t, self.mu)
-        r_n = np.abs(sigma_P_n - pi_n).max()
-        return float(max(r_n, np.abs(sigma_P_t - pi_t).max(), bilateral))
+        P_t = padded[self.tangent_rows]
+        errors = natural_map_errors(
+            NUMPY_OPS, sigma, (P[:m], P_t[:, 0], P_t[:, 1]), (u[:m], u_t[:, 0], u_t[:, 1]), self.mu
+        )
+        return float(max(*(error.max() for error in errors), bilateral))
 
     def _residual_on_floats(self, P: list[float], u: list[float]) -> float:
         """:meth:`residual` by a loop on Python floats (problems of a few rows, module docstring).
 
-        Contact by contact, the same expressions as the numpy form (:func:`project_on_cone` for
-        the projection); a NaN anywhere gives NaN.
+        Contact by contact, the terms of the numpy form (:func:`natural_map_errors` on
+        :data:`FLOAT_OPS`); a NaN anywhere gives NaN.
         """
         m, size = self.m, self.size
         residual = check = 0.0  # check: the sum of every term, NaN if any of them is
@@ -181,12 +188,10 @@ class CoulombProblem:
             for a, (i, j) in enumerate(self._layout.row_pairs):
                 sigma = D.item(a, a)
                 sigma = 1.0 if sigma <= 0.0 else sigma
-                u_1, u_2 = u[i], u[j]
-                sigma_P = (sigma * P[a], sigma * P[i], sigma * P[j])
-                z_n = sigma_P[0] - (u[a] + mu[a] * math.hypot(u_1, u_2))
-                pi = project_on_cone(z_n, sigma_P[1] - u_1, sigma_P[2] - u_2, mu[a])
-                for value, projected in zip(sigma_P, pi, strict=True):
-                    error = abs(value - projected)
+                errors = natural_map_errors(
+                    FLOAT_OPS, sigma, (P[a], P[i], P[j]), (u[a], u[i], u[j]), mu[a]
+                )
+                for error in errors:
                     residual = max(residual, error)
                     check += error
         return math.nan if math.isnan(check) else residual
@@ -205,6 +210,7 @@ class _Layout(NamedTuple):
     frictional: NDArray[np.bool_]
     all_frictional: bool
     row_pairs: tuple[tuple[int, int], ...]
+    row_groups: NDArray[np.intp]
 
 
 @functools.lru_cache(maxsize=LAYOUTS)
@@ -227,7 +233,8 @@ def _layout(tangents: bytes, equalities: int) -> _Layout:
     )
     equality_rows = np.arange(size - equalities, size)
     frictional = counts > 0
-    for array in (tangent_rows, equality_rows, frictional):
+    groups = row_groups(counts, equalities)
+    for array in (tangent_rows, equality_rows, frictional, groups):
         array.flags.writeable = False
     return _Layout(
         counts,
@@ -240,7 +247,21 @@ def _layout(tangents: bytes, equalities: int) -> _Layout:
         frictional,
         bool(frictional.all()),
         tuple((int(i), int(j)) for i, j in tangent_rows.tolist()),
+        groups,
     )
+
+
+def row_groups(tangents: NDArray[np.intp], equalities: int) -> NDArray[np.intp]:
+    """The group of each row (r,): its contact's index, or m + j for bilateral row j.
+
+    Args:
+        tangents: Tangential rows of each contact (0, 1 or 2), shape (m,).
+        equalities: Number of bilateral rows, the last ones.
+    """
+    m = tangents.size
+    return np.concatenate(
+        (np.arange(m), np.repeat(np.arange(m), tangents), m + np.arange(equalities))
+    ).astype(np.intp)
 
 
 def tangential_norms(x_t: Vector) -> Vector:
@@ -248,45 +269,108 @@ def tangential_norms(x_t: Vector) -> Vector:
     return np.hypot(x_t[:, 0], x_t[:, 1])
 
 
-def project_on_cone(z_n: float, z_1: float, z_2: float, mu: float) -> tuple[float, float, float]:
-    r"""Euclidean projection of one :math:`(z_n, z_1, z_2)` on :math:`\{\|x_t\| \le \mu x_n\}`.
+class ConeOps(NamedTuple):
+    """The operations the cone's expressions use, on one kind of number.
 
-    :func:`project_on_cones` for one contact on Python floats (its expressions, in its order).
+    The definitions written once over these (:func:`project_on_cone`,
+    :func:`natural_map_errors`, :func:`~ucontrol.solvers.alart_curnier.alart_curnier_terms`)
+    are evaluated on Python floats (:data:`FLOAT_OPS`, problems of a few rows), numpy arrays
+    of contacts (:data:`NUMPY_OPS`) and casadi expressions (the compiled Newton step,
+    :mod:`~ucontrol.solvers.compiled_coulomb_newton`).
+
+    Attributes:
+        hypot: Euclidean norm of two components.
+        fmax: Elementwise larger of two values.
+        fmin: Elementwise smaller of two values.
+        sqrt: Square root.
+        fabs: Absolute value.
+        logical_and: Elementwise and of two conditions.
+        where: ``where(condition, x, y)``.
+        ratio: ``ratio(x, y, skip)``: x / y where y > 0 and not ``skip``, else 0 (never a
+            division by 0, nor an overflow where ``skip`` holds).
+    """
+
+    hypot: Callable[[Any, Any], Any]
+    fmax: Callable[[Any, Any], Any]
+    fmin: Callable[[Any, Any], Any]
+    sqrt: Callable[[Any], Any]
+    fabs: Callable[[Any], Any]
+    logical_and: Callable[[Any, Any], Any]
+    where: Callable[[Any, Any, Any], Any]
+    ratio: Callable[[Any, Any, Any], Any]
+
+
+def _float_ratio(x: float, y: float, skip: bool) -> float:
+    """:attr:`ConeOps.ratio` on Python floats."""
+    return x / y if y > 0.0 and not skip else 0.0
+
+
+def _array_ratio(x: Vector, y: Vector, skip: NDArray[np.bool_]) -> Vector:
+    """:attr:`ConeOps.ratio` on numpy arrays."""
+    return np.divide(x, y, out=np.zeros_like(y), where=(y > 0.0) & ~skip)
+
+
+#: The cone's operations on Python floats.
+FLOAT_OPS = ConeOps(
+    math.hypot,
+    max,
+    min,
+    math.sqrt,
+    abs,
+    lambda a, b: a and b,
+    lambda c, x, y: x if c else y,
+    _float_ratio,
+)
+#: The cone's operations on numpy arrays (one entry per contact).
+NUMPY_OPS = ConeOps(
+    np.hypot, np.maximum, np.minimum, np.sqrt, np.abs, np.logical_and, np.where, _array_ratio
+)
+
+
+def project_on_cone(ops: ConeOps, z_n: Any, z_1: Any, z_2: Any, mu: Any) -> tuple[Any, Any, Any]:
+    r"""Euclidean projection of :math:`(z_n, z_1, z_2)` on :math:`\{\|x_t\| \le \mu x_n\}`.
 
     Args:
-        z_n: Normal component.
-        z_1: First tangential component.
-        z_2: Second tangential component (0 for a planar contact).
-        mu: Cone aperture (friction coefficient) >= 0.
+        ops: The operations of the numbers given (:class:`ConeOps`).
+        z_n: Normal component(s).
+        z_1: First tangential component(s).
+        z_2: Second tangential component(s) (0 for a planar contact).
+        mu: Cone aperture(s) (friction coefficients) >= 0.
 
     Returns:
         The projected normal and two tangential components.
     """
-    t = math.hypot(z_1, z_2)
-    if t <= mu * z_n and z_n >= 0.0:  # inside (z_n >= 0 matters for mu = 0)
-        return z_n, z_1, z_2
-    boundary_n = max((z_n + mu * t) / (1.0 + mu * mu), 0.0)  # on the polar cone: the apex
-    ratio = mu * boundary_n / t if t > 0.0 else 0.0
-    return boundary_n, ratio * z_1, ratio * z_2
-
-
-def project_on_cones(z_n: Vector, z_t: Vector, mu: Vector) -> tuple[Vector, Vector]:
-    r"""Euclidean projection of each :math:`(z_n, z_t)` on :math:`\{\|x_t\| \le \mu x_n\}`.
-
-    Args:
-        z_n: Normal components, shape (m,).
-        z_t: Tangential components, shape (m, 2).
-        mu: Cone apertures (friction coefficients) >= 0, shape (m,).
-
-    Returns:
-        The projected normal (m,) and tangential (m, 2) components.
-    """
-    t = tangential_norms(z_t)
+    t = ops.hypot(z_1, z_2)
+    inside = ops.logical_and(t <= mu * z_n, z_n >= 0.0)  # z_n >= 0 matters for mu = 0
     # On the polar cone (mu t <= -z_n) the boundary's normal component is <= 0: clipped to
     # the apex, 0.
-    boundary_n = np.maximum((z_n + mu * t) / (1.0 + mu * mu), 0.0)
-    inside = (t <= mu * z_n) & (z_n >= 0.0)  # z_n >= 0 matters for mu = 0
+    boundary_n = ops.fmax((z_n + mu * t) / (1.0 + mu * mu), 0.0)
     # Outside the cone the ratio is below 1; inside it is not used, and with a subnormal t
     # (impulses decaying down a long column of beads) it would overflow.
-    ratio = np.divide(mu * boundary_n, t, out=np.zeros_like(t), where=(t > 0.0) & ~inside)
-    return np.where(inside, z_n, boundary_n), np.where(inside, 1.0, ratio)[:, None] * z_t
+    ratio = ops.where(inside, 1.0, ops.ratio(mu * boundary_n, t, inside))
+    return ops.where(inside, z_n, boundary_n), ratio * z_1, ratio * z_2
+
+
+def natural_map_errors(
+    ops: ConeOps, sigma: Any, P: tuple[Any, Any, Any], u: tuple[Any, Any, Any], mu: Any
+) -> tuple[Any, Any, Any]:
+    r"""The natural map's terms :math:`|\sigma P - \Pi_K(\sigma P - \hat u)|` of a contact.
+
+    Its normal and two tangential components, in [m/s] (module docstring); the residual is
+    their largest over the contacts.
+
+    Args:
+        ops: The operations of the numbers given (:class:`ConeOps`).
+        sigma: :math:`\sigma_a` in [m/s per N s].
+        P: Normal and two tangential impulses in [N s] (0 for a missing tangential row).
+        u: Normal and two tangential velocities in [m/s] (0 for a missing tangential row).
+        mu: Friction coefficient(s) >= 0.
+    """
+    sigma_P = (sigma * P[0], sigma * P[1], sigma * P[2])
+    z_n = sigma_P[0] - (u[0] + mu * ops.hypot(u[1], u[2]))
+    pi = project_on_cone(ops, z_n, sigma_P[1] - u[1], sigma_P[2] - u[2], mu)
+    return (
+        ops.fabs(sigma_P[0] - pi[0]),
+        ops.fabs(sigma_P[1] - pi[1]),
+        ops.fabs(sigma_P[2] - pi[2]),
+    )
