@@ -205,3 +205,21 @@ def test_projection_on_floats_is_the_numpy_one_bitwise() -> None:
     ).T
     assert np.array_equal(arrays, floats, equal_nan=True)
     assert np.isnan(arrays[:, 60:80]).any(axis=0).all()  # a NaN stays a NaN
+
+
+def test_within_cones_scales_only_the_tangential_impulses_outside() -> None:
+    # a spatial contact outside its cone by 3e-9 (a solve accepted at its tolerance), a planar
+    # one three times outside, a planar one inside, a frictionless one, one bilateral row
+    tangents, mu = np.array([2, 1, 1, 0]), np.array([0.5, 0.4, 0.8, 0.0])
+    problem = CoulombProblem(np.eye(9), np.zeros(9), mu, tangents, equalities=1)
+    spatial = [0.06, np.sqrt((0.1 + 3e-9) ** 2 - 0.06**2)]  # bound 0.5 · 0.2 = 0.1
+    P = np.array([0.2, 1.0, 0.5, 3.0, *spatial, -1.2, 0.3, 2.5])
+    inside = problem.within_cones(P)
+    norms = np.hypot(*problem.tangential(inside).T)
+    assert np.all(norms <= mu * inside[:4] * (1.0 + 1e-15))
+    assert norms[0] == pytest.approx(0.1, rel=1e-15) and inside[6] == pytest.approx(-0.4, rel=1e-15)
+    assert inside[4] / inside[5] == pytest.approx(P[4] / P[5], rel=1e-15)  # the direction kept
+    unchanged = [0, 1, 2, 3, 7, 8]  # the normal, inside and bilateral rows
+    np.testing.assert_array_equal(inside[unchanged], P[unchanged])
+    within = np.array([0.2, 1.0, 0.5, 3.0, 0.06, 0.08, 0.4, -0.4, 2.5])  # on or inside
+    assert problem.within_cones(within) is within  # nothing to scale: the same array

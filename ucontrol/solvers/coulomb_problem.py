@@ -145,6 +145,27 @@ class CoulombProblem:
         padded[: self.size] = x
         return padded[self.tangent_rows]
 
+    def within_cones(self, P: Vector) -> Vector:
+        r"""``P`` (r,) with each tangential impulse beyond :math:`\mu P_n` scaled onto it.
+
+        A solution accepted at the residual tolerance can leave a cone by that tolerance; the
+        scaling keeps the normal impulses and the sliding directions, so that Coulomb's
+        inequality :math:`\lVert P_t \rVert \le \mu P_n` holds to rounding. ``P`` itself is
+        returned where every contact is inside its cone.
+        """
+        m = self.m
+        if m == 0:
+            return P
+        norms = tangential_norms(self.tangential(P))
+        bounds = self.mu * np.maximum(P[:m], 0.0)
+        over = np.flatnonzero(norms > bounds)
+        if over.size == 0:
+            return P
+        inside = np.append(P, 0.0)  # the last entry: sink of the missing tangent rows
+        rows = self.tangent_rows[over]
+        inside[rows] *= (bounds[over] / norms[over])[:, None]
+        return inside[: self.size]
+
     def residual(self, P: Vector, velocity: Vector | None = None) -> float:
         """Natural-map residual of the Coulomb problem at impulses ``P`` (r,), in [m/s].
 

@@ -231,6 +231,10 @@ class ProxsuiteCoulombSolver:
                 thresholds = thresholds + relaxation * step
                 previous_step = step
             directions = _directions(problem.tangential(P), -problem.tangential(u), directions)
+        inside = problem.within_cones(best_P)  # a tolerance's excess over the cones removed
+        if inside is not best_P:
+            best_P, best_u = inside, problem.velocity(inside)
+            best = problem.residual(best_P, best_u)
         self._guesses[key] = best_P
         if best <= self.residual_tolerance:
             status = "solved"
