@@ -901,12 +901,16 @@ class MoreauJean:
         model, data = self._model, self._data
         if J.shape[0] == 1:  # one triangular solve instead of M⁻¹
             return pin.cholesky.solve(model, data, J[0])[:, None]
-        subtrees = self.__dict__.get("_root_subtrees")
-        if subtrees is None:
+        subtrees = self.__dict__.get("_root_subtrees", False)
+        if subtrees is False:  # the first call: None where the product stays dense
             from ucontrol.model.root_subtrees import RootSubtrees
 
-            subtrees = self.__dict__["_root_subtrees"] = RootSubtrees(model)
-        return subtrees.inverse_inertia_rows(pin.cholesky.computeMinv(model, data), J)
+            found = RootSubtrees(model)
+            subtrees = self.__dict__["_root_subtrees"] = found if found.blocked else None
+        Minv = pin.cholesky.computeMinv(model, data)
+        if subtrees is None:  # one subtree (an arm, a legged robot) or few columns
+            return Minv @ J.T
+        return subtrees.inverse_inertia_rows(Minv, J)
 
     def _free_velocity(
         self, state: PlantEvaluation, tau: Vector
