@@ -245,3 +245,95 @@ def test_pair_rows_where_both_spheres_share_joints() -> None:
         expected = tangents @ (J1[:3] - J2[:3]) + lever @ (0.1 * J1[3:] + 0.2 * J2[3:])
         assert np.allclose(rows[2 * j : 2 * j + 2], expected, rtol=0.0, atol=1e-14)
         assert np.allclose(directions[2 * j : 2 * j + 2], tangents, rtol=0.0, atol=1e-15)
+
+
+#: _CHAIN with a tip on l2 through a fixed joint: a frame away from its joint, turned.
+_CHAIN_TIP = _CHAIN.replace(
+    "</robot>",
+    '<joint name="tip_joint" type="fixed"><parent link="l2"/><child link="tip"/>'
+    '<origin xyz="0.2 -0.1 0.3" rpy="0.3 -0.2 0.5"/></joint>'
+    f'<link name="tip">{_INERTIAL}</link></robot>',
+)
+
+
+def test_pair_kinematics_follow_the_data_buffer() -> None:
+    """Gaps, normal velocities and rows of pairs (a frame off its joint) on one buffer, twice.
+
+    References: each frame's ``pin.getFrameVelocity`` and ``pin.getFrameJacobian``
+    (LOCAL_WORLD_ALIGNED), read anew at each of two states of the same data buffer, and the
+    gaps' finite differences along ``pin.integrate``.
+    """
+    robot = RobotModel(pin.buildModelFromXML(_CHAIN_TIP))
+    radii = {"tip": 0.05, "l1": 0.1, "m1": 0.2, "l3": 0.15}
+    pairs = [
+        SphereSphereContact(
+            frame=a, other_frame=b, radius=radii[a], other_radius=radii[b], friction=mu
+        )
+        for a, b, mu in (("tip", "m1", 0.5), ("l3", "l1", 0.0), ("m1", "tip", 0.3))
+    ]
+    ground = Plane(normal=np.array([0.0, 0.3, 1.0]), point=np.array([0.0, 0.0, -2.0]))
+    contacts = [PointContact(frame="l3", surface=ground, radius=0.1, friction=0.4)]
+    constraints = ConstraintSet(robot, contacts, sphere_contacts=pairs)
+    data = pin.Data(robot.model)
+    rng = np.random.default_rng(7)
+    model = robot.model
+    for _ in range(2):  # the second state on the buffer the first one filled
+        q, v = rng.uniform(-1.0, 1.0, robot.nq), rng.uniform(-1.0, 1.0, robot.nv)
+        pin.computeAllTerms(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        gap, velocity = constraints.evaluate(data, q, v)
+        numeric = constraints.gaps(pin.integrate(model, q, _STEP * v)) - constraints.gaps(q)
+        assert np.allclose(velocity, numeric / _STEP, rtol=0.0, atol=_FD_TOLERANCE)
+        indices = [2, 0, 3, 1]
+        normal_rows, tangent_rows, directions = constraints.contact_rows(data, indices)
+        expected_normal, expected_tangent, expected_directions = [], [], []
+        for j, pair in enumerate(pairs, 1):
+            first, second = robot.frame_id(pair.frame), robot.frame_id(pair.other_frame)
+            delta = data.oMf[first].translation - data.oMf[second].translation
+            normal = delta / np.linalg.norm(delta)
+            assert gap[j] == pytest.approx(
+                np.linalg.norm(delta) - pair.radius - pair.other_radius, abs=1e-15
+            )
+            relative = (
+                pin.getFrameVelocity(model, data, first, pin.LOCAL_WORLD_ALIGNED).linear
+                - pin.getFrameVelocity(model, data, second, pin.LOCAL_WORLD_ALIGNED).linear
+            )
+            assert velocity[j] == pytest.approx(normal @ relative, abs=1e-14)
+            J1, J2 = (
+                pin.getFrameJacobian(model, data, f, pin.LOCAL_WORLD_ALIGNED)
+                for f in (first, second)
+            )
+            expected_normal.append(normal @ (J1[:3] - J2[:3]))
+            if pair.friction > 0.0:
+                tangents = tangent_basis(normal)
+                lever = np.cross(tangents, normal)
+                expected_tangent.append(
+                    tangents @ (J1[:3] - J2[:3])
+                    + lever @ (pair.radius * J1[3:] + pair.other_radius * J2[3:])
+                )
+                expected_directions.append(tangents)
+        point_rows = constraints.jacobian(data, [0])
+        point_tangent_rows, point_directions = constraints.tangent_rows(data, [0])
+        # indices [2, 0, 3, 1]: pairs 1 and 2 (positions 1, 2 among the pairs above), the
+        # point contact, the frictional pair 0; pair 1 is frictionless.
+        order = [expected_normal[1], point_rows[0], expected_normal[2], expected_normal[0]]
+        assert np.allclose(normal_rows, order, rtol=0.0, atol=1e-14)
+        assert np.allclose(
+            tangent_rows,
+            np.vstack((point_tangent_rows, expected_tangent[1], expected_tangent[0])),
+            rtol=0.0,
+            atol=1e-14,
+        )
+        assert np.allclose(
+            directions,
+            np.vstack((point_directions, expected_directions[1], expected_directions[0])),
+            rtol=0.0,
+            atol=1e-15,
+        )
+        assert np.array_equal(normal_rows, constraints.jacobian(data, indices))
+        assert all(
+            np.array_equal(a, b)
+            for a, b in zip(
+                (tangent_rows, directions), constraints.tangent_rows(data, indices), strict=True
+            )
+        )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -164,10 +164,12 @@ class ConstraintSet:
             (robot.frame_id(c.frame), robot.frame_id(c.other_frame), c.radius + c.other_radius)
             for c in pairs
         ]
-        self._pair_radii = [(c.radius, c.other_radius) for c in pairs]
         self._pair_frames = np.array([terms[:2] for terms in self._pair_terms], dtype=np.intp)
-        self._pair_radius = np.array(self._pair_radii, dtype=float).reshape(-1, 2)
-        self._pair_jacobians = _PairJacobians(robot.model, self._pair_frames) if pairs else None
+        self._pair_radius = np.array(
+            [(c.radius, c.other_radius) for c in pairs], dtype=float
+        ).reshape(-1, 2)
+        self._pair_radii_sum = self._pair_radius.sum(axis=1)  # [m]
+        self._pair_kinematics = _PairFrames(robot.model, self._pair_frames) if pairs else None
         all_contacts: tuple[PointContact | SphereSphereContact, ...] = (*self.contacts, *pairs)
         names = [contact.name for contact in all_contacts]
         restitution = [contact.restitution for contact in all_contacts]
@@ -227,8 +229,8 @@ class ConstraintSet:
         self._plane_terms = list(
             zip(self._frame_ids, self._normals.tolist(), self._offsets.tolist(), strict=True)
         )
-        # The Pinocchio data whose frame origins :meth:`evaluate` last read, with their views.
-        self._origins: tuple[pin.Data | None, list[Vector]] = (None, [])
+        # The views on the Pinocchio data whose frame origins :meth:`evaluate` last read.
+        self._origins = _DataViews()
         self._plane_tangents = [tangent_basis(normal, self.planar_axis) for normal in self._normals]
         self._moving = [
             (i, contact.surface.motion, contact.surface.normal)
@@ -301,17 +303,14 @@ class ConstraintSet:
             gap[i] = _along(n_i, origins[i].tolist()) - offset
             linear = pin.getFrameVelocity(model, data, frame_id, _LWA).linear  # [m/s]
             velocity[i] = _along(n_i, linear.tolist())
-        if self._pair_terms:
-            placements = data.oMf
-            for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
-                delta = placements[first].translation - placements[second].translation
-                distance = np.sqrt(delta.dot(delta))
-                gap[i] = distance - radii
-                relative = (
-                    pin.getFrameVelocity(model, data, first, _LWA).linear
-                    - pin.getFrameVelocity(model, data, second, _LWA).linear
-                )
-                velocity[i] = delta.dot(relative) / distance
+        if self._pair_kinematics is not None:  # all pairs at once
+            pairs = slice(self._n_point, self._pairs_end)
+            delta, distance = self._pair_offsets(data)
+            first, second = self._pair_kinematics.index.T
+            frame_velocities = self._pair_kinematics.velocities(data)  # [m/s]
+            relative = frame_velocities[first] - frame_velocities[second]
+            gap[pairs] = distance - self._pair_radii_sum
+            velocity[pairs] = np.einsum("ij,ij->i", delta, relative) / distance
         if self.collision is not None:
             rows = slice(self._pairs_end, self.n_contacts)
             gap[rows], velocity[rows] = self.collision.evaluate(data, t)
@@ -329,23 +328,14 @@ class ConstraintSet:
     def _frame_origins(self, data: pin.Data) -> list[Vector]:
         """The point contacts' frame origins in ``data`` [m], each shape (3,), read without a call.
 
-        Pinocchio's ``data.oMf[f].translation`` is a view on ``data``'s own memory, which every
-        later frame placement of ``data`` updates: the views are taken once per data buffer (the
-        last one read is kept, with the buffer, so that its memory outlives them) and reading
-        them costs no call into Pinocchio (two per contact otherwise, most of a call of
-        :meth:`evaluate`: docs/benchmarks.md).
+        Views on ``data``'s memory (:class:`_DataViews`): reading them costs no call into
+        Pinocchio (two per contact otherwise, most of a call of :meth:`evaluate`:
+        docs/benchmarks.md).
         """
-        read, origins = self._origins
-        if read is not data:
-            origins = [data.oMf[frame_id].translation for frame_id in self._frame_ids]
-            self._origins = (data, origins)
-        return origins
-
-    def __getstate__(self) -> dict[str, Any]:
-        """The set's state, less the views of :meth:`_frame_origins` (a copy would not follow)."""
-        state = self.__dict__.copy()
-        state["_origins"] = (None, [])
-        return state
+        placements = data.oMf
+        return self._origins.read(
+            data, lambda: [placements[frame_id].translation for frame_id in self._frame_ids]
+        )
 
     def _ahead_rules(self, robot: RobotModel) -> list[tuple[int, int, int, Vector]]:
         """(constraint, ahead frame, other frame, direction) of each ``closes_ahead_of``."""
@@ -416,7 +406,11 @@ class ConstraintSet:
         index = _index_list(indices)
         if self._point_contacts_only(index):
             return self._point_rows(data, index)[0]
-        rows = np.zeros((len(indices), self.robot.nv))
+        return self._normal_rows(data, index, None)
+
+    def _normal_rows(self, data: pin.Data, index: list[int], pair_rows: Vector | None) -> Vector:
+        """:meth:`jacobian` of ``index``, given the normal rows of its sphere pairs or None."""
+        rows = np.zeros((len(index), self.robot.nv))
         k = self.n_contacts
         shapes: list[int] = []  # positions in indices of the collision rows
         pairs: list[int] = []  # positions in indices of the sphere-pair rows
@@ -434,14 +428,15 @@ class ConstraintSet:
                 play = self._play[i - self._stops_end]
                 rows[row, play.v_xy] = -play.gap_normal(data)[1]
         if points:  # as without the other constraints, to the last bit
-            rows[points] = self._point_rows(data, [int(indices[row]) for row in points])[0]
+            rows[points] = self._point_rows(data, [index[row] for row in points])[0]
         if pairs:
-            pair_ids = [int(indices[row]) - self._n_point for row in pairs]
-            normals = self._pair_normals(data, pair_ids)
-            rows[pairs] = self._pair_rows(data, pair_ids, normals[:, None, :])[:, 0]
+            if pair_rows is None:
+                pair_ids = [index[row] - self._n_point for row in pairs]
+                pair_rows = self._pair_block(data, pair_ids, tangential=False)[0]
+            rows[pairs] = pair_rows
         if shapes and self.collision is not None:
             rows[shapes] = self.collision.jacobian(
-                data, [int(indices[row]) - self._pairs_end for row in shapes]
+                data, [index[row] - self._pairs_end for row in shapes]
             )
         return rows
 
@@ -462,28 +457,41 @@ class ConstraintSet:
         indices = _index_list(indices)
         if self._point_contacts_only(indices):
             return self._point_rows(data, indices)[1:]
+        return self._tangential_rows(data, indices, None)
+
+    def _tangential_rows(
+        self, data: pin.Data, indices: list[int], pair_block: tuple[Vector, Vector] | None
+    ) -> tuple[Vector, Vector]:
+        """:meth:`tangent_rows` of ``indices``, given its sphere pairs' rows or None.
+
+        ``pair_block``: the tangential rows and tangents of each sphere pair of ``indices``
+        (frictional or not, in order), shapes (k, c, nv) and (k, c, 3).
+        """
         counts = self.tangent_count[indices].tolist()
         rows = np.empty((sum(counts), self.robot.nv))
         directions = np.empty((rows.shape[0], 3))
         first_pair, pairs_end = self._n_point, self._pairs_end
-        pair_ids = [
-            i - first_pair
-            for i, count in zip(indices, counts, strict=True)
-            if count and first_pair <= i < pairs_end
-        ]
-        if pair_ids:  # all sphere pairs at once
-            normals = self._pair_normals(data, pair_ids)
-            pair_tangents = tangent_basis(normals, self.planar_axis)  # (k, c, 3)
-            # Points p1 - r1 n and p2 + r2 n: t·(v1 - v2) + (t × n)·(r1 ω1 + r2 ω2).
-            levers = cross(pair_tangents, normals[:, None, :])
+        is_pair = [first_pair <= i < pairs_end for i in indices]
+        frictional = [count > 0 for pair, count in zip(is_pair, counts, strict=True) if pair]
+        if any(frictional):  # all sphere pairs at once
+            if pair_block is None:
+                pair_ids = [
+                    i - first_pair
+                    for i, pair, count in zip(indices, is_pair, counts, strict=True)
+                    if pair and count
+                ]
+                pair_block = self._pair_block(data, pair_ids, tangential=True)[1:]
+            elif not all(frictional):
+                pair_block = (pair_block[0][frictional], pair_block[1][frictional])
+            pair_rows, pair_tangents = pair_block
             starts = np.cumsum(counts) - counts  # first row of each constraint
             pair_starts = [
                 start
-                for i, count, start in zip(indices, counts, starts.tolist(), strict=True)
-                if count and first_pair <= i < pairs_end
+                for pair, count, start in zip(is_pair, counts, starts.tolist(), strict=True)
+                if pair and count
             ]
             targets = np.array(pair_starts)[:, None] + np.arange(pair_tangents.shape[1])
-            rows[targets] = self._pair_rows(data, pair_ids, pair_tangents, levers)
+            rows[targets] = pair_rows
             directions[targets] = pair_tangents
         point_ids: list[int] = []  # the point contacts with tangential rows
         point_targets: list[int] = []  # and the positions of their rows
@@ -526,11 +534,11 @@ class ConstraintSet:
     ) -> tuple[Vector, Vector, Vector]:
         r"""Normal and tangential rows of the constraints ``indices``, read together.
 
-        :meth:`jacobian` and :meth:`tangent_rows` in one call: for point contacts alone, each
-        contact frame's Jacobian is read once for both kinds of rows (the normal row is
-        :math:`n^T J_{lin}`, the tangential ones :math:`t^T J_{lin} + \ell^T J_{ang}`, as
-        one product of stacked directions with the stacked frame Jacobians). Same
-        requirements on ``data`` as :meth:`jacobian`.
+        :meth:`jacobian` and :meth:`tangent_rows` in one call: each contact frame's Jacobian
+        is read once for both kinds of rows (the normal row is :math:`n^T J_{lin}`, the
+        tangential ones :math:`t^T J_{lin} + \ell^T J_{ang}`, as one product of stacked
+        directions with the stacked frame Jacobians), for point contacts and sphere pairs.
+        Same requirements on ``data`` as :meth:`jacobian`.
 
         Returns:
             The normal rows, shape (len(indices), nv), the tangential rows, shape (k, nv),
@@ -539,7 +547,17 @@ class ConstraintSet:
         indices = _index_list(indices)
         if self._point_contacts_only(indices):
             return self._point_rows(data, indices)
-        return self.jacobian(data, indices), *self.tangent_rows(data, indices)
+        pair_ids = [i - self._n_point for i in indices if self._n_point <= i < self._pairs_end]
+        if not pair_ids:
+            return self._normal_rows(data, indices, None), *self._tangential_rows(
+                data, indices, None
+            )
+        # The sphere pairs' normal and tangential rows from one reading of their frames.
+        normal_rows, tangent_rows, tangents = self._pair_block(data, pair_ids, tangential=True)
+        return (
+            self._normal_rows(data, indices, normal_rows),
+            *self._tangential_rows(data, indices, (tangent_rows, tangents)),
+        )
 
     def _point_contacts_only(self, indices: list[int]) -> bool:
         """Whether ``indices`` are point contacts against planes, at least one."""
@@ -814,9 +832,10 @@ class ConstraintSet:
         gap = np.empty(self.size)
         for i, (frame_id, normal, offset) in enumerate(self._plane_terms):
             gap[i] = _along(normal, data.oMf[frame_id].translation.tolist()) - offset
-        for i, (first, second, radii) in enumerate(self._pair_terms, self._n_point):
-            delta = data.oMf[first].translation - data.oMf[second].translation
-            gap[i] = np.sqrt(delta.dot(delta)) - radii
+        if self._pair_kinematics is not None:
+            gap[self._n_point : self._pairs_end] = (
+                self._pair_offsets(data)[1] - self._pair_radii_sum
+            )
         if self.collision is not None:
             gap[self._pairs_end : self.n_contacts] = self.collision.gaps(data, t)
         gap[self.n_contacts : self._stops_end] = self._stop_sign * (
@@ -826,57 +845,77 @@ class ConstraintSet:
             gap[i] = play.gap_normal(data)[0]
         return gap
 
-    def _pair_rows(
-        self, data: pin.Data, pairs: list[int], directions: Vector, levers: Vector | None = None
-    ) -> Vector:
-        r"""Rows :math:`d \cdot (v_1 - v_2) + l \cdot (r_1 \omega_1 + r_2 \omega_2)` of ``pairs``.
+    def _pair_offsets(self, data: pin.Data) -> tuple[Vector, Vector]:
+        """Each sphere pair's centre offset p1 - p2 in [m], (pairs, 3), and its length (pairs,)."""
+        assert self._pair_kinematics is not None
+        origins = self._pair_kinematics.origins(data)
+        first, second = self._pair_kinematics.index.T
+        delta = origins[first] - origins[second]
+        return delta, np.sqrt(np.einsum("ij,ij->i", delta, delta))
+
+    def _pair_block(
+        self, data: pin.Data, pairs: list[int], *, tangential: bool
+    ) -> tuple[Vector, Vector, Vector]:
+        r"""Normal rows, and tangential rows with their tangents, of the sphere pairs ``pairs``.
+
+        The normal :math:`n = (p_1 - p_2) / \|p_1 - p_2\|` and the frames' Jacobians are read
+        once for both kinds of rows: :math:`n \cdot (v_1 - v_2)` and, through the contact points
+        :math:`p_1 - r_1 n` and :math:`p_2 + r_2 n`,
+        :math:`t \cdot (v_1 - v_2) + (t \times n) \cdot (r_1 \omega_1 + r_2 \omega_2)`.
 
         Args:
             data: As for :meth:`jacobian`.
             pairs: Sphere contacts (their positions among the sphere contacts), k of them.
-            directions: Directions d of each pair's rows, shape (k, c, 3).
-            levers: Levers l of each pair's rows, shape (k, c, 3), or None (none).
+            tangential: Whether the tangential rows are wanted (else they are empty, c = 0).
 
         Returns:
-            The rows, shape (k, c, nv).
+            The normal rows (k, nv), the tangential rows (k, c, nv) and the unit tangents
+            (k, c, 3) in world coordinates.
         """
-        assert self._pair_jacobians is not None
-        first, second = self._pair_jacobians.index[pairs].T
-        J = self._pair_jacobians.compact(self.robot.model, data, first, second)
+        assert self._pair_kinematics is not None
+        frames = self._pair_kinematics
+        origins = frames.origins(data)  # [m]
+        first, second = frames.index[pairs].T
+        delta = origins[first] - origins[second]
+        normals = delta / np.sqrt(np.einsum("ij,ij->i", delta, delta))[:, None]
+        tangents = (
+            tangent_basis(normals, self.planar_axis) if tangential else np.empty((len(pairs), 0, 3))
+        )
+        directions = np.concatenate((normals[:, None, :], tangents), axis=1)  # (k, 1 + c, 3)
+        J = frames.jacobians(data, origins)  # (f, 6, w)
         parts = [
             np.einsum("kcj,kjw->kcw", directions, J[first, :3]),
             -np.einsum("kcj,kjw->kcw", directions, J[second, :3]),
         ]
-        if levers is not None:
+        if tangential:
+            levers = cross(tangents, normals[:, None, :])
             radius = self._pair_radius[pairs]
-            parts[0] += radius[:, 0, None, None] * np.einsum("kcj,kjw->kcw", levers, J[first, 3:])
-            parts[1] += radius[:, 1, None, None] * np.einsum("kcj,kjw->kcw", levers, J[second, 3:])
-        k, c = directions.shape[:2]
-        nv = self.robot.nv
+            parts[0][:, 1:] += radius[:, 0, None, None] * np.einsum(
+                "kcj,kjw->kcw", levers, J[first, 3:]
+            )
+            parts[1][:, 1:] += radius[:, 1, None, None] * np.einsum(
+                "kcj,kjw->kcw", levers, J[second, 3:]
+            )
+        k, c, nv = len(pairs), directions.shape[1], self.robot.nv
         rows = np.zeros((k, c, nv + 1))  # last column: sink of the padding
         at_rows = np.arange(k)[:, None, None], np.arange(c)[None, :, None]
-        for frames, part in zip((first, second), parts, strict=True):
-            np.add.at(rows, (*at_rows, self._pair_jacobians.columns[frames][:, None, :]), part)
-        return rows[..., :nv]
-
-    def _pair_normals(self, data: pin.Data, pairs: list[int]) -> Vector:
-        """Unit normals (k, 3) of the sphere contacts ``pairs``, from sphere 2 to sphere 1."""
-        placements = data.oMf
-        frames = self._pair_frames[pairs].ravel().tolist()
-        centres = np.empty((len(frames), 3))
-        for row, frame in enumerate(frames):  # each translation dropped at once: fewer live objects
-            centres[row] = placements[frame].translation
-        delta = centres[0::2] - centres[1::2]
-        return delta / np.sqrt(np.einsum("ij,ij->i", delta, delta))[:, None]
+        for ids, part in zip((first, second), parts, strict=True):
+            np.add.at(rows, (*at_rows, frames.columns[ids][:, None, :]), part)
+        return rows[:, 0, :nv], rows[:, 1:, :nv], tangents
 
 
-class _PairJacobians:
-    """The frames of the sphere pairs, and the velocity columns each one's Jacobian can fill.
+class _PairFrames:
+    r"""The frames of the sphere pairs: their origins, velocities and Jacobians, read in bulk.
+
+    The frames' origins, their joints' rotations and velocities are views on ``data``'s memory
+    (:class:`_DataViews`), stacked by a call instead of calling Pinocchio twice per pair (a
+    column of 100 beads: docs/benchmarks.md).
 
     A frame's Jacobian is zero outside the columns of the joints that support it (its
-    kinematic chain to the root); only those are read, once per frame however many pairs
-    share it (a column of beads: every bead but the ends is in two, and each moves on its own
-    two joints of the robot's 2n).
+    kinematic chain to the root); only those are read, from the joint Jacobians ``data.J``
+    (WORLD convention: the velocity of the point at the world origin) moved to the frame's
+    origin :math:`p`, :math:`J_{lin} - p \times J_{ang}` (LOCAL_WORLD_ALIGNED, as
+    ``pin.getFrameJacobian``), all frames in one gather.
 
     Attributes:
         frames: Frame ids, shape (f,).
@@ -888,38 +927,105 @@ class _PairJacobians:
         frames, index = np.unique(frame_pairs, return_inverse=True)
         self.frames = frames.tolist()
         self.index = index.reshape(-1, 2)
-        supports = []
-        for frame in self.frames:
-            joint = model.frames[frame].parentJoint
-            supports.append(
-                [
-                    column
-                    for j in model.supports[joint]
-                    if j > 0
-                    for column in range(
-                        model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv
-                    )
-                ]
-            )
+        self._joints = [model.frames[frame].parentJoint for frame in self.frames]
+        # Each frame's origin in its joint's frame [m] (its velocity: v + ω × t, then rotated).
+        self._offsets = np.array(
+            [model.frames[frame].placement.translation for frame in self.frames]
+        )
+        self._offset = bool(np.any(self._offsets))
+        supports = [
+            [
+                column
+                for j in model.supports[joint]
+                if j > 0
+                for column in range(
+                    model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv
+                )
+            ]
+            for joint in self._joints
+        ]
         width = max(1, *(len(columns) for columns in supports))
         self.columns = np.full((len(self.frames), width), model.nv, dtype=np.intp)
         for row, columns in zip(self.columns, supports, strict=True):
             row[: len(columns)] = columns
-        self._supports = [np.array(columns, dtype=np.intp) for columns in supports]
+        self._views = _DataViews()
 
-    def compact(
-        self, model: pin.Model, data: pin.Data, first: NDArray[np.intp], second: NDArray[np.intp]
-    ) -> Vector:
-        """Support columns of the Jacobians of the frames ``first`` and ``second``, (f, 6, w).
+    def _read(self, data: pin.Data) -> list[list[Vector]]:
+        """Views on ``data``: frame origins, joint rotations, joints' linear, angular velocities."""
 
-        Rows of other frames are zero.
+        def take() -> list[list[Vector]]:
+            velocities = [data.v[joint] for joint in self._joints]
+            return [
+                [data.oMf[frame].translation for frame in self.frames],
+                [data.oMi[joint].rotation for joint in self._joints],
+                [velocity.linear for velocity in velocities],
+                [velocity.angular for velocity in velocities],
+            ]
+
+        views: list[list[Vector]] = self._views.read(data, take)
+        return views
+
+    def origins(self, data: pin.Data) -> Vector:
+        """The frames' origins in [m], shape (f, 3); ``data`` must hold frame placements."""
+        return np.array(self._read(data)[0])
+
+    def velocities(self, data: pin.Data) -> Vector:
+        r"""The frames' linear velocities (LOCAL_WORLD_ALIGNED) in [m/s], shape (f, 3).
+
+        :math:`R_j (v_j + \omega_j \times t)` of each frame's joint j (rotation
+        :math:`R_j`, local velocity :math:`(v_j, \omega_j)`) and origin t in the joint's
+        frame, as ``pin.getFrameVelocity``; ``data`` must hold forward kinematics with
+        velocity.
         """
-        compact = np.zeros((len(self.frames), 6, self.columns.shape[1]))
-        for i in np.union1d(first, second).tolist():
-            columns = self._supports[i]
-            jacobian = pin.getFrameJacobian(model, data, self.frames[i], _LWA)
-            compact[i, :, : columns.size] = jacobian[:, columns]
+        _, rotations, linear, angular = self._read(data)
+        local = np.array(linear)
+        if self._offset:
+            local += cross(np.array(angular), self._offsets)
+        return np.einsum("fij,fj->fi", np.array(rotations), local)
+
+    def jacobians(self, data: pin.Data, origins: Vector) -> Vector:
+        """The frames' Jacobians (LOCAL_WORLD_ALIGNED) on their support columns, (f, 6, w).
+
+        Args:
+            data: Holding the joint Jacobians (``pin.computeJointJacobians`` or
+                ``pin.computeAllTerms``).
+            origins: The frames' origins in [m], shape (f, 3) (:meth:`origins`).
+        """
+        world = np.zeros((6, data.J.shape[1] + 1))  # last column: the padding's zeros
+        world[:, :-1] = data.J
+        compact = world[:, self.columns].transpose(1, 0, 2)  # (f, 6, w)
+        linear, angular = compact[:, :3], compact[:, 3:]
+        linear -= cross(origins[:, None, :], angular.transpose(0, 2, 1)).transpose(0, 2, 1)
         return compact
+
+
+class _DataViews:
+    """Views on the memory of the Pinocchio data buffer read last, kept with the buffer.
+
+    Pinocchio's ``data.oMf[f].translation`` (and the like) are views on ``data``'s own memory,
+    which every later kinematics call on ``data`` updates: taken once per buffer, they cost no
+    call into Pinocchio afterwards. The buffer is kept so that its memory outlives them; a copy
+    (pickle) drops both, as it would not follow them.
+    """
+
+    def __init__(self) -> None:
+        self._read: tuple[pin.Data | None, Any] = (None, None)
+
+    def read(self, data: pin.Data, take: Callable[[], Any]) -> Any:
+        """The views on ``data``: those kept when it was read last, else ``take()``'s."""
+        read, views = self._read
+        if read is not data:
+            views = take()
+            self._read = (data, views)
+        return views
+
+    def __getstate__(self) -> dict[str, Any]:
+        """No views, no buffer."""
+        return {"_read": (None, None)}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """As built."""
+        self._read = state["_read"]
 
 
 class _PlayTerms:

@@ -919,11 +919,24 @@ class MoreauJean:
         return rates[0], rates[1]
 
     def _rigid_inverse_inertia(self, J: Vector) -> Vector:
-        """:math:`M^{-1} J^T` for rows J (m, nv), with M factorized in the data buffer."""
+        """:math:`M^{-1} J^T` for rows J (m, nv), with M factorized in the data buffer.
+
+        By the root's subtrees where M is block diagonal over several
+        (:class:`~ucontrol.model.root_subtrees.RootSubtrees`, found on the first call).
+        """
         model, data = self._model, self._data
         if J.shape[0] == 1:  # one triangular solve instead of M⁻¹
             return pin.cholesky.solve(model, data, J[0])[:, None]
-        return pin.cholesky.computeMinv(model, data) @ J.T
+        subtrees = self.__dict__.get("_root_subtrees", False)
+        if subtrees is False:  # the first call: None where the product stays dense
+            from ucontrol.model.root_subtrees import RootSubtrees
+
+            found = RootSubtrees(model)
+            subtrees = self.__dict__["_root_subtrees"] = found if found.blocked else None
+        Minv = pin.cholesky.computeMinv(model, data)
+        if subtrees is None:  # one subtree (an arm, a legged robot) or few columns
+            return Minv @ J.T
+        return subtrees.inverse_inertia_rows(Minv, J)
 
     def _free_velocity(
         self, state: PlantEvaluation, tau: Vector
