@@ -1,9 +1,20 @@
-"""Analysis of runs: summaries and analytic references."""
+"""Analysis of runs: summaries and analytic references.
 
-from ucontrol.analysis.bouncing_ball import BouncingBall
+:class:`BouncingBall` (an analytic reference for the convergence studies) is imported on first
+use: a run loads only its summary's modules.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
 from ucontrol.analysis.energy_balance import actuator_work
 from ucontrol.analysis.impacts import IMPACT_VELOCITY_THRESHOLD, impact_mask
 from ucontrol.analysis.summary import summarize
+
+if TYPE_CHECKING:
+    from ucontrol.analysis.bouncing_ball import BouncingBall
 
 __all__ = [
     "IMPACT_VELOCITY_THRESHOLD",
@@ -12,3 +23,10 @@ __all__ = [
     "impact_mask",
     "summarize",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """:class:`BouncingBall`, imported when first asked for."""
+    if name == "BouncingBall":
+        return import_module("ucontrol.analysis.bouncing_ball").BouncingBall
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
