@@ -30,7 +30,9 @@ from ucontrol.solvers.lapack_routines import FLAPACK
 #: plain run of the default scene; the campaign package (its overrides come with ``--set``,
 #: which need not load its runner and spec, dask's side); the cycles' analyses of a summary,
 #: for phase-machine controllers; the solvers a proxsuite run does not call (Lemke's pivoting,
-#: the rare ill-conditioned case; Pinocchio's adapters) and the analytic bouncing ball.
+#: the rare ill-conditioned case; Pinocchio's adapters) and the analytic bouncing ball; the
+#: kinds of constraint the default scene does not declare (bilateral closures and their
+#: assembly, clearances, collision pairs, sphere–sphere contacts) and pushes.
 HEAVY = (
     "scipy",
     "ucontrol.campaign",
@@ -66,6 +68,12 @@ HEAVY = (
     "ucontrol.solvers.lemke",
     "ucontrol.solvers.pinocchio_constraint_solver",
     "ucontrol.analysis.bouncing_ball",
+    "ucontrol.contact.assembly",
+    "ucontrol.contact.bilateral",
+    "ucontrol.contact.clearance_joint",
+    "ucontrol.contact.collision_pair",
+    "ucontrol.contact.sphere_sphere_contact",
+    "ucontrol.scene.push",
     "dask",
     "matplotlib",
     "meshcat",
