@@ -6,9 +6,9 @@ use: a run loads only its summary's modules.
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from ucontrol._lazy_names import lazy_names
 from ucontrol.analysis.energy_balance import actuator_work
 from ucontrol.analysis.impacts import IMPACT_VELOCITY_THRESHOLD, impact_mask
 from ucontrol.analysis.summary import summarize
@@ -25,8 +25,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    """:class:`BouncingBall`, imported when first asked for."""
-    if name == "BouncingBall":
-        return import_module("ucontrol.analysis.bouncing_ball").BouncingBall
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_names(__name__, {"BouncingBall": "ucontrol.analysis.bouncing_ball"})

@@ -6,9 +6,9 @@ friction machinery, one without a qpsolvers backend never imports qpsolvers, and
 solves its contacts with proxsuite loads neither Lemke's pivoting nor Pinocchio's solvers.
 """
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from ucontrol._lazy_names import lazy_names
 from ucontrol.solvers.contact_solution import ContactSolution, complementarity_residual
 from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
 from ucontrol.solvers.coulomb_problem import CoulombProblem
@@ -55,8 +55,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    """The names of :data:`_LAZY`, imported when first asked for."""
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_names(__name__, _LAZY)
