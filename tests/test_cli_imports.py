@@ -29,7 +29,10 @@ from ucontrol.solvers.lapack_routines import FLAPACK
 #: a path (the desired cycle, its segments and numpy's polynomials among them), never by a
 #: plain run of the default scene; the campaign package (its overrides come with ``--set``,
 #: which need not load its runner and spec, dask's side); the cycles' analyses of a summary,
-#: for phase-machine controllers.
+#: for phase-machine controllers; the solvers a proxsuite run does not call (Lemke's pivoting,
+#: the rare ill-conditioned case; Pinocchio's adapters) and the analytic bouncing ball; the
+#: kinds of constraint the default scene does not declare (bilateral closures and their
+#: assembly, clearances, collision pairs, sphere–sphere contacts) and pushes.
 HEAVY = (
     "scipy",
     "ucontrol.campaign",
@@ -62,6 +65,15 @@ HEAVY = (
     "numpy.polynomial",
     "ucontrol.analysis.tracking",
     "ucontrol.analysis.weak_stability",
+    "ucontrol.solvers.lemke",
+    "ucontrol.solvers.pinocchio_constraint_solver",
+    "ucontrol.analysis.bouncing_ball",
+    "ucontrol.contact.assembly",
+    "ucontrol.contact.bilateral",
+    "ucontrol.contact.clearance_joint",
+    "ucontrol.contact.collision_pair",
+    "ucontrol.contact.sphere_sphere_contact",
+    "ucontrol.scene.push",
     "dask",
     "matplotlib",
     "meshcat",

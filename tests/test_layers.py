@@ -19,6 +19,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "ucontrol"
 LAYERS = {
     "exceptions": 0,
     "_validation": 1,
+    "_lazy_names": 0,
     "log": 1,
     "output_files": 1,
     "model": 2,

@@ -83,7 +83,7 @@ def test_nearly_parallel_contacts_fall_back_on_lemke(monkeypatch: pytest.MonkeyP
         pivots.append(result.pivots)
         return result
 
-    monkeypatch.setattr(lcp_refinement, "solve_lcp_lemke", spied)
+    monkeypatch.setattr(lemke, "solve_lcp_lemke", spied)  # imported where it is called
     solver = ProxsuiteLCPSolver(polish=False, residual_tolerance=1e-13)
     solution = solver.solve(D, b)
     assert pivots and pivots[0] > 0  # the fallback ran

@@ -3,22 +3,24 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_vector
-from ucontrol.contact.bilateral import BilateralConstraint, BilateralSet
-from ucontrol.contact.clearance_joint import ClearanceJoint
-from ucontrol.contact.collision_pair import CollisionPair
-from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
-from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
 from ucontrol.contact.tangent_basis import cross, tangent_basis
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
 from ucontrol.model.robot_model import RobotModel
+
+if TYPE_CHECKING:  # the kinds of constraint a scene may not declare, imported by those that do
+    from ucontrol.contact.bilateral import BilateralConstraint, BilateralSet
+    from ucontrol.contact.clearance_joint import ClearanceJoint
+    from ucontrol.contact.collision_pair import CollisionPair
+    from ucontrol.contact.joint_stop import JointStop
+    from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
 
 Vector = NDArray[np.float64]
 _LWA = pin.LOCAL_WORLD_ALIGNED
@@ -137,7 +139,11 @@ class ConstraintSet:
                 "none: the robot has no degree of freedom (nv = 0)",
             )
         self.robot = robot
-        self.bilateral = BilateralSet(robot, bilateral) if bilateral else None
+        self.bilateral: BilateralSet | None = None
+        if bilateral:
+            from ucontrol.contact.bilateral import BilateralSet
+
+            self.bilateral = BilateralSet(robot, bilateral)
         self.collision_pairs = tuple(collision_pairs)
         self.collision = None
         if self.collision_pairs:  # geometry loaded only for declared pairs

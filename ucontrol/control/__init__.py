@@ -7,8 +7,9 @@ loads neither casadi (:class:`BrogliatoController`) nor scipy.interpolate
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from ucontrol._lazy_names import lazy_names
 
 if TYPE_CHECKING:
     from ucontrol.control.brogliato_controller import BrogliatoController, BrogliatoGains
@@ -120,11 +121,7 @@ _MODULES = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    module = _MODULES.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(import_module(module), name)
+__getattr__ = lazy_names(__name__, _MODULES)
 
 
 def __dir__() -> list[str]:

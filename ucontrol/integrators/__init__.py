@@ -6,9 +6,9 @@ and the LZB impact law (which need ``scipy.integrate``) are imported on first us
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from ucontrol._lazy_names import lazy_names
 from ucontrol.integrators.moreau_jean import MoreauJean
 
 if TYPE_CHECKING:
@@ -26,7 +26,4 @@ _LAZY = {
 __all__ = ["Compliant", "EventDriven", "LZBImpactLaw", "MoreauJean", "lzb_impact"]
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_names(__name__, _LAZY)

@@ -5,9 +5,9 @@
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from ucontrol._lazy_names import lazy_names
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
@@ -26,7 +26,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    if name == "SymbolicModel":
-        return import_module("ucontrol.model.symbolic_model").SymbolicModel
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_names(__name__, {"SymbolicModel": "ucontrol.model.symbolic_model"})

@@ -16,22 +16,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
-from ucontrol.contact.bilateral import BilateralConstraint
-from ucontrol.contact.clearance_joint import ClearanceJoint
-from ucontrol.contact.collision_pair import CollisionPair
 from ucontrol.contact.constraint_set import ConstraintSet
-from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.point_contact import PointContact
-from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
 from ucontrol.exceptions import InvalidParameterError, SceneError
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.inertia_check import check_inertias, check_mass_matrix
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.scene.integrator_settings import IntegratorSettings
-from ucontrol.scene.push import Push
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the kinds a scene may not declare (:mod:`~ucontrol.scene.scene_table`)
+    from ucontrol.contact.bilateral import BilateralConstraint
+    from ucontrol.contact.clearance_joint import ClearanceJoint
+    from ucontrol.contact.collision_pair import CollisionPair
+    from ucontrol.contact.joint_stop import JointStop
+    from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
+    from ucontrol.scene.push import Push
     from ucontrol.sensors.sensor_settings import ActuatorSettings, SensorSettings
 
 

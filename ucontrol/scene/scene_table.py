@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -21,20 +21,22 @@ from ucontrol._validation import (
     require_key,
     table_type,
 )
-from ucontrol.contact.bilateral import BilateralConstraint, FrameClosure, JointCoupling
-from ucontrol.contact.clearance_joint import ClearanceJoint
-from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
-from ucontrol.contact.joint_stop import JointStop
 from ucontrol.contact.plane import Plane
 from ucontrol.contact.point_contact import PointContact
-from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
 from ucontrol.exceptions import InvalidParameterError, NotFoundError, SceneError
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.model.urdf_path import resolve_urdf
 from ucontrol.scene.controller_builders import check_controller_table
 from ucontrol.scene.integrator_settings import IntegratorSettings
-from ucontrol.scene.push import Push
+
+if TYPE_CHECKING:  # each kind imported by the reader of its table, for a scene that has one
+    from ucontrol.contact.bilateral import BilateralConstraint
+    from ucontrol.contact.clearance_joint import ClearanceJoint
+    from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
+    from ucontrol.contact.joint_stop import JointStop
+    from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
+    from ucontrol.scene.push import Push
 
 #: Analytic references a scene may declare in its ``[reference]`` table.
 REFERENCES = ("bouncing_ball",)
@@ -224,8 +226,17 @@ def scene_fields(
         reference=table.get("reference"),
         **_sensors_and_actuators(table),
         joint_friction=_joint_friction(table, robot),
-        pushes=tuple(Push.from_table(spec, robot.nv) for spec in table.get("pushes", [])),
+        pushes=_pushes(table.get("pushes", []), robot.nv),
     )
+
+
+def _pushes(specs: Sequence[Any], nv: int) -> tuple[Push, ...]:
+    """The ``[[pushes]]`` entries (``nv``: the robot's velocity size)."""
+    if not specs:
+        return ()
+    from ucontrol.scene.push import Push
+
+    return tuple(Push.from_table(spec, nv) for spec in specs)
 
 
 def _robot(robot_table: Mapping[str, Any], base_dir: Path) -> RobotModel:
@@ -436,6 +447,8 @@ def _contact(
 
 
 def _sphere_contact(spec: Mapping[str, Any]) -> SphereSphereContact:
+    from ucontrol.contact.sphere_sphere_contact import SphereSphereContact
+
     check_keys("[[sphere_contacts]]", spec, _SPHERE_CONTACT_KEYS)
     return SphereSphereContact(
         frame=str(require_key(spec, "[[sphere_contacts]]", "frame")),
@@ -455,6 +468,8 @@ def _shape(section: str, name: str, spec: Any, base_dir: Path) -> EnvironmentSha
     A mesh's ``file`` is relative to the scene file (``base_dir``); ``motion`` is read as a
     surface's (:func:`_motion`).
     """
+    from ucontrol.contact.collision_pair import EnvironmentShape
+
     kind = table_type(section, spec, _SHAPE_KEYS, "shape type")
     motion = spec.get("motion")
     fields: dict[str, Any] = {
@@ -488,6 +503,8 @@ def _collision_pair(
     surfaces: Mapping[str, Plane],
 ) -> CollisionPair:
     """A ``[[collision_pairs]]`` entry; ``other`` names a shape, a surface or a link."""
+    from ucontrol.contact.collision_pair import CollisionPair, EnvironmentShape
+
     check_keys("[[collision_pairs]]", spec, _PAIR_KEYS)
     other_name = str(require_key(spec, "[[collision_pairs]]", "other"))
     other: EnvironmentShape | str = other_name
@@ -511,6 +528,8 @@ def _collision_pair(
 
 def _bilateral(spec: Any) -> BilateralConstraint:
     """A ``[[bilateral]]`` entry: a point or weld closure, or a joint coupling."""
+    from ucontrol.contact.bilateral import FrameClosure, JointCoupling
+
     section = "[[bilateral]]"
     kind = table_type(section, spec, _BILATERAL_KEYS, "bilateral type")
     name = str(spec.get("name", ""))
@@ -534,6 +553,8 @@ def _clearance(spec: Any) -> ClearanceJoint:
     """A ``[[clearance]]`` entry: a revolute joint with radial clearance."""
     if not isinstance(spec, Mapping):
         raise SceneError(f"[[clearance]] entries must be tables, got {spec!r}")
+    from ucontrol.contact.clearance_joint import ClearanceJoint
+
     check_keys("[[clearance]]", spec, _CLEARANCE_KEYS)
     return ClearanceJoint(
         joint=str(require_key(spec, "[[clearance]]", "joint")),
@@ -584,6 +605,8 @@ def _flexible(
 
 def _stop(spec: Mapping[str, Any], robot: RobotModel) -> JointStop:
     """A joint stop; without ``lower``/``upper`` it takes the URDF's position limits."""
+    from ucontrol.contact.joint_stop import JointStop
+
     check_keys("[[stops]]", spec, _STOP_KEYS)
     joint = str(require_key(spec, "[[stops]]", "joint"))
     lower, upper = spec.get("lower"), spec.get("upper")

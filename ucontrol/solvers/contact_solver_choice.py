@@ -1,6 +1,7 @@
 """The contact solvers by name: checking a scene's choice and building it.
 
-The friction solver and the qpsolvers backends are imported only when a scene asks for them.
+The friction solver, the qpsolvers backends and Pinocchio's solvers are imported only when a
+scene asks for them.
 """
 
 from __future__ import annotations
@@ -12,7 +13,6 @@ from ucontrol.solvers.contact_solver import (
     CoulombSolver,
     LCPSolver,
 )
-from ucontrol.solvers.pinocchio_constraint_solver import PinocchioContactSolver
 from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 
 
@@ -80,6 +80,8 @@ def build_contact_solvers(
             qp_max_iter=max_iter,
         )
         return lcp, coulomb
+    from ucontrol.solvers.pinocchio_constraint_solver import PinocchioContactSolver
+
     solver = PinocchioContactSolver(
         name.removeprefix("pinocchio-"),
         tolerance=eps_abs,

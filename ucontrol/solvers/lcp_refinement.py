@@ -35,7 +35,6 @@ from ucontrol.solvers.contact_solution import (
     velocity_scale,
 )
 from ucontrol.solvers.lapack_routines import lapack_routine
-from ucontrol.solvers.lemke import solve_lcp_lemke
 
 #: QP solutions with a complementarity residual above this, in [m/s], are polished: Newton's
 #: law then holds to this accuracy at every impact whatever the QP's tolerance.
@@ -96,6 +95,8 @@ def refine_lcp_solution(
     if residual > residual_tolerance and b.size <= LEMKE_FALLBACK_SIZE:
         # Ill-conditioned D (constraints nearly dependent): pivoting is exact where the
         # proximal iterations stall.
+        from ucontrol.solvers.lemke import solve_lcp_lemke  # the rare ill-conditioned case
+
         try:
             pivoted = solve_lcp_lemke(D, b)
         except SolverError:
