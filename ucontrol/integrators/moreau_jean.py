@@ -1182,16 +1182,18 @@ def _closing_impacts(
     (t_k = ``state.t``, 0 when None): time-stepping locates no impact, so its time is the
     step's start.
     """
+    u_minus, t_k = state.normal_velocity, 0.0 if state.t is None else float(state.t)
+    if len(rows) == 1:  # one row: its floats alone, without building lists
+        i = rows[0]
+        if is_impact(impulse.item(i), activation.item(i), u_minus.item(i)):
+            return ((int(i), t_k),)
+        return ()
+    # Python floats (a third of numpy scalars' cost): by lists from two rows
+    impulse, activation, u_minus = impulse.tolist(), activation.tolist(), u_minus.tolist()
     impacts: tuple[tuple[int, float], ...] = ()
-    u_minus, t = state.normal_velocity, state.t
-    if len(rows) > 1:  # Python floats (a third of numpy scalars' cost): by lists from two rows
-        impulse, activation, u_minus = impulse.tolist(), activation.tolist(), u_minus.tolist()
-        values = [(i, impulse[i], activation[i], u_minus[i]) for i in rows]
-    else:  # one row: its floats alone
-        values = [(i, impulse.item(i), activation.item(i), u_minus.item(i)) for i in rows]
-    for i, P_i, activation_i, u_i in values:
-        if is_impact(P_i, activation_i, u_i):
-            impacts += ((int(i), 0.0 if t is None else float(t)),)
+    for i in rows:
+        if is_impact(impulse[i], activation[i], u_minus[i]):
+            impacts += ((int(i), t_k),)
     return impacts
 
 
