@@ -663,10 +663,10 @@ class MoreauJean:
         if not count and not self._problem_rows:  # no contact problem: nothing held next
             self.memory = self._free_memory
             q_next = self._advance_theta(state, v_free) if q_free is None else q_free
-            return StepOutcome(
+            return _record(StepOutcome, (
                 q_next, v_free, self._no_impulse, active, None, 0, False,
-                self._no_friction_impulse,
-            )  # fmt: skip
+                self._no_friction_impulse, (),
+            ))  # fmt: skip
         # One active row, the whole problem (a free step has no joint or bilateral rows).
         if count == 1 and free_step is not None and free_step.single_rows and not memory.first:
             return self._single_row_outcome(free_step, active, indices.item(0), state)
@@ -702,7 +702,7 @@ class MoreauJean:
         """
         P, velocity, residual, solved, plastic, v_next, q_next = free_step.single_row(i)
         status = "solved" if solved else "infeasible"
-        solution = ContactSolution(P, velocity, status, 0, residual, 0.0, False)
+        solution = _record(ContactSolution, (P, velocity, status, 0, residual, 0.0, False, 0))
         if not solved:
             self._checked(self.solver, solution)
         impulse = np.zeros(self.constraints.size)
@@ -710,7 +710,9 @@ class MoreauJean:
         impacts = _closing_impacts(impulse, self.memory.activation, (i,), state)
         # next_memory(impulse, (i,), ...), built once
         self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
-        return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
+        return _record(
+            StepOutcome, (q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
+        )
 
     def _contact_outcome(
         self,
@@ -1206,6 +1208,12 @@ def _add_friction_impulses(
     friction_impulse[indices[frictional]] = np.add.reduceat(rows * directions, first_rows)
 
 
+#: A NamedTuple from the tuple of all its fields, ``_record(StepOutcome, (q, v, ...))``: the
+#: record without the Python frame of its generated ``__new__`` (a step's records cost about
+#: 2 % of a one-contact Panda step that way, docs/benchmarks.md); every field is given, in order.
+_record = tuple.__new__
+
+
 def _read_only(array: Vector) -> Vector:
     """``array``, made read-only (an outcome shared between steps)."""
     array.flags.writeable = False
@@ -1221,16 +1229,18 @@ def _closing_impacts(
     (t_k = ``state.t``, 0 when None): time-stepping locates no impact, so its time is the
     step's start.
     """
+    u_minus, t_k = state.normal_velocity, 0.0 if state.t is None else float(state.t)
+    if len(rows) == 1:  # one row: its floats alone, without building lists
+        i = rows[0]
+        if is_impact(impulse.item(i), activation.item(i), u_minus.item(i)):
+            return ((int(i), t_k),)
+        return ()
+    # Python floats (a third of numpy scalars' cost): by lists from two rows
+    impulse, activation, u_minus = impulse.tolist(), activation.tolist(), u_minus.tolist()
     impacts: tuple[tuple[int, float], ...] = ()
-    u_minus, t = state.normal_velocity, state.t
-    if len(rows) > 1:  # Python floats (a third of numpy scalars' cost): by lists from two rows
-        impulse, activation, u_minus = impulse.tolist(), activation.tolist(), u_minus.tolist()
-        values = [(i, impulse[i], activation[i], u_minus[i]) for i in rows]
-    else:  # one row: its floats alone
-        values = [(i, impulse.item(i), activation.item(i), u_minus.item(i)) for i in rows]
-    for i, P_i, activation_i, u_i in values:
-        if is_impact(P_i, activation_i, u_i):
-            impacts += ((int(i), 0.0 if t is None else float(t)),)
+    for i in rows:
+        if is_impact(impulse[i], activation[i], u_minus[i]):
+            impacts += ((int(i), t_k),)
     return impacts
 
 
