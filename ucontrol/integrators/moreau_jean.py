@@ -252,6 +252,7 @@ from ucontrol.solvers.proxsuite_lcp import ProxsuiteLCPSolver
 
 if TYPE_CHECKING:
     from ucontrol.integrators.compiled_free_step import CompiledFreeStep
+    from ucontrol.model.root_subtrees import RootSubtrees
 
 Vector = NDArray[np.float64]
 
@@ -924,21 +925,20 @@ class MoreauJean:
         """:math:`M^{-1} J^T` for rows J (m, nv), with M factorized in the data buffer.
 
         By the root's subtrees where M is block diagonal over several
-        (:class:`~ucontrol.model.root_subtrees.RootSubtrees`, found on the first call).
+        (:class:`~ucontrol.model.root_subtrees.RootSubtrees`, found on the first product).
         """
         model, data = self._model, self._data
         if J.shape[0] == 1:  # one triangular solve instead of M⁻¹
             return pin.cholesky.solve(model, data, J[0])[:, None]
-        subtrees = self.__dict__.get("_root_subtrees", False)
-        if subtrees is False:  # the first call: None where the product stays dense
-            from ucontrol.model.root_subtrees import RootSubtrees
-
-            found = RootSubtrees(model)
-            subtrees = self.__dict__["_root_subtrees"] = found if found.blocked else None
         Minv = pin.cholesky.computeMinv(model, data)
-        if subtrees is None:  # one subtree (an arm, a legged robot) or few columns
-            return Minv @ J.T
-        return subtrees.inverse_inertia_rows(Minv, J)
+        return self._root_subtrees.inverse_inertia_rows(Minv, J)
+
+    @functools.cached_property
+    def _root_subtrees(self) -> RootSubtrees:
+        """The root's subtrees of the robot (dense products where M is not blocked by them)."""
+        from ucontrol.model.root_subtrees import RootSubtrees
+
+        return RootSubtrees(self._model)
 
     def _free_velocity(
         self, state: PlantEvaluation, tau: Vector
