@@ -105,6 +105,31 @@ def test_residual_and_marginal_flag_are_the_numpy_ones(tangents: tuple[int, ...]
     assert flags == ({True, False} if tangents[0] else {False})
 
 
+@pytest.mark.parametrize("tangents", _LAYOUTS)
+def test_open_contacts_step_to_exactly_zero(tangents: tuple[int, ...]) -> None:
+    """A contact whose normal row is open (P_n - ρ u_n <= 0) gets P_n = 0, not round-off.
+
+    Its row of the Alart–Curnier function is :math:`F_n = P_n`, so that the Newton iterate is
+    0 in exact arithmetic; the QR solve leaves about 1e-18 N s, which would make the contact
+    held in the step's memory (its impulse > 0) and change its impact law at the next steps.
+    """
+    rng = np.random.default_rng(35)
+    newton = CompiledCoulombNewton(tangents)
+    m, opened = len(tangents), 0
+    for _ in range(200):
+        problem = _problem(rng, tangents, dofs=18)
+        P = rng.standard_normal(problem.size)
+        P[:m] = np.abs(P[:m])  # pressed contacts, some of them opening
+        x_n = P[:m] - AlartCurnier(problem).rho[:m] * problem.velocity(P)[:m]
+        result = newton.polish(problem, P, iterations=1, target=0.0, tolerance=1e-8)
+        if result is None:  # (J singular to LSTSQ_CONDITION: no step)
+            continue
+        open_ = x_n <= 0.0
+        assert np.all(result[0][:m][open_] == 0.0), result[0][:m][open_]
+        opened += int(open_.sum())
+    assert opened >= 50
+
+
 def test_polish_reaches_round_off_from_a_near_solution() -> None:
     rng = np.random.default_rng(32)
     newton = CompiledCoulombNewton((2, 2, 2, 2))

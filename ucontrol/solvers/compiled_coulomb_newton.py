@@ -16,7 +16,9 @@ call computes, from impulses :math:`P`,
    :math:`\max` and of the projection on the disk of radius :math:`\mu \max(P_n, 0)` taken
    where the point lies, as :meth:`~ucontrol.solvers.alart_curnier.AlartCurnier.value`
    assembles it by hand);
-2. the full Newton step :math:`P^+ = P - J^{-1} F(P)` (casadi's QR of J, unrolled), or no
+2. the full Newton step :math:`P^+ = P - J^{-1} F(P)` (casadi's QR of J, unrolled; on an
+   open normal row, :math:`F_n = P_n`, the iterate is 0 exactly, not the QR's round-off, which
+   would leave about 1e-18 N s and make the contact held in the step's memory), or no
    step where the diagonal of R says J is singular to
    :data:`~ucontrol.solvers.alart_curnier.LSTSQ_CONDITION` (redundant contacts: the numpy
    polish then takes the minimum-norm step by least squares);
@@ -260,6 +262,11 @@ def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
     F_P = ca.vertcat(*F)
     Q, R = ca.qr(ca.jacobian(F_P, P))
     P_next = P + ca.solve(R, -ca.mtimes(Q.T, F_P))
+    # An open normal row's equation is P_n + Δ_n = 0: its iterate is 0 exactly, not the QR's
+    # round-off (a normal impulse of 1e-18 would hold its contact in the step's memory).
+    P_next = ca.vertcat(
+        *(ca.if_else(x[a] <= 0.0, 0.0, P_next[a]) for a in range(m)), P_next[m:]
+    )
     candidate = ca.vertcat(ca.fmax(P_next[:m], 0.0), P_next[m:])
     velocity = ca.mtimes(D, candidate) + b
     residual, marginal = _residual(candidate, velocity, mu, sigma, rows, tolerance)
