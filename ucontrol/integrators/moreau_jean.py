@@ -506,14 +506,10 @@ class MoreauJean:
         the steps with one active row when the solver's one-row solve is the closed form; on
         a rigid robot with a free-flyer root it gives the velocity terms alone (the
         configuration is advanced by :meth:`_advance`). With friction, for a rigid robot
-        without joint friction (W = M), with plastic contacts (e = 0) and without one-row
-        steps (frictionless): with the tangential rows of the compiled rows, the same call
-        gives :math:`M^{-1} [J^T T^T]` and the Delassus matrix of all the rows
-        (:meth:`_contact_outcome`).
-        With rebounds and friction, the tilted table of
-        ``tests/integrators/test_friction.py`` gained 1.1e-5 J at its impacts in some
-        processes through this path, none in others (none through the reference; cause not
-        found, docs/benchmarks.md): not taken there.
+        without joint friction (W = M) and without one-row steps (frictionless): with the
+        tangential rows of the compiled rows, the same call gives :math:`M^{-1} [J^T T^T]`,
+        the Delassus matrix of all the rows and the impact law of the normal rows
+        (:meth:`_contact_outcome`), rebounds included.
         """
         vector_space, friction = self._vector_space, self._friction
         if (
@@ -522,10 +518,7 @@ class MoreauJean:
             or self.midpoint
             or self._coulomb_rows is not None
             or self._bilateral is not None
-            or (
-                friction
-                and (self.flexible is not None or self._viscous is not None or not self._plastic)
-            )
+            or (friction and (self.flexible is not None or self._viscous is not None))
         ):
             return None
         from ucontrol.integrators.compiled_free_step import CompiledFreeStep, ImpactRules
