@@ -264,9 +264,7 @@ def newton_step_function(tangents: tuple[int, ...]) -> ca.Function:
     P_next = P + ca.solve(R, -ca.mtimes(Q.T, F_P))
     # An open normal row's equation is P_n + Δ_n = 0: its iterate is 0 exactly, not the QR's
     # round-off (a normal impulse of 1e-18 would hold its contact in the step's memory).
-    P_next = ca.vertcat(
-        *(ca.if_else(x[a] <= 0.0, 0.0, P_next[a]) for a in range(m)), P_next[m:]
-    )
+    P_next = ca.vertcat(*(ca.if_else(x[a] <= 0.0, 0.0, P_next[a]) for a in range(m)), P_next[m:])
     candidate = ca.vertcat(ca.fmax(P_next[:m], 0.0), P_next[m:])
     velocity = ca.mtimes(D, candidate) + b
     residual, marginal = _residual(candidate, velocity, mu, sigma, rows, tolerance)
