@@ -72,6 +72,7 @@ def test_steps_equal_the_numpy_path(name: str, viscous: bool, rng: np.random.Gen
         a = compiled.step(compiled.evaluate(q, v), tau)
         b = reference.step(reference.evaluate(q, v), tau)
         np.testing.assert_array_equal(a.active, b.active)
+        assert a.impacts == b.impacts
         # Measured: v 3.2e-15 rad/s, q 6.9e-18 rad, impulses 1.8e-15 N s over the cases.
         np.testing.assert_allclose(a.v, b.v, rtol=0, atol=3e-14)
         np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-16)
@@ -93,7 +94,7 @@ def test_single_row_steps_equal_the_numpy_path(
     assert compiled.theta == theta and "single row" in compiled.fast_paths
     q0, v0 = scene.initial_state()
     n = compiled.constraints.size
-    seen = {"held": 0, "newton": 0, "plastic": 0}
+    seen = {"held": 0, "newton": 0, "plastic": 0, "impacts": 0}
     errors = {"v": 0.0, "q": 0.0, "P": 0.0, "w": 0.0}
     for _ in range(300):
         q = q0 + 0.4 * rng.normal(size=q0.size)
@@ -114,6 +115,8 @@ def test_single_row_steps_equal_the_numpy_path(
         b = reference.step(state_r, tau)
         assert a.active.sum() == 1 and a.active[i] and np.array_equal(a.active, b.active)
         assert a.plastic == b.plastic and a.solution.status == b.solution.status
+        assert a.impacts == b.impacts  # the compiled impact rule's, the reference's
+        seen["impacts"] += bool(b.impacts)
         seen["held" if held else "newton"] += 1
         seen["plastic"] += b.plastic
         # Errors relative to the step's scale (velocities in [rad/s] or [m/s], impulses in
@@ -128,7 +131,7 @@ def test_single_row_steps_equal_the_numpy_path(
         )
     assert errors["v"] <= 1e-13 and errors["q"] <= 3e-16
     assert errors["P"] <= 2e-13 and errors["w"] <= 3e-13
-    assert seen["held"] and seen["newton"]
+    assert seen["held"] and seen["newton"] and seen["impacts"]
     if theta == 1.0 and compiled.constraints.restitution.any():
         assert seen["plastic"]  # the energy guard acted (never for one row at θ = 1/2)
 

@@ -47,7 +47,11 @@ the closure :math:`g_i / \mathrm{h}` of a held constraint still open, the energy
     P_i = \max(0, -\beta_i / d_i), \quad
     v_{k+1} = v^{free} + W^{-1} J_i^T P_i,
 
-so that a step with one active row (the common contact step) needs no further array work.
+so that a step with one active row (the common contact step) needs no further array work:
+the call also applies the active-set rule past a run's first step
+(:func:`~ucontrol.integrators.step_stages.is_active`, on casadi's symbols) and gives the number
+of active rows and, when there is one, its index (:meth:`CompiledFreeStep.run`), and whether
+each one-row step is an impact (:func:`~ucontrol.integrators.step_stages.is_impact`).
 
 On a rigid robot with a free-flyer root (``positions=False``: q of size nq = nv + 1, on
 :math:`\mathbb{R}^3 \times SO(3)`) the call has no q and gives no :math:`q^{free}` nor one-row
@@ -69,6 +73,8 @@ from ucontrol.integrators.step_stages import (
     ArrayOps,
     gains_energy,
     impulse_energy_gain,
+    is_active,
+    is_impact,
     newton_offsets,
     predicted_gaps,
     theta_displacement,
@@ -184,10 +190,12 @@ class CompiledFreeStep:
         self._sizes = (size, n)
         self._rows = n + tangential  # normal and tangential rows of the Delassus terms
         # Ends of the outputs v_free, q_free (none without positions), predicted gaps, W⁻¹Jᵀ,
-        # JW⁻¹Jᵀ (of every row), rebound and closure terms (Python ints).
+        # JW⁻¹Jᵀ (of every row), rebound and closure terms, the active set's count and index
+        # (Python ints).
         q_size, r = (size if positions else 0), self._rows
-        self._split = tuple(np.cumsum([size, q_size, n, size * r, r * r, r, r]).tolist())
-        self._ends = self._split[:3]  # those of the outputs every call returns
+        self._split = tuple(np.cumsum([size, q_size, n, size * r, r * r, r, r, 2]).tolist())
+        self._ends = self._split[:3]  # those of the free terms (free_terms)
+        self._count_at = self._split[7] - 2  # where the active set's count is, then its row
         self._positions = positions
         buffer = self.function.input_buffer
         self._activation = buffer(index("activation"))
@@ -208,16 +216,24 @@ class CompiledFreeStep:
     def __call__(
         self, state: PlantEvaluation, tau: Vector, activation: Vector
     ) -> tuple[Vector, Vector | None, Vector]:
-        """:math:`v^{free}`, :math:`q^{free}` (each (N,); None without ``positions``), gaps (n,).
+        """:meth:`run`, then its :meth:`free_terms`."""
+        self.run(state, tau, activation)
+        return self.free_terms()
 
-        The gaps are the predicted ones.
+    def run(self, state: PlantEvaluation, tau: Vector, activation: Vector) -> tuple[float, float]:
+        """Run the call of a step from ``state`` under forces ``tau`` (N,).
 
         ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`);
         ``activation`` (n,) is the step memory's (the impact law reads which constraints are
         held); a read-only one (the memories shared between steps) is copied into the call's
-        input only when it is not the array copied last. The returned arrays are fresh;
-        :meth:`contact_terms`, :meth:`offsets` and :meth:`single_row` read the same call's
-        other outputs.
+        input only when it is not the array copied last. :meth:`free_terms`,
+        :meth:`contact_terms`, :meth:`offsets` and :meth:`single_row` read the call's outputs.
+
+        Returns:
+            The number of rows in the active set by
+            :func:`~ucontrol.integrators.step_stages.is_active` with ``activation`` (the
+            rule past a run's first step, without contacts barred from closing), and the
+            index of the active row when there is one, as floats.
         """
         if activation is not self._activation_source:  # (a writeable one is never kept)
             self._activation[:] = activation
@@ -240,7 +256,16 @@ class CompiledFreeStep:
             gap[...], velocity[...] = state.gap, state.normal_velocity
         self._run(tau, state.kinetic_energy)
         out = self._last = self._out.copy()
-        a, b, c = self._ends
+        at = self._count_at
+        return out.item(at), out.item(at + 1)
+
+    def free_terms(self) -> tuple[Vector, Vector | None, Vector]:
+        """:math:`v^{free}`, :math:`q^{free}` (each (N,); None without ``positions``), gaps (n,).
+
+        Of the last :meth:`run` (views of its fresh outputs); the gaps are the predicted ones.
+        """
+        assert self._last is not None
+        out, (a, b, c) = self._last, self._ends
         return out[:a], out[a:b] if self._positions else None, out[b:c]
 
     def read_rows_of(self, rows: ConstraintRows) -> None:
@@ -303,25 +328,35 @@ class CompiledFreeStep:
         """
         assert self._last is not None and self.single_rows
         size = self._sizes[0]
-        start = self._split[-1] + i * (5 + 2 * size)
-        block = self._last[start : start + 5 + 2 * size]
-        _, _, residual, solved, plastic = block[:5].tolist()
+        start = self._split[-1] + i * (_SINGLE_ROW_SCALARS + 2 * size)
+        middle = start + _SINGLE_ROW_SCALARS + size
+        last = self._last
+        impulse, _, residual, solved, plastic, impact = last[
+            start : start + _SINGLE_ROW_SCALARS
+        ].tolist()
         return (
-            block[0:1],
-            block[1:2],
+            last[start : start + 1],
+            last[start + 1 : start + 2],
+            impulse,
             residual,
             solved > 0.0,
             plastic > 0.0,
-            block[5 : 5 + size],
-            block[5 + size :],
+            impact > 0.0,
+            last[middle - size : middle],
+            last[middle : middle + size],
         )
 
 
+#: The scalars of a one-row step's block of outputs, before :math:`v_{k+1}` and :math:`q_{k+1}`.
+_SINGLE_ROW_SCALARS = 6
+
 #: The step with one constraint alone active, from :meth:`CompiledFreeStep.single_row`: its
-#: impulse P in [N s] (1,), the LCP's velocity d P + β in [m/s] (1,), the natural-map residual
-#: in [m/s], whether the closed form solves it (d > 0 or β >= 0), whether the energy guard made
-#: it plastic, :math:`v_{k+1}` (N,) and :math:`q_{k+1}` (N,).
-SingleRowStep = tuple[Vector, Vector, float, bool, bool, Vector, Vector]
+#: impulse P in [N s] (1,), the LCP's velocity d P + β in [m/s] (1,), P as a float, the
+#: natural-map residual in [m/s], whether the closed form solves it (d > 0 or β >= 0), whether
+#: the energy guard made it plastic, whether it is an impact
+#: (:func:`~ucontrol.integrators.step_stages.is_impact`), :math:`v_{k+1}` (N,) and
+#: :math:`q_{k+1}` (N,).
+SingleRowStep = tuple[Vector, Vector, float, float, bool, bool, bool, Vector, Vector]
 
 
 class ImpactRules(NamedTuple):
@@ -392,14 +427,19 @@ def _free_step_function(
         rules.newton_law == "siconos",
         not any(elastic),
     )  # the impact law of every row, each as if active
+    predicted = predicted_gaps(gap, velocity, gh)
     parts = [
         v_free,
         *([q + theta_displacement(v, v_free, h, th)] if positions else []),
-        predicted_gaps(gap, velocity, gh),
+        predicted,
         ca.vec(Winv_Jt),
         ca.vec(delassus),
         *(ca.vertcat(offset, ca.SX.zeros(tangential)) for offset in offsets),
     ]
+    # The active set past a run's first step: its number of rows, and the index of its row
+    # when it has one.
+    active = is_active(predicted, activation)  # 1 or 0 per row
+    parts += [ca.sum1(active), ca.dot(active, ca.DM(np.arange(n, dtype=float)))]
     inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
     inputs += [activation, kinetic, restitution_s]
     names = ["q", "v", "tau", "M", "nle", "J_t", "gap", "u", "W0", "Kq", "F", "scalars"]
@@ -411,7 +451,7 @@ def _free_step_function(
             parts.append(
                 _single_row_step(
                     i, rules, q, v, J, v_free, Winv_Jt, delassus, offsets[0][i],
-                    offsets[1][i], kinetic, h, th,
+                    offsets[1][i], kinetic, h, th, activation[i], velocity[i],
                 )
             )  # fmt: skip
     return ca.Function("free_step", inputs, [ca.vertcat(*parts)], names, ["terms"])
@@ -431,11 +471,14 @@ def _single_row_step(
     kinetic: Any,
     h: Any,
     theta: Any,
+    activation: Any,
+    u_minus: Any,
 ) -> Any:
-    """(P, w, residual, solved, plastic, v_{k+1}, q_{k+1}) of row i alone active (5 + 2N,).
+    """(P, w, residual, solved, plastic, impact, v_{k+1}, q_{k+1}) of row i alone active.
 
-    ``rebound`` and ``closure`` are row i's impact law; the energy guard is
-    :mod:`~ucontrol.integrators.step_stages`'s, on casadi's symbols.
+    Of size 6 + 2N. ``rebound`` and ``closure`` are row i's impact law, ``activation`` and
+    ``u_minus`` its memory's entry and normal velocity at step k; the energy guard and the
+    impact rule are :mod:`~ucontrol.integrators.step_stages`'s, on casadi's symbols.
     """
     import casadi as ca
 
@@ -462,7 +505,8 @@ def _single_row_step(
         (impulse, w, residual, solved), plastic = newton, ca.SX(0.0)
     v_next = v_free + Winv_Jt[:, i] * impulse
     q_next = q + theta_displacement(v, v_next, h, theta)
-    return ca.vertcat(impulse, w, residual, solved, plastic, v_next, q_next)
+    impact = is_impact(impulse, activation, u_minus, ops)
+    return ca.vertcat(impulse, w, residual, solved, plastic, impact, v_next, q_next)
 
 
 def _casadi_ops() -> ArrayOps:

@@ -9,8 +9,9 @@ the energy guard, are written over an array namespace (:class:`ArrayOps`): numpy
 readable reference, casadi's symbols for the generated code, so that both run the same
 definition.
 
-**Active set** (:func:`active_set`). Constraint a is in the active set when its predicted gap
-:math:`g_a + \gamma h u_a` is at most its entry of :attr:`StepMemory.activation`: 0, or the
+**Active set** (:func:`active_set`, :func:`is_active`). Constraint a is in the active set when
+its predicted gap :math:`g_a + \gamma h u_a` is at most its entry of
+:attr:`StepMemory.activation`: 0, or the
 release gap :math:`\varepsilon_p + h u_p` (:func:`release_gap`) for a constraint that carried
 an impulse in the last step (:func:`next_memory`). At the first step of a run, a constraint
 closed at the start (gap at most :data:`START_GAP_TOLERANCE`) counts as held.
@@ -34,6 +35,7 @@ redone plastic (module docstring of :mod:`~ucontrol.integrators.moreau_jean`).
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
@@ -131,20 +133,35 @@ def release_gap(persistence_tolerance: float, persistence_speed: float, h: float
     return persistence_tolerance + h * persistence_speed
 
 
-def is_impact(impulse: Any, activation: Any, u_minus: Any) -> Any:
+def is_impact(impulse: Any, activation: Any, u_minus: Any, ops: ArrayOps | None = None) -> Any:
     r"""Whether a constraint has an impact in a step (elementwise on arrays).
 
     Args:
         impulse: Its normal impulse in the step in [N s] (or [N m s]).
         activation: Its entry of the last step's :attr:`StepMemory.activation` (> 0: held).
         u_minus: Its normal velocity at the start of the step in [m/s] (or [rad/s]).
+        ops: The array operations of casadi's symbols; None for numpy arrays and Python
+            floats (the operators ``&`` and ``|``).
 
     Returns:
         :math:`P_a > 0` and :math:`u_a^- < -`:data:`IMPACT_VELOCITY_THRESHOLD` (not held) or
         :math:`u_a^- < -`:data:`HELD_IMPACT_VELOCITY` (held).
     """
-    closing = (activation <= 0.0) & (u_minus < -IMPACT_VELOCITY_THRESHOLD)
-    return (impulse > 0.0) & (closing | (u_minus < -HELD_IMPACT_VELOCITY))
+    both, either = (
+        (operator.and_, operator.or_) if ops is None else (ops.logical_and, ops.logical_or)
+    )
+    closing = both(activation <= 0.0, u_minus < -IMPACT_VELOCITY_THRESHOLD)
+    return both(impulse > 0.0, either(closing, u_minus < -HELD_IMPACT_VELOCITY))
+
+
+def is_active(predicted: Any, activation: Any) -> Any:
+    r"""Whether constraints are in a step's active set (elementwise), past the first step.
+
+    Args:
+        predicted: Predicted gaps :math:`g + \gamma h u` in [m] (or [rad]), shape (n,).
+        activation: The last step's :attr:`StepMemory.activation`, shape (n,).
+    """
+    return predicted <= activation
 
 
 def active_set(
@@ -168,7 +185,7 @@ def active_set(
         closed = (gap <= START_GAP_TOLERANCE) & (predicted > activation)
         activation = activation.copy()
         activation[closed] = max(release, START_GAP_TOLERANCE)
-    return predicted <= activation, activation
+    return is_active(predicted, activation), activation
 
 
 def next_memory(
