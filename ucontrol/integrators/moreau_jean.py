@@ -227,6 +227,7 @@ from ucontrol.contact.compiled_rows import compiled_rows
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidParameterError
 from ucontrol.integrators.step_stages import (
+    NO_ACTIVE_ROW,
     NUMPY_OPS,
     StepMemory,
     active_set,
@@ -625,7 +626,9 @@ class MoreauJean:
             gap, normal_velocity, normal_rows = rows(q, v)
             kinetic = pin.computeKineticEnergy(model, data)
             potential = pin.computePotentialEnergy(model, data)
-            return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
+            return _record(PlantEvaluation, (
+                q, v, gap, normal_velocity, kinetic, potential, t, normal_rows,
+            ))  # fmt: skip
         return evaluate_plant(
             self._data,
             self.constraints,
@@ -654,11 +657,11 @@ class MoreauJean:
         inverse_inertia: Callable[[Vector], Vector] | None = None
         q_free: Vector | None = None
         if free_step is not None:  # the stages below in one generated call
-            count, row = free_step.run(state, tau, memory.activation)
+            row = free_step.run(state, tau, memory.activation)
             if not memory.first and not self._closure_rules:  # its active set is the step's
-                if count == 1.0 and free_step.single_rows:  # the whole step, from the call
+                if row >= 0.0 and free_step.single_rows:  # the whole step, from the call
                     return self._single_row_outcome(free_step, int(row), state)
-                if count == 0.0:  # (a free step has no joint or bilateral rows)
+                if row == NO_ACTIVE_ROW:  # (a free step has no joint or bilateral rows)
                     v_free, q_free, _ = free_step.free_terms()
                     return self._free_outcome(state, v_free, q_free, self._none_active)
             v_free, q_free, predicted = free_step.free_terms()
@@ -721,13 +724,11 @@ class MoreauJean:
         its solve time is not measured apart (0 s in the solution).
         """
         step = free_step.single_row(i)
-        P, velocity, P_i, residual, solved, plastic, impact, v_next, q_next = step
+        impulse, P, velocity, P_i, residual, solved, plastic, impact, v_next, q_next = step
         status = "solved" if solved else "infeasible"
         solution = _record(ContactSolution, (P, velocity, status, 0, residual, 0.0, False, 0))
         if not solved:
             self._checked(self.solver, solution)
-        impulse = np.zeros(self.constraints.size)
-        impulse[i] = P_i
         impacts = ((i, 0.0 if state.t is None else float(state.t)),) if impact else ()
         # next_memory(impulse, (i,), ...), built once
         self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory

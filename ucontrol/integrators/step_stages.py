@@ -57,6 +57,9 @@ IMPACT_VELOCITY_THRESHOLD = 1e-6
 #: [m/s] (or [rad/s]): a pressed foot pushed into the ground. A held contact otherwise closes
 #: only its drift, at O(h) speeds (mm/s).
 HELD_IMPACT_VELOCITY = 0.1
+#: The active set's row as one number, where a step has one active row, else these (the
+#: compiled free step's :meth:`~ucontrol.integrators.compiled_free_step.CompiledFreeStep.run`).
+NO_ACTIVE_ROW, SEVERAL_ACTIVE_ROWS = -1.0, -2.0
 
 
 class StepMemory(NamedTuple):
