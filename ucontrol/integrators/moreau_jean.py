@@ -626,9 +626,7 @@ class MoreauJean:
             gap, normal_velocity, normal_rows = rows(q, v)
             kinetic = pin.computeKineticEnergy(model, data)
             potential = pin.computePotentialEnergy(model, data)
-            return _record(PlantEvaluation, (
-                q, v, gap, normal_velocity, kinetic, potential, t, normal_rows,
-            ))  # fmt: skip
+            return PlantEvaluation(q, v, gap, normal_velocity, kinetic, potential, t, normal_rows)
         return evaluate_plant(
             self._data,
             self.constraints,
@@ -694,10 +692,14 @@ class MoreauJean:
         """
         self.memory = self._free_memory
         q_next = self._advance_theta(state, v_free) if q_free is None else q_free
-        return _record(StepOutcome, (
-            q_next, v_free, self._no_impulse, active, None, 0, False,
-            self._no_friction_impulse, (),
-        ))  # fmt: skip
+        return StepOutcome(
+            q_next,
+            v_free,
+            self._no_impulse,
+            active,
+            None,
+            friction_impulse=self._no_friction_impulse,
+        )
 
     def _barred(self, state: PlantEvaluation, predicted: Vector, memory: StepMemory) -> Vector:
         """``predicted`` with the contacts barred from closing at q_k (not held) left out.
@@ -726,15 +728,14 @@ class MoreauJean:
         step = free_step.single_row(i)
         impulse, P, velocity, P_i, residual, solved, plastic, impact, v_next, q_next = step
         status = "solved" if solved else "infeasible"
-        solution = _record(ContactSolution, (P, velocity, status, 0, residual, 0.0, False, 0))
+        solution = ContactSolution(P, velocity, status, 0, residual, 0.0)
         if not solved:
             self._checked(self.solver, solution)
         impacts = ((i, 0.0 if state.t is None else float(state.t)),) if impact else ()
         # next_memory(impulse, (i,), ...), built once
         self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
-        return _record(StepOutcome, (
-            q_next, v_next, impulse, self._row_actives[i], solution, 0, plastic, None, impacts,
-        ))  # fmt: skip
+        active = self._row_actives[i]
+        return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
 
     def _contact_outcome(
         self,
@@ -1227,12 +1228,6 @@ def _add_friction_impulses(
     frictional = tangents > 0
     first_rows = np.cumsum(tangents[frictional]) - tangents[frictional]  # of each owner
     friction_impulse[indices[frictional]] = np.add.reduceat(rows * directions, first_rows)
-
-
-#: A NamedTuple from the tuple of all its fields, ``_record(StepOutcome, (q, v, ...))``: the
-#: record without the Python frame of its generated ``__new__`` (a step's records cost about
-#: 2 % of a one-contact Panda step that way, docs/benchmarks.md); every field is given, in order.
-_record = tuple.__new__
 
 
 _Array = TypeVar("_Array", bound=np.ndarray)
