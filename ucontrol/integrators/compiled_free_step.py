@@ -536,7 +536,7 @@ def _single_row_step(
         (impulse, w, residual, solved), plastic = newton, ca.SX(0.0)
     v_next = v_free + Winv_Jt[:, i] * impulse
     q_next = q + theta_displacement(v, v_next, h, theta)
-    impact = is_impact(impulse, activation, u_minus, ops)
+    impact = is_impact(impulse, activation, u_minus)
     impulses = (impulse if j == i else ca.SX(0.0) for j in range(n))
     return ca.vertcat(*impulses, impulse, w, residual, solved, plastic, impact, v_next, q_next)
 

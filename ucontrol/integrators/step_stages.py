@@ -35,7 +35,6 @@ redone plastic (module docstring of :mod:`~ucontrol.integrators.moreau_jean`).
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
@@ -136,25 +135,22 @@ def release_gap(persistence_tolerance: float, persistence_speed: float, h: float
     return persistence_tolerance + h * persistence_speed
 
 
-def is_impact(impulse: Any, activation: Any, u_minus: Any, ops: ArrayOps | None = None) -> Any:
+def is_impact(impulse: Any, activation: Any, u_minus: Any) -> Any:
     r"""Whether a constraint has an impact in a step (elementwise on arrays).
 
     Args:
         impulse: Its normal impulse in the step in [N s] (or [N m s]).
         activation: Its entry of the last step's :attr:`StepMemory.activation` (> 0: held).
         u_minus: Its normal velocity at the start of the step in [m/s] (or [rad/s]).
-        ops: The array operations of casadi's symbols; None for numpy arrays and Python
-            floats (the operators ``&`` and ``|``).
 
     Returns:
         :math:`P_a > 0` and :math:`u_a^- < -`:data:`IMPACT_VELOCITY_THRESHOLD` (not held) or
-        :math:`u_a^- < -`:data:`HELD_IMPACT_VELOCITY` (held).
+        :math:`u_a^- < -`:data:`HELD_IMPACT_VELOCITY` (held): non-zero (true) where it holds.
+        The conditions are combined by products (and) and sums (or), which numpy's booleans,
+        Python's and casadi's symbols (the compiled step's) all have.
     """
-    both, either = (
-        (operator.and_, operator.or_) if ops is None else (ops.logical_and, ops.logical_or)
-    )
-    closing = both(activation <= 0.0, u_minus < -IMPACT_VELOCITY_THRESHOLD)
-    return both(impulse > 0.0, either(closing, u_minus < -HELD_IMPACT_VELOCITY))
+    closing = (activation <= 0.0) * (u_minus < -IMPACT_VELOCITY_THRESHOLD)
+    return (impulse > 0.0) * (closing + (u_minus < -HELD_IMPACT_VELOCITY))
 
 
 def is_active(predicted: Any, activation: Any) -> Any:
