@@ -60,23 +60,33 @@ def _pair(  # type: ignore[no-untyped-def]
 
 @pytest.mark.parametrize(("name", "viscous"), CASES)
 def test_steps_equal_the_numpy_path(name: str, viscous: bool, rng: np.random.Generator) -> None:
+    """Steps with no active row, one and several from random states: as the reference's.
+
+    (The compiled call's active set, its one-row steps, the numpy contact step.)
+    """
     scene, compiled, reference = _pair(name, viscous)
     q0, v0 = scene.initial_state()
+    n = compiled.constraints.size
+    seen = set()  # active rows of the steps, 2 for several
     for trial in range(20):
         q = q0 + 0.05 * rng.normal(size=q0.size)
         v = rng.normal(size=v0.size)
         tau = 5.0 * rng.normal(size=v0.size)
-        n = compiled.constraints.size
-        for integrator in (compiled, reference):  # every constraint active, or as predicted
-            integrator.memory = StepMemory(np.full(n, 1e9 if trial % 2 else 0.0), False)
+        # No constraint active, every one, one row held alone, or as predicted.
+        memory = [np.full(n, -1e9), np.full(n, 1e9), np.full(n, -1e9), np.zeros(n)][trial % 4]
+        memory[trial % n] = 1e9 if trial % 4 == 2 else memory[trial % n]
+        for integrator in (compiled, reference):
+            integrator.memory = StepMemory(memory, False)
         a = compiled.step(compiled.evaluate(q, v), tau)
         b = reference.step(reference.evaluate(q, v), tau)
         np.testing.assert_array_equal(a.active, b.active)
         assert a.impacts == b.impacts
+        seen.add(min(int(b.active.sum()), 2))
         # Measured: v 3.2e-15 rad/s, q 6.9e-18 rad, impulses 1.8e-15 N s over the cases.
         np.testing.assert_allclose(a.v, b.v, rtol=0, atol=3e-14)
         np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-16)
         np.testing.assert_allclose(a.impulse, b.impulse, rtol=0, atol=2e-14)
+    assert seen == ({0, 1, 2} if n > 1 else {0, 1})
 
 
 @pytest.mark.parametrize("name", TRACKING_SCENES[:4])
