@@ -61,22 +61,33 @@ def _pair(  # type: ignore[no-untyped-def]
 
 @pytest.mark.parametrize(("name", "viscous"), CASES)
 def test_steps_equal_the_numpy_path(name: str, viscous: bool, rng: np.random.Generator) -> None:
+    """Steps with no active row, one and several from random states: as the reference's.
+
+    (The compiled call's active set, its one-row steps, the numpy contact step.)
+    """
     scene, compiled, reference = _pair(name, viscous)
     q0, v0 = scene.initial_state()
+    n = compiled.constraints.size
+    seen = set()  # active rows of the steps, 2 for several
     for trial in range(20):
         q = q0 + 0.05 * rng.normal(size=q0.size)
         v = rng.normal(size=v0.size)
         tau = 5.0 * rng.normal(size=v0.size)
-        n = compiled.constraints.size
-        for integrator in (compiled, reference):  # every constraint active, or as predicted
-            integrator.memory = StepMemory(np.full(n, 1e9 if trial % 2 else 0.0), False)
+        # No constraint active, every one, one row held alone, or as predicted.
+        memory = [np.full(n, -1e9), np.full(n, 1e9), np.full(n, -1e9), np.zeros(n)][trial % 4]
+        memory[trial % n] = 1e9 if trial % 4 == 2 else memory[trial % n]
+        for integrator in (compiled, reference):
+            integrator.memory = StepMemory(memory, False)
         a = compiled.step(compiled.evaluate(q, v), tau)
         b = reference.step(reference.evaluate(q, v), tau)
         np.testing.assert_array_equal(a.active, b.active)
+        assert a.impacts == b.impacts
+        seen.add(min(int(b.active.sum()), 2))
         # Measured: v 3.2e-15 rad/s, q 6.9e-18 rad, impulses 1.8e-15 N s over the cases.
         np.testing.assert_allclose(a.v, b.v, rtol=0, atol=3e-14)
         np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-16)
         np.testing.assert_allclose(a.impulse, b.impulse, rtol=0, atol=2e-14)
+    assert seen == ({0, 1, 2} if n > 1 else {0, 1})
 
 
 @pytest.mark.parametrize("name", TRACKING_SCENES[:4])
@@ -94,7 +105,7 @@ def test_single_row_steps_equal_the_numpy_path(
     assert compiled.theta == theta and "single row" in compiled.fast_paths
     q0, v0 = scene.initial_state()
     n = compiled.constraints.size
-    seen = {"held": 0, "newton": 0, "plastic": 0}
+    seen = {"held": 0, "newton": 0, "plastic": 0, "impacts": 0}
     errors = {"v": 0.0, "q": 0.0, "P": 0.0, "w": 0.0}
     for _ in range(300):
         q = q0 + 0.4 * rng.normal(size=q0.size)
@@ -115,6 +126,8 @@ def test_single_row_steps_equal_the_numpy_path(
         b = reference.step(state_r, tau)
         assert a.active.sum() == 1 and a.active[i] and np.array_equal(a.active, b.active)
         assert a.plastic == b.plastic and a.solution.status == b.solution.status
+        assert a.impacts == b.impacts  # the compiled impact rule's, the reference's
+        seen["impacts"] += bool(b.impacts)
         seen["held" if held else "newton"] += 1
         seen["plastic"] += b.plastic
         # Errors relative to the step's scale (velocities in [rad/s] or [m/s], impulses in
@@ -129,7 +142,7 @@ def test_single_row_steps_equal_the_numpy_path(
         )
     assert errors["v"] <= 1e-13 and errors["q"] <= 3e-16
     assert errors["P"] <= 2e-13 and errors["w"] <= 3e-13
-    assert seen["held"] and seen["newton"]
+    assert seen["held"] and seen["newton"] and seen["impacts"]
     if theta == 1.0 and compiled.constraints.restitution.any():
         assert seen["plastic"]  # the energy guard acted (never for one row at θ = 1/2)
 

@@ -47,7 +47,11 @@ the closure :math:`g_i / \mathrm{h}` of a held constraint still open, the energy
     P_i = \max(0, -\beta_i / d_i), \quad
     v_{k+1} = v^{free} + W^{-1} J_i^T P_i,
 
-so that a step with one active row (the common contact step) needs no further array work.
+so that a step with one active row (the common contact step) needs no further array work:
+the call also applies the active-set rule past a run's first step
+(:func:`~ucontrol.integrators.step_stages.is_active`, on casadi's symbols) and gives the number
+of its row when it has one (:meth:`CompiledFreeStep.run`), and whether
+each one-row step is an impact (:func:`~ucontrol.integrators.step_stages.is_impact`).
 
 On a rigid robot with a free-flyer root (``positions=False``: q of size nq = nv + 1, on
 :math:`\mathbb{R}^3 \times SO(3)`) the call has no q and gives no :math:`q^{free}` nor one-row
@@ -66,9 +70,13 @@ from numpy.typing import NDArray
 from ucontrol.exceptions import InvalidParameterError
 from ucontrol.integrators import step_stages
 from ucontrol.integrators.step_stages import (
+    NO_ACTIVE_ROW,
+    SEVERAL_ACTIVE_ROWS,
     ArrayOps,
     gains_energy,
     impulse_energy_gain,
+    is_active,
+    is_impact,
     newton_offsets,
     predicted_gaps,
     theta_displacement,
@@ -184,10 +192,15 @@ class CompiledFreeStep:
         self._sizes = (size, n)
         self._rows = n + tangential  # normal and tangential rows of the Delassus terms
         # Ends of the outputs v_free, q_free (none without positions), predicted gaps, W⁻¹Jᵀ,
-        # JW⁻¹Jᵀ (of every row), rebound and closure terms (Python ints).
+        # JW⁻¹Jᵀ (of every row), rebound and closure terms, the active set's count and index
+        # (Python ints).
         q_size, r = (size if positions else 0), self._rows
-        self._split = tuple(np.cumsum([size, q_size, n, size * r, r * r, r, r]).tolist())
-        self._ends = self._split[:3]  # those of the outputs every call returns
+        self._split = tuple(np.cumsum([size, q_size, n, size * r, r * r, r, r, 1]).tolist())
+        self._ends = self._split[:3]  # those of the free terms (free_terms)
+        self._active_row_at = self._split[7] - 1  # where the active set's row is
+        # Each one-row step's outputs: the impulses of every row (n,), its impulse and LCP
+        # velocity (1,) each, its scalars (_SINGLE_ROW_SCALARS,), v_{k+1}, q_{k+1} (N,) each.
+        self._row_slices = _one_row_slices(self._split[-1], n, size) if single_rows else ()
         self._positions = positions
         buffer = self.function.input_buffer
         self._activation = buffer(index("activation"))
@@ -208,25 +221,34 @@ class CompiledFreeStep:
     def __call__(
         self, state: PlantEvaluation, tau: Vector, activation: Vector
     ) -> tuple[Vector, Vector | None, Vector]:
-        """:math:`v^{free}`, :math:`q^{free}` (each (N,); None without ``positions``), gaps (n,).
+        """:meth:`run`, then its :meth:`free_terms`."""
+        self.run(state, tau, activation)
+        return self.free_terms()
 
-        The gaps are the predicted ones.
+    def run(self, state: PlantEvaluation, tau: Vector, activation: Vector) -> float:
+        """Run the call of a step from ``state`` under forces ``tau`` (N,).
 
         ``state`` must carry its normal rows (:attr:`PlantEvaluation.normal_rows`);
         ``activation`` (n,) is the step memory's (the impact law reads which constraints are
         held); a read-only one (the memories shared between steps) is copied into the call's
-        input only when it is not the array copied last. The returned arrays are fresh;
-        :meth:`contact_terms`, :meth:`offsets` and :meth:`single_row` read the same call's
-        other outputs.
+        input only when it is not the array copied last. :meth:`free_terms`,
+        :meth:`contact_terms`, :meth:`offsets` and :meth:`single_row` read the call's outputs.
+
+        Returns:
+            The row of the active set by :func:`~ucontrol.integrators.step_stages.is_active`
+            with ``activation`` (the rule past a run's first step, without contacts barred
+            from closing) when it has one row, else
+            :data:`~ucontrol.integrators.step_stages.NO_ACTIVE_ROW` or
+            :data:`~ucontrol.integrators.step_stages.SEVERAL_ACTIVE_ROWS`, as a float.
         """
         if activation is not self._activation_source:  # (a writeable one is never kept)
             self._activation[:] = activation
             # A read-only array is unchanged until replaced: the next call need not copy it.
             self._activation_source = None if activation.flags.writeable else activation
-        q, (v, J, gap, velocity) = self._q_input, self._inputs
         source = self._source
         # q, v and the rows of the rows' last call: in the inputs and outputs of that call
         if source is None or state.normal_rows is not source.last_rows:
+            q, (v, J, gap, velocity) = self._q_input, self._inputs
             # (into the rows' buffers if bound: they no longer hold their last call)
             if source is not None:
                 source.last_rows = None
@@ -240,7 +262,15 @@ class CompiledFreeStep:
             gap[...], velocity[...] = state.gap, state.normal_velocity
         self._run(tau, state.kinetic_energy)
         out = self._last = self._out.copy()
-        a, b, c = self._ends
+        return out.item(self._active_row_at)
+
+    def free_terms(self) -> tuple[Vector, Vector | None, Vector]:
+        """:math:`v^{free}`, :math:`q^{free}` (each (N,); None without ``positions``), gaps (n,).
+
+        Of the last :meth:`run` (views of its fresh outputs); the gaps are the predicted ones.
+        """
+        assert self._last is not None
+        out, (a, b, c) = self._last, self._ends
         return out[:a], out[a:b] if self._positions else None, out[b:c]
 
     def read_rows_of(self, rows: ConstraintRows) -> None:
@@ -302,26 +332,57 @@ class CompiledFreeStep:
         fewer).
         """
         assert self._last is not None and self.single_rows
-        size = self._sizes[0]
-        start = self._split[-1] + i * (5 + 2 * size)
-        block = self._last[start : start + 5 + 2 * size]
-        _, _, residual, solved, plastic = block[:5].tolist()
+        last = self._last
+        impulses, P, w, scalars, v_next, q_next = self._row_slices[i]
+        impulse, _, residual, solved, plastic, impact = last[scalars].tolist()
         return (
-            block[0:1],
-            block[1:2],
+            last[impulses],
+            last[P],
+            last[w],
+            impulse,
             residual,
             solved > 0.0,
             plastic > 0.0,
-            block[5 : 5 + size],
-            block[5 + size :],
+            impact > 0.0,
+            last[v_next],
+            last[q_next],
         )
 
 
-#: The step with one constraint alone active, from :meth:`CompiledFreeStep.single_row`: its
-#: impulse P in [N s] (1,), the LCP's velocity d P + β in [m/s] (1,), the natural-map residual
-#: in [m/s], whether the closed form solves it (d > 0 or β >= 0), whether the energy guard made
-#: it plastic, :math:`v_{k+1}` (N,) and :math:`q_{k+1}` (N,).
-SingleRowStep = tuple[Vector, Vector, float, bool, bool, Vector, Vector]
+#: The scalars of a one-row step's block of outputs, after the impulses of every row: P, w, the
+#: residual, whether solved, plastic and an impact.
+_SINGLE_ROW_SCALARS = 6
+
+
+def _one_row_slices(first: int, n: int, size: int) -> tuple[tuple[slice, ...], ...]:
+    """Where the outputs of each one-row step are, those of the first at ``first``.
+
+    For each of the n rows: its impulses of every row (n,), its P (1,), w (1,), its scalars
+    (:data:`_SINGLE_ROW_SCALARS`,), :math:`v_{k+1}` and :math:`q_{k+1}` (``size``,) each.
+    """
+    block = n + _SINGLE_ROW_SCALARS + 2 * size
+    slices = []
+    for start in range(first, first + n * block, block):
+        scalars = start + n
+        velocity = scalars + _SINGLE_ROW_SCALARS  # v_{k+1}, then q_{k+1}
+        slices.append((
+            slice(start, scalars),
+            slice(scalars, scalars + 1),
+            slice(scalars + 1, scalars + 2),
+            slice(scalars, velocity),
+            slice(velocity, velocity + size),
+            slice(velocity + size, velocity + 2 * size),
+        ))  # fmt: skip
+    return tuple(slices)
+
+
+#: The step with one constraint alone active, from :meth:`CompiledFreeStep.single_row`: the
+#: normal impulses of every constraint in [N s] (n,), its own P (1,), the LCP's velocity
+#: d P + β in [m/s] (1,), P as a float, the natural-map residual in [m/s], whether the closed
+#: form solves it (d > 0 or β >= 0), whether the energy guard made it plastic, whether it is an
+#: impact (:func:`~ucontrol.integrators.step_stages.is_impact`), :math:`v_{k+1}` (N,) and
+#: :math:`q_{k+1}` (N,).
+SingleRowStep = tuple[Vector, Vector, Vector, float, float, bool, bool, bool, Vector, Vector]
 
 
 class ImpactRules(NamedTuple):
@@ -392,14 +453,21 @@ def _free_step_function(
         rules.newton_law == "siconos",
         not any(elastic),
     )  # the impact law of every row, each as if active
+    predicted = predicted_gaps(gap, velocity, gh)
     parts = [
         v_free,
         *([q + theta_displacement(v, v_free, h, th)] if positions else []),
-        predicted_gaps(gap, velocity, gh),
+        predicted,
         ca.vec(Winv_Jt),
         ca.vec(delassus),
         *(ca.vertcat(offset, ca.SX.zeros(tangential)) for offset in offsets),
     ]
+    # The active set past a run's first step: its row when it has one, else NO_ACTIVE_ROW or
+    # SEVERAL_ACTIVE_ROWS.
+    active = is_active(predicted, activation)  # 1 or 0 per row
+    count, row = ca.sum1(active), ca.dot(active, ca.DM(np.arange(n, dtype=float)))
+    several = ca.if_else(count == 0.0, NO_ACTIVE_ROW, SEVERAL_ACTIVE_ROWS)
+    parts.append(ca.if_else(count == 1.0, row, several))
     inputs = [q, v, tau, M_upper, nle, rows_t, gap, velocity, W0_s, Kq_s, F_s, scalars]
     inputs += [activation, kinetic, restitution_s]
     names = ["q", "v", "tau", "M", "nle", "J_t", "gap", "u", "W0", "Kq", "F", "scalars"]
@@ -410,8 +478,8 @@ def _free_step_function(
         for i in range(n):
             parts.append(
                 _single_row_step(
-                    i, rules, q, v, J, v_free, Winv_Jt, delassus, offsets[0][i],
-                    offsets[1][i], kinetic, h, th,
+                    i, n, rules, q, v, J, v_free, Winv_Jt, delassus, offsets[0][i],
+                    offsets[1][i], kinetic, h, th, activation[i], velocity[i],
                 )
             )  # fmt: skip
     return ca.Function("free_step", inputs, [ca.vertcat(*parts)], names, ["terms"])
@@ -419,6 +487,7 @@ def _free_step_function(
 
 def _single_row_step(
     i: int,
+    n: int,
     rules: ImpactRules,
     q: Any,
     v: Any,
@@ -431,10 +500,15 @@ def _single_row_step(
     kinetic: Any,
     h: Any,
     theta: Any,
+    activation: Any,
+    u_minus: Any,
 ) -> Any:
-    """(P, w, residual, solved, plastic, v_{k+1}, q_{k+1}) of row i alone active (5 + 2N,).
+    """The step of row i alone active, of n constraints (n + 6 + 2N,).
 
-    ``rebound`` and ``closure`` are row i's impact law; the energy guard is
+    The impulses of every row (P at i, 0 elsewhere), then P, w, the residual, whether solved,
+    plastic and an impact, :math:`v_{k+1}`, :math:`q_{k+1}`. ``rebound`` and ``closure`` are
+    row i's impact law, ``activation`` and ``u_minus`` its memory's entry and normal velocity
+    at step k; the energy guard and the impact rule are
     :mod:`~ucontrol.integrators.step_stages`'s, on casadi's symbols.
     """
     import casadi as ca
@@ -462,7 +536,9 @@ def _single_row_step(
         (impulse, w, residual, solved), plastic = newton, ca.SX(0.0)
     v_next = v_free + Winv_Jt[:, i] * impulse
     q_next = q + theta_displacement(v, v_next, h, theta)
-    return ca.vertcat(impulse, w, residual, solved, plastic, v_next, q_next)
+    impact = is_impact(impulse, activation, u_minus)
+    impulses = (impulse if j == i else ca.SX(0.0) for j in range(n))
+    return ca.vertcat(*impulses, impulse, w, residual, solved, plastic, impact, v_next, q_next)
 
 
 def _casadi_ops() -> ArrayOps:

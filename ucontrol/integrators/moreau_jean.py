@@ -216,7 +216,7 @@ from __future__ import annotations
 import functools
 import warnings
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -227,6 +227,7 @@ from ucontrol.contact.compiled_rows import compiled_rows
 from ucontrol.contact.constraint_set import ConstraintSet
 from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidParameterError
 from ucontrol.integrators.step_stages import (
+    NO_ACTIVE_ROW,
     NUMPY_OPS,
     StepMemory,
     active_set,
@@ -441,6 +442,9 @@ class MoreauJean:
             )
         )
         self._no_impulse = _read_only(np.zeros(constraints.size))
+        # The active sets of the steps with no active row and with row i alone, shared.
+        self._none_active = _read_only(np.zeros(constraints.size, dtype=bool))
+        self._row_actives = tuple(_read_only(row) for row in np.eye(constraints.size, dtype=bool))
         self._no_friction_impulse = (
             _read_only(np.zeros((constraints.size, 3))) if constraints.has_friction else None
         )
@@ -644,7 +648,14 @@ class MoreauJean:
         inverse_inertia: Callable[[Vector], Vector] | None = None
         q_free: Vector | None = None
         if free_step is not None:  # the stages below in one generated call
-            v_free, q_free, predicted = free_step(state, tau, memory.activation)
+            row = free_step.run(state, tau, memory.activation)
+            if not memory.first and not self._closure_rules:  # its active set is the step's
+                if row >= 0.0 and free_step.single_rows:  # the whole step, from the call
+                    return self._single_row_outcome(free_step, int(row), state)
+                if row == NO_ACTIVE_ROW:  # (a free step has no joint or bilateral rows)
+                    v_free, q_free, _ = free_step.free_terms()
+                    return self._free_outcome(state, v_free, q_free, self._none_active)
+            v_free, q_free, predicted = free_step.free_terms()
         else:
             v_free, inverse_inertia = self._free_velocity(state, tau)
             # Predicted gaps [m] or [rad]; held constraints stay in while barely open.
@@ -655,16 +666,33 @@ class MoreauJean:
         indices = active.nonzero()[0]
         count = indices.size
         if not count and not self._problem_rows:  # no contact problem: nothing held next
-            self.memory = self._free_memory
-            q_next = self._advance_theta(state, v_free) if q_free is None else q_free
-            return _record(StepOutcome, (
-                q_next, v_free, self._no_impulse, active, None, 0, False,
-                self._no_friction_impulse, (),
-            ))  # fmt: skip
+            return self._free_outcome(state, v_free, q_free, active)
         # One active row, the whole problem (a free step has no joint or bilateral rows).
         if count == 1 and free_step is not None and free_step.single_rows and not memory.first:
-            return self._single_row_outcome(free_step, active, indices.item(0), state)
+            return self._single_row_outcome(free_step, indices.item(0), state)
         return self._contact_outcome(state, v_free, inverse_inertia, active, indices, activation)
+
+    def _free_outcome(
+        self,
+        state: PlantEvaluation,
+        v_free: Vector,
+        q_free: Vector | None,
+        active: NDArray[np.bool_],
+    ) -> StepOutcome:
+        """The outcome of a step without a contact problem: nothing held next.
+
+        ``q_free`` is the compiled call's :math:`q^{free}`, or None (advanced here).
+        """
+        self.memory = self._free_memory
+        q_next = self._advance_theta(state, v_free) if q_free is None else q_free
+        return StepOutcome(
+            q_next,
+            v_free,
+            self._no_impulse,
+            active,
+            None,
+            friction_impulse=self._no_friction_impulse,
+        )
 
     def _barred(self, state: PlantEvaluation, predicted: Vector, memory: StepMemory) -> Vector:
         """``predicted`` with the contacts barred from closing at q_k (not held) left out.
@@ -681,32 +709,26 @@ class MoreauJean:
         return predicted
 
     def _single_row_outcome(
-        self,
-        free_step: CompiledFreeStep,
-        active: NDArray[np.bool_],
-        i: int,
-        state: PlantEvaluation,
+        self, free_step: CompiledFreeStep, i: int, state: PlantEvaluation
     ) -> StepOutcome:
         """The outcome of a step from ``state`` with constraint ``i`` alone active.
 
-        From the compiled call.
-
-        The one-row LCP's closed form is part of the compiled step: its solve time is not
-        measured apart (0 s in the solution).
+        From the compiled call, whose one-row step also says whether it is an impact
+        (:func:`~ucontrol.integrators.step_stages.is_impact`, at the step's start t_k, 0 when
+        ``state`` has no time). The one-row LCP's closed form is part of the compiled step:
+        its solve time is not measured apart (0 s in the solution).
         """
-        P, velocity, residual, solved, plastic, v_next, q_next = free_step.single_row(i)
+        step = free_step.single_row(i)
+        impulse, P, velocity, P_i, residual, solved, plastic, impact, v_next, q_next = step
         status = "solved" if solved else "infeasible"
-        solution = _record(ContactSolution, (P, velocity, status, 0, residual, 0.0, False, 0))
+        solution = ContactSolution(P, velocity, status, 0, residual, 0.0)
         if not solved:
             self._checked(self.solver, solution)
-        impulse = np.zeros(self.constraints.size)
-        impulse[i] = P_i = P.item()
-        impacts = _closing_impacts(impulse, self.memory.activation, (i,), state)
+        impacts = ((i, 0.0 if state.t is None else float(state.t)),) if impact else ()
         # next_memory(impulse, (i,), ...), built once
         self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
-        return _record(
-            StepOutcome, (q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
-        )
+        active = self._row_actives[i]
+        return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
 
     def _contact_outcome(
         self,
@@ -1201,13 +1223,10 @@ def _add_friction_impulses(
     friction_impulse[indices[frictional]] = np.add.reduceat(rows * directions, first_rows)
 
 
-#: A NamedTuple from the tuple of all its fields, ``_record(StepOutcome, (q, v, ...))``: the
-#: record without the Python frame of its generated ``__new__`` (a step's records cost about
-#: 2 % of a one-contact Panda step that way, docs/benchmarks.md); every field is given, in order.
-_record = tuple.__new__
+_Array = TypeVar("_Array", bound=np.ndarray)
 
 
-def _read_only(array: Vector) -> Vector:
+def _read_only(array: _Array) -> _Array:
     """``array``, made read-only (an outcome shared between steps)."""
     array.flags.writeable = False
     return array

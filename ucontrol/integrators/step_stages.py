@@ -9,8 +9,9 @@ the energy guard, are written over an array namespace (:class:`ArrayOps`): numpy
 readable reference, casadi's symbols for the generated code, so that both run the same
 definition.
 
-**Active set** (:func:`active_set`). Constraint a is in the active set when its predicted gap
-:math:`g_a + \gamma h u_a` is at most its entry of :attr:`StepMemory.activation`: 0, or the
+**Active set** (:func:`active_set`, :func:`is_active`). Constraint a is in the active set when
+its predicted gap :math:`g_a + \gamma h u_a` is at most its entry of
+:attr:`StepMemory.activation`: 0, or the
 release gap :math:`\varepsilon_p + h u_p` (:func:`release_gap`) for a constraint that carried
 an impulse in the last step (:func:`next_memory`). At the first step of a run, a constraint
 closed at the start (gap at most :data:`START_GAP_TOLERANCE`) counts as held.
@@ -55,6 +56,9 @@ IMPACT_VELOCITY_THRESHOLD = 1e-6
 #: [m/s] (or [rad/s]): a pressed foot pushed into the ground. A held contact otherwise closes
 #: only its drift, at O(h) speeds (mm/s).
 HELD_IMPACT_VELOCITY = 0.1
+#: The active set's row as one number, where a step has one active row, else these (the
+#: compiled free step's :meth:`~ucontrol.integrators.compiled_free_step.CompiledFreeStep.run`).
+NO_ACTIVE_ROW, SEVERAL_ACTIVE_ROWS = -1.0, -2.0
 
 
 class StepMemory(NamedTuple):
@@ -141,10 +145,22 @@ def is_impact(impulse: Any, activation: Any, u_minus: Any) -> Any:
 
     Returns:
         :math:`P_a > 0` and :math:`u_a^- < -`:data:`IMPACT_VELOCITY_THRESHOLD` (not held) or
-        :math:`u_a^- < -`:data:`HELD_IMPACT_VELOCITY` (held).
+        :math:`u_a^- < -`:data:`HELD_IMPACT_VELOCITY` (held): non-zero (true) where it holds.
+        The conditions are combined by products (and) and sums (or), which numpy's booleans,
+        Python's and casadi's symbols (the compiled step's) all have.
     """
-    closing = (activation <= 0.0) & (u_minus < -IMPACT_VELOCITY_THRESHOLD)
-    return (impulse > 0.0) & (closing | (u_minus < -HELD_IMPACT_VELOCITY))
+    closing = (activation <= 0.0) * (u_minus < -IMPACT_VELOCITY_THRESHOLD)
+    return (impulse > 0.0) * (closing + (u_minus < -HELD_IMPACT_VELOCITY))
+
+
+def is_active(predicted: Any, activation: Any) -> Any:
+    r"""Whether constraints are in a step's active set (elementwise), past the first step.
+
+    Args:
+        predicted: Predicted gaps :math:`g + \gamma h u` in [m] (or [rad]), shape (n,).
+        activation: The last step's :attr:`StepMemory.activation`, shape (n,).
+    """
+    return predicted <= activation
 
 
 def active_set(
@@ -168,7 +184,7 @@ def active_set(
         closed = (gap <= START_GAP_TOLERANCE) & (predicted > activation)
         activation = activation.copy()
         activation[closed] = max(release, START_GAP_TOLERANCE)
-    return predicted <= activation, activation
+    return is_active(predicted, activation), activation
 
 
 def next_memory(
