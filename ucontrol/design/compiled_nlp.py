@@ -71,7 +71,6 @@ def solve_compiled(
         return None
     x, p = opti.x, opti.p
     program = ca.Function("nlp", [x, p], [opti.f, opti.g], ["x", "p"], ["f", "g"])
-    digest = hashlib.sha256(program.serialize().encode()).hexdigest()
     nlp = {"x": x, "p": p, "f": opti.f, "g": opti.g}
     settings = {**options, "ipopt": ipopt}
 
@@ -84,7 +83,7 @@ def solve_compiled(
         return str(code.dump())
 
     try:
-        key = definition_key([digest], [__name__])
+        key = definition_key([_definition(opti)], [__name__])
         library = build_library(STEM, key, source, notice=NOTICE)
         if on_iteration is not None:
             sizes = {"x": x.numel(), "g": opti.g.numel(), "p": p.numel()}
@@ -106,6 +105,18 @@ def solve_compiled(
         return ca.Function("value", [x, opti.lam_g], [expr])(solution, multipliers)
 
     return value, dict(solver.stats())
+
+
+def _definition(opti: ca.Opti) -> str:
+    r"""SHA-256 of the program :math:`(x, p) \mapsto (f, g)` serialized, its symbols renamed.
+
+    An Opti's variables are named after the Opti's instance number in the process: renamed by
+    position, the same program has the same definition in every process and every instance.
+    """
+    named = ca.symvar(ca.vertcat(opti.x, opti.p))
+    renamed = [ca.MX.sym(f"v{i}", symbol.sparsity()) for i, symbol in enumerate(named)]
+    program = ca.Function("nlp", renamed, ca.substitute([opti.f, opti.g], named, renamed))
+    return hashlib.sha256(program.serialize().encode()).hexdigest()
 
 
 class _IterationCallback(ca.Callback):  # type: ignore[misc]
