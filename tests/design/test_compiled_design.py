@@ -8,7 +8,7 @@ The compiled path is the default where a C compiler is present; ``compiled=False
 
 from __future__ import annotations
 
-import io
+import os
 import tomllib
 from pathlib import Path
 
@@ -46,11 +46,6 @@ def _libraries(cache: Path) -> list[Path]:
     return sorted((cache / "casadi").glob("design_nlp_*.so"))
 
 
-class _Terminal(io.StringIO):
-    def isatty(self) -> bool:
-        return True
-
-
 def _assert_same_design(a, b) -> None:  # type: ignore[no-untyped-def]
     (cycle_a, report_a), (cycle_b, report_b) = a, b
     assert report_a.success and report_b.success
@@ -73,11 +68,14 @@ def test_a_task_compiles_once_says_so_and_a_changed_task_compiles_again(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
-    monkeypatch.setattr(compile_cache, "_announced", False)
-    terminal = _Terminal()
-    monkeypatch.setattr("sys.stderr", terminal)
-    first = design_cycle(_small_task())
-    assert "compiling this design's derivatives" in terminal.getvalue()
+    monkeypatch.setattr(compile_cache, "_announced", False)  # as in a new process
+    reader, writer = os.openpty()  # stderr on a real (pseudo-)terminal
+    with os.fdopen(writer, "w") as terminal, os.fdopen(reader, "rb", buffering=0) as screen:
+        monkeypatch.setattr("sys.stderr", terminal)
+        first = design_cycle(_small_task())
+        terminal.flush()
+        said = screen.read(4096).decode()  # the one line said, far below a pty's buffer
+    assert said.startswith("ucontrol: compiling this design's derivatives"), said
     (library,) = _libraries(tmp_path)
     again = design_cycle(_small_task())  # loaded: nothing built
     assert _libraries(tmp_path) == [library]

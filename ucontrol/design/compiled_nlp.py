@@ -18,9 +18,10 @@ each derivative of a substep once.
 - Same program, same arithmetic: the compiled functions run the operations of the virtual
   machine's, so IPOPT takes the same iterates (the figures are in docs/benchmarks.md, "Issue
   30, item 4: fifth round").
-- Fallback: :func:`solve_compiled` returns None without a C compiler, with
-  ``UCONTROL_NO_COMPILE=1``, or when the build fails; the caller then solves in casadi's
-  virtual machine.
+- Fallback: :func:`solve_compiled` returns None without a C compiler or when the build fails;
+  the caller then solves in casadi's virtual machine, as it does where
+  ``UCONTROL_NO_COMPILE=1`` (:class:`~ucontrol.design.cycle_transcription.CycleTranscription`
+  asks for no compiled solve then).
 """
 
 from __future__ import annotations
@@ -34,7 +35,6 @@ from typing import Any
 import casadi as ca
 
 from ucontrol.model.compile_cache import build_library, definition_key
-from ucontrol.model.compiled_function import compilation_disabled
 
 #: Start of the library's file name (and the C code's name).
 STEM = "design_nlp"
@@ -65,10 +65,9 @@ def solve_compiled(
     Returns:
         A function evaluating an expression of ``opti``'s variables and constraint
         multipliers at the solution, and the solver's statistics; or None where nothing can
-        be compiled (the caller solves in casadi's virtual machine).
+        be compiled (no C compiler, a failed build: the caller solves in casadi's virtual
+        machine).
     """
-    if compilation_disabled():
-        return None
     x, p = opti.x, opti.p
     program = ca.Function("nlp", [x, p], [opti.f, opti.g], ["x", "p"], ["f", "g"])
     nlp = {"x": x, "p": p, "f": opti.f, "g": opti.g}
