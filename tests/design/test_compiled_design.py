@@ -31,7 +31,7 @@ _COST_RTOL = 1e-12
 _STATE_ATOL = 1e-10
 
 
-def _small_task(**phase: float) -> DesignTask:
+def _small_task(hessian: str = "exact", **phase: float) -> DesignTask:
     """The two-link task on a coarse grid (4 + 4 intervals of 2 RK4 steps).
 
     Its C compiles in seconds, its solve takes a fraction of one.
@@ -39,6 +39,7 @@ def _small_task(**phase: float) -> DesignTask:
     table = tomllib.loads(TASK.read_text())
     table["grid"] = {"flight_intervals": 4, "contact_intervals": 4, "substeps": 2, "scheme": "rk4"}
     table["contact_phases"][0].update(phase)
+    table["solver"]["hessian"] = hessian
     return DesignTask.from_dict(table, base_dir=ROBOTS)
 
 
@@ -88,6 +89,10 @@ def test_a_task_compiles_once_says_so_and_a_changed_task_compiles_again(
     _assert_same_design(bounded, design_cycle(_small_task(force_min=6.0), compiled=False))
     design_cycle(_small_task(force=6.0))  # another plateau in the cost: another program
     assert len(_libraries(tmp_path)) == 2
+    # IPOPT's own Hessian approximation: no second derivatives to compile, another library
+    limited = design_cycle(_small_task("limited-memory"))
+    assert len(_libraries(tmp_path)) == 3
+    _assert_same_design(limited, design_cycle(_small_task("limited-memory"), compiled=False))
 
 
 @pytest.mark.parametrize(("variable", "value"), [(NO_COMPILE_ENV, "1"), ("CC", "no-such-compiler")])

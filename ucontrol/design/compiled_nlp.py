@@ -12,12 +12,13 @@ derivative at all. The intervals are calls of one substep Function
 each derivative of a substep once.
 
 - Key: the program's definition, its serialized form (``Function.serialize`` of
-  :math:`(x, p) \mapsto (f, g)`: every constant, bound and interval), with this module's
-  source and the installed casadi (:func:`~ucontrol.model.compile_cache.definition_key`):
-  a changed task builds another library, an unchanged one is loaded.
-- Same program, same arithmetic: the compiled functions run the operations of the virtual
-  machine's, so IPOPT takes the same iterates (the figures are in docs/benchmarks.md, "Issue
-  30, item 4: fifth round").
+  :math:`(x, p) \mapsto (f, g)`: every constant and interval; the bounds are arguments of the
+  solve), with this module's source, IPOPT's Hessian approximation (which functions there
+  are) and the installed casadi (:func:`~ucontrol.model.compile_cache.definition_key`): a
+  changed task builds another library, an unchanged one is loaded.
+- Same program: the operations of the virtual machine's inlined intervals, grouped by
+  substep, whose rounding alone differs (two-link: the same 22 iterations, the cost 1.1e-15
+  apart relative; docs/benchmarks.md, "Issue 30, item 4: fifth round").
 - Fallback: :func:`solve_compiled` returns None without a C compiler or when the build fails;
   the caller then solves in casadi's virtual machine, as it does where
   ``UCONTROL_NO_COMPILE=1`` (:class:`~ucontrol.design.cycle_transcription.CycleTranscription`
@@ -82,7 +83,10 @@ def solve_compiled(
         return str(code.dump())
 
     try:
-        key = definition_key([_definition(opti)], [__name__])
+        # the Hessian's approximation decides which functions there are (no nlp_hess_l with
+        # limited-memory); IPOPT's other options are read at the solve, not compiled
+        hessian = ipopt.get("hessian_approximation", "exact")
+        key = definition_key([_definition(opti), hessian], [__name__])
         library = build_library(STEM, key, source, notice=NOTICE)
         if on_iteration is not None:
             sizes = {"x": x.numel(), "g": opti.g.numel(), "p": p.numel()}
