@@ -24,9 +24,10 @@ def task() -> DesignTask:
     return two_link_task()
 
 
-@pytest.fixture
-def designed():  # type: ignore[no-untyped-def]
-    return two_link_design()
+@pytest.fixture(params=[None, False], ids=["default", "virtual-machine"])
+def designed(request):  # type: ignore[no-untyped-def]
+    """The design by default (compiled derivatives where a C compiler is present) and not."""
+    return two_link_design(request.param)
 
 
 def test_ipopt_converged_with_small_kkt_residuals(designed) -> None:  # type: ignore[no-untyped-def]

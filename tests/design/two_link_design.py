@@ -21,9 +21,9 @@ def two_link_task() -> DesignTask:
 
 
 @functools.cache
-def two_link_design() -> tuple[DesignedCycle, DesignReport]:
-    """Its designed cycle and report."""
-    return design_cycle(two_link_task())
+def two_link_design(compiled: bool | None = None) -> tuple[DesignedCycle, DesignReport]:
+    """Its designed cycle and report (``compiled``: the switch of :func:`design_cycle`)."""
+    return design_cycle(two_link_task(), compiled=compiled)
 
 
 def pinocchio_terms(task: DesignTask, q: np.ndarray, v: np.ndarray):  # type: ignore[no-untyped-def]

@@ -39,12 +39,14 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.design.compiled_nlp import solve_compiled
 from ucontrol.design.design_report import DesignReport
 from ucontrol.design.design_task import DesignTask
 from ucontrol.design.designed_cycle import CyclePhase, DesignedCycle
 from ucontrol.design.dop853_tableau import dop853_tableau
 from ucontrol.design.warm_start import WarmStart, hand_made_warm_start
 from ucontrol.exceptions import DesignError, InfeasibleDesignError
+from ucontrol.model.compiled_function import compilation_possible
 from ucontrol.model.symbolic_model import SymbolicModel
 
 Vector = NDArray[np.float64]
@@ -87,16 +89,22 @@ class CycleTranscription:
 
     Args:
         task: The design task.
+        compiled: Solve with the program's derivatives compiled to C and cached across runs
+            (:mod:`ucontrol.design.compiled_nlp`; models with at most :data:`INLINE_JOINTS`
+            joints); default: where a C compiler is present and ``UCONTROL_NO_COMPILE`` is
+            not set. False: casadi's virtual machine, the same optimum.
 
     Attributes:
         task: The task.
         nv: Joint coordinates.
+        compiled: Whether the solve runs compiled derivatives (else, or when their build
+            fails, casadi's virtual machine).
         functions: The casadi Functions of the model: ``gap``, ``normal_velocity``,
             ``position`` (tracked frame), ``free`` and ``contact`` RK4 intervals, ``impact``,
             ``contact_force``, ``normal_acceleration``.
     """
 
-    def __init__(self, task: DesignTask) -> None:
+    def __init__(self, task: DesignTask, *, compiled: bool | None = None) -> None:
         self.task = task
         robot = task.scene.robot
         self.nv = nv = robot.nv
@@ -121,6 +129,9 @@ class CycleTranscription:
         )
         drift_s = ca.jacobian(J_n_s @ vs, qs) @ vs  # J̇_n v [m/s²]
         self.inline = nv <= INLINE_JOINTS
+        if compiled is None:
+            compiled = compilation_possible()
+        self.compiled = self.inline and compiled
         sym: Any = ca.SX if self.inline else ca.MX
         q: Any
         v: Any
@@ -172,9 +183,17 @@ class CycleTranscription:
             nv,
             scheme=scheme,
             normal=(f["normal_velocity"], f["normal_acceleration"]),
+            called=self.compiled,
         )
         f["contact"] = _rk_interval(
-            "contact", rate_contact, None, S, nv, f["contact_force"], scheme=scheme
+            "contact",
+            rate_contact,
+            None,
+            S,
+            nv,
+            f["contact_force"],
+            scheme=scheme,
+            called=self.compiled,
         )
         self.functions = f
 
@@ -491,11 +510,12 @@ class CycleTranscription:
         """
         warm = warm if warm is not None else hand_made_warm_start(self.task, self._phase_layout())
         opti, handles = self.build(warm)
-        report, cycle = self._run(opti, handles, progress)
+        report, cycle = self._run(opti, handles, progress, compiled=self.compiled)
         if report.success:
             return cycle, report
         elastic, elastic_handles = self.build(warm, elastic=True)
-        # the elastic program's slacks start at an arbitrary 1: its start pushed inside
+        # the elastic program's slacks start at an arbitrary 1: its start pushed inside; a
+        # diagnosis, solved once: not worth a compile
         elastic_report, best = self._run(elastic, elastic_handles, progress, warm_start=False)
         binding = []
         for group in elastic_handles["groups"]:
@@ -516,44 +536,47 @@ class CycleTranscription:
         progress: Progress | None,
         *,
         warm_start: bool = True,
+        compiled: bool = False,
     ) -> tuple[DesignReport, DesignedCycle]:
         task = self.task
         every = task.solver.progress_every
-        if progress is not None:
 
-            def callback(iteration: int) -> None:
-                if iteration % every:
-                    return
-                stats = opti.debug.stats()["iterations"]
-                progress(
-                    iteration,
-                    float(stats["obj"][-1]),
-                    float(stats["inf_pr"][-1]),
-                    float(stats["inf_du"][-1]),
-                )
+        def on_iteration(iteration: int, stats: Callable[[], dict[str, Any]]) -> None:
+            if progress is None or iteration % every:
+                return
+            so_far = stats()["iterations"]
+            progress(
+                iteration,
+                float(so_far["obj"][-1]),
+                float(so_far["inf_pr"][-1]),
+                float(so_far["inf_du"][-1]),
+            )
 
-            opti.callback(callback)
-        opti.solver(
-            "ipopt",
-            {"print_time": False, "error_on_fail": False},
-            {
-                "max_iter": task.solver.max_iter,
-                "tol": task.solver.tol,
-                "print_level": task.solver.print_level,
-                "sb": "yes",
-                "mu_strategy": "adaptive",
-                "warm_start_init_point": "yes" if warm_start and task.solver.warm_start else "no",
-                "hessian_approximation": task.solver.hessian,
-            },
-        )
+        options: dict[str, Any] = {"print_time": False, "error_on_fail": False}
+        ipopt: dict[str, Any] = {
+            "max_iter": task.solver.max_iter,
+            "tol": task.solver.tol,
+            "print_level": task.solver.print_level,
+            "sb": "yes",
+            "mu_strategy": "adaptive",
+            "warm_start_init_point": "yes" if warm_start and task.solver.warm_start else "no",
+            "hessian_approximation": task.solver.hessian,
+        }
         start = time.process_time()
-        try:
-            solution = opti.solve()
-            value = solution.value
-            stats = solution.stats()
-        except RuntimeError:  # pragma: no cover - casadi raises on some failures anyway
-            value = opti.debug.value
-            stats = opti.debug.stats()
+        solved = solve_compiled(opti, options, ipopt, on_iteration) if compiled else None
+        if solved is not None:
+            value, stats = solved
+        else:
+            if progress is not None:
+                opti.callback(lambda iteration: on_iteration(iteration, opti.debug.stats))
+            opti.solver("ipopt", options, ipopt)
+            try:
+                solution = opti.solve()
+                value = solution.value
+                stats = solution.stats()
+            except RuntimeError:  # pragma: no cover - casadi raises on some failures anyway
+                value = opti.debug.value
+                stats = opti.debug.stats()
         seconds = time.process_time() - start  # [s] CPU
         cycle = self._cycle(value, handles)
         report = self._report(opti, value, stats, handles, seconds)
@@ -691,7 +714,11 @@ def _cpu_split(stats: dict[str, Any], seconds: float) -> dict[str, float]:
 
 
 def design_cycle(
-    task: DesignTask, *, warm: WarmStart | None = None, progress: Progress | None = None
+    task: DesignTask,
+    *,
+    warm: WarmStart | None = None,
+    progress: Progress | None = None,
+    compiled: bool | None = None,
 ) -> tuple[DesignedCycle, DesignReport]:
     """Design the cycle of ``task``: transcribe, warm-start from the hand-made cycle, solve.
 
@@ -699,6 +726,8 @@ def design_cycle(
         task: The design task.
         warm: Initial guess; default the scene's hand-made cycle.
         progress: Called every ``task.solver.progress_every`` IPOPT iterations.
+        compiled: Whether IPOPT runs the program's derivatives compiled to C, cached across
+            runs (see :class:`CycleTranscription`); default where a C compiler is present.
 
     Returns:
         The designed cycle and the solver's report.
@@ -707,7 +736,7 @@ def design_cycle(
         InfeasibleDesignError: No feasible cycle; names the binding limits, keeps the best
             iterate.
     """
-    return CycleTranscription(task).solve(warm, progress=progress)
+    return CycleTranscription(task, compiled=compiled).solve(warm, progress=progress)
 
 
 def _tableau(scheme: str) -> tuple[Vector, Vector]:
@@ -748,6 +777,8 @@ def _rk_interval(
     force: ca.Function | None = None,
     scheme: str = "rk4",
     normal: tuple[ca.Function, ca.Function] | None = None,
+    *,
+    called: bool = False,
 ) -> ca.Function:
     r"""``(x0, tau, h) -> (x_end, values, interior)``: ``substeps`` Runge–Kutta steps.
 
@@ -757,57 +788,95 @@ def _rk_interval(
     gap's quintic Hermite interpolant from :math:`(g, u, a)` at both ends of each substep, at
     a quarter, half and three quarters of it (error :math:`O(\delta^6)`), so that a flight
     cannot dip through the surface between two points unnoticed; else zeros.
+
+    With ``called`` (a small model, whose stages are SX), one substep and its probes are an SX
+    Function ``<name>_substep`` (the end's probes ``<name>_probe``) that the interval calls
+    ``substeps`` times in MX: the same operations, whose C code (:mod:`.compiled_nlp`) then
+    holds each derivative of a substep once instead of ``substeps`` times unrolled.
     """
     A, b = _tableau(scheme)
     # small models: the stages inlined (SX, fastest); larger ones: the rate Function called
     # (MX), whose inlined stages and their Hessian outgrow memory (the 9-joint Panda: > 9 GB)
     sym: Any = ca.SX if nv <= INLINE_JOINTS else ca.MX
-    x0 = sym.sym("x0", 2 * nv)
     tau = sym.sym("tau", nv)
     h = sym.sym("h")
-    step = h / substeps
-    x = x0
-    values, speeds, accelerations = [], [], []
 
-    def probe(state: Any) -> Any:
-        if normal is not None:
-            speeds.append(normal[0](state[:nv], state[nv:]))
-            accelerations.append(normal[1](state, tau))
-        if force is not None:
-            return force(state, tau)
-        assert gap is not None
-        return gap(state[:nv])
+    def probe(state: Any) -> list[Any]:
+        """The gap (or force) at ``state``, and with ``normal`` the speed and acceleration."""
+        rates = [] if normal is None else [normal[0](state[:nv], state[nv:]), normal[1](state, tau)]
+        value = force(state, tau) if force is not None else gap(state[:nv])  # type: ignore[misc]
+        return [value, *rates]
 
-    for _ in range(substeps):
-        values.append(probe(x))
+    def advance(x: Any, step: Any) -> Any:
         k: list[Any] = []
         for i in range(A.shape[0]):
             increment = sum((A[i, j] * k[j] for j in range(i) if A[i, j] != 0.0), sym.zeros(2 * nv))
             k.append(rate(x + step * increment, tau))
-        x = x + step * sum((b[i] * k[i] for i in range(len(k)) if b[i] != 0.0), sym.zeros(2 * nv))
-    values.append(probe(x))
+        return x + step * sum(
+            (b[i] * k[i] for i in range(len(k)) if b[i] != 0.0), sym.zeros(2 * nv)
+        )
+
+    x0, inputs = sym.sym("x0", 2 * nv), [tau, h]
+    step_of: Callable[[Any], tuple[Any, list[Any]]]
+    probe_of: Callable[[Any], list[Any]]
+    if called and sym is ca.SX:
+        x_s, step_s = ca.SX.sym("x", 2 * nv), ca.SX.sym("step")
+        # derivatives one direction at a time: C code of a 7-direction forward-over-reverse
+        # is 7 times as long, and the compiler's time grows faster than the code
+        one = {"max_num_dir": 1}
+        sub = ca.Function(
+            f"{name}_substep", [x_s, tau, step_s], ca.cse([advance(x_s, step_s), *probe(x_s)]), one
+        )
+        end = ca.Function(f"{name}_probe", [x_s, tau], ca.cse(probe(x_s)), one)
+        x0, tau_m, h = ca.MX.sym("x0", 2 * nv), ca.MX.sym("tau", nv), ca.MX.sym("h")
+        inputs = [tau_m, h]
+        step = h / substeps
+
+        def step_of(x: Any) -> tuple[Any, list[Any]]:
+            x_next, *probes = sub.call([x, tau_m, step])
+            return x_next, probes
+
+        def probe_of(x: Any) -> list[Any]:
+            return list(end.call([x, tau_m]))
+
+        zeros: Any = ca.MX.zeros
+    else:
+        step = h / substeps
+
+        def step_of(x: Any) -> tuple[Any, list[Any]]:
+            probes = probe(x)
+            return advance(x, step), probes
+
+        probe_of, zeros = probe, sym.zeros
+    x = x0
+    points = []  # per point: [value] or [value, speed, acceleration]
+    for _ in range(substeps):
+        x, probes = step_of(x)
+        points.append(probes)
+    points.append(probe_of(x))
+    values = [point[0] for point in points]
     interior = []
     for i in range(substeps):
         ends = (
             ca.vertcat(
                 values[i],
-                step * speeds[i],
-                step**2 * accelerations[i],
-                step**2 * accelerations[i + 1],
-                step * speeds[i + 1],
+                step * points[i][1],
+                step**2 * points[i][2],
+                step**2 * points[i + 1][2],
+                step * points[i + 1][1],
                 values[i + 1],
             )
             if normal is not None
-            else sym.zeros(6)
+            else zeros(6)
         )
         interior.append(ca.mtimes(ca.DM(_HERMITE5), ends))
     outputs = [x, ca.vertcat(*values), ca.vertcat(*interior)]
-    if sym is ca.SX:
+    if isinstance(x, ca.SX):
         # the probes repeat the first stage's dynamics and the contact rate its solves:
         # shared once, the interval and its derivatives, which the solve spends its time in,
         # shrink by an eighth (flight) to a quarter (contact)
         outputs = ca.cse(outputs)
-    return ca.Function(name, [x0, tau, h], outputs)
+    return ca.Function(name, [x0, *inputs], outputs)
 
 
 def _resample(samples: Vector, n: int) -> Vector:

@@ -49,6 +49,8 @@ CFLAGS = ("-O1", "-fPIC", "-shared")
 BUILD_TIMEOUT_S = 300.0
 #: Libraries kept in the cache; a build beyond them removes the least recently used.
 MAX_LIBRARIES = 256
+#: What a build compiles, by default (said on the terminal).
+_LAWS = "this scene's laws (first run only; later runs load them)"
 #: Whether this process has said on the terminal that it compiles (said once).
 _announced = False
 
@@ -72,7 +74,12 @@ def compiler_command() -> list[str]:
 
 
 def build_library(
-    stem: str, key: str, source: str | Callable[[], str], flags: tuple[str, ...] = ()
+    stem: str,
+    key: str,
+    source: str | Callable[[], str],
+    flags: tuple[str, ...] = (),
+    *,
+    notice: str = _LAWS,
 ) -> Path:
     """Path of the shared library compiled from C ``source``, built (once) into the cache.
 
@@ -81,6 +88,8 @@ def build_library(
         key: What the library depends on besides the compiler command (hashed into the name).
         source: The C source, or a callable returning it (called only to build).
         flags: Compiler flags after :data:`CFLAGS`.
+        notice: What is compiled, and how long it may take, said on the terminal before the
+            process's first build.
 
     Raises:
         OSError: No C compiler.
@@ -95,7 +104,7 @@ def build_library(
         fcntl.flock(lock, fcntl.LOCK_EX)  # one builder; the others wait, then find it built
         if _touch(library):
             return library
-        _announce(directory)
+        _announce(directory, notice)
         with tempfile.TemporaryDirectory(dir=directory) as work:
             path = Path(work) / f"{stem}.c"
             path.write_text(source if isinstance(source, str) else source())
@@ -231,14 +240,13 @@ def _remove_least_recently_used(directory: Path, built: Path) -> None:
             path.unlink(missing_ok=True)
 
 
-def _announce(directory: Path) -> None:
+def _announce(directory: Path, notice: str) -> None:
     """Say once per process, on a terminal, that compiled code is being built into the cache."""
     global _announced
     if _announced or not sys.stderr.isatty():
         return
     _announced = True
     print(
-        f"ucontrol: compiling this scene's laws into {directory} (first run only; later runs "
-        "load them)",
+        f"ucontrol: compiling {notice} into {directory}",
         file=sys.stderr,
     )

@@ -1,0 +1,106 @@
+"""The design's compiled derivatives: the virtual machine's iterates, cached by definition.
+
+A cache keyed by the program's definition, a notice on the first build, the fallbacks.
+
+The compiled path is the default where a C compiler is present; ``compiled=False``,
+``UCONTROL_NO_COMPILE=1`` and a missing compiler solve in the virtual machine.
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import needs_compiled_code
+from two_link_design import ROBOTS, TASK, two_link_design
+
+from ucontrol.design import DesignTask, design_cycle
+from ucontrol.model import compile_cache
+from ucontrol.model.compile_cache import CACHE_ENV
+from ucontrol.model.compiled_function import NO_COMPILE_ENV
+
+pytestmark = pytest.mark.slow  # designs: seconds each
+
+#: Cost of the two paths on the shipped two-link task, relative: measured 1.1e-15 (22
+#: iterations both); states 4e-15 rad apart. The intervals' operations are the same, grouped
+#: in substep calls on the compiled path, so only their rounding may differ.
+_COST_RTOL = 1e-12
+_STATE_ATOL = 1e-10
+
+
+def _small_task(hessian: str = "exact", **phase: float) -> DesignTask:
+    """The two-link task on a coarse grid (4 + 4 intervals of 2 RK4 steps).
+
+    Its C compiles in seconds, its solve takes a fraction of one.
+    """
+    table = tomllib.loads(TASK.read_text())
+    table["grid"] = {"flight_intervals": 4, "contact_intervals": 4, "substeps": 2, "scheme": "rk4"}
+    table["contact_phases"][0].update(phase)
+    table["solver"]["hessian"] = hessian
+    return DesignTask.from_dict(table, base_dir=ROBOTS)
+
+
+def _libraries(cache: Path) -> list[Path]:
+    return sorted((cache / "casadi").glob("design_nlp_*.so"))
+
+
+def _assert_same_design(a, b) -> None:  # type: ignore[no-untyped-def]
+    (cycle_a, report_a), (cycle_b, report_b) = a, b
+    assert report_a.success and report_b.success
+    assert report_a.iterations == report_b.iterations
+    assert report_a.cost == pytest.approx(report_b.cost, rel=_COST_RTOL)
+    for phase_a, phase_b in zip(cycle_a.phases, cycle_b.phases, strict=True):
+        for name in ("q", "v", "tau"):
+            np.testing.assert_allclose(
+                getattr(phase_a, name), getattr(phase_b, name), rtol=0, atol=_STATE_ATOL
+            )
+
+
+@needs_compiled_code
+def test_the_two_link_design_is_the_same_compiled_and_in_the_virtual_machine() -> None:
+    _assert_same_design(two_link_design(True), two_link_design(False))
+
+
+@needs_compiled_code
+def test_a_task_compiles_once_says_so_and_a_changed_task_compiles_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    monkeypatch.setattr(compile_cache, "_announced", False)  # as in a new process
+    reader, writer = os.openpty()  # stderr on a real (pseudo-)terminal
+    with os.fdopen(writer, "w") as terminal, os.fdopen(reader, "rb", buffering=0) as screen:
+        monkeypatch.setattr("sys.stderr", terminal)
+        first = design_cycle(_small_task())
+        terminal.flush()
+        said = screen.read(4096).decode()  # the one line said, far below a pty's buffer
+    assert said.startswith("ucontrol: compiling this design's derivatives"), said
+    (library,) = _libraries(tmp_path)
+    again = design_cycle(_small_task())  # loaded: nothing built
+    assert _libraries(tmp_path) == [library]
+    _assert_same_design(first, again)
+    _assert_same_design(first, design_cycle(_small_task(), compiled=False))
+    # a bound is an argument of the compiled functions: the same library, another optimum
+    bounded = design_cycle(_small_task(force_min=6.0))
+    assert _libraries(tmp_path) == [library]
+    assert bounded[1].cost > first[1].cost * (1 + 1e-6)  # above the 5 N plateau
+    _assert_same_design(bounded, design_cycle(_small_task(force_min=6.0), compiled=False))
+    design_cycle(_small_task(force=6.0))  # another plateau in the cost: another program
+    assert len(_libraries(tmp_path)) == 2
+    # IPOPT's own Hessian approximation: no second derivatives to compile, another library
+    limited = design_cycle(_small_task("limited-memory"))
+    assert len(_libraries(tmp_path)) == 3
+    _assert_same_design(limited, design_cycle(_small_task("limited-memory"), compiled=False))
+
+
+@pytest.mark.parametrize(("variable", "value"), [(NO_COMPILE_ENV, "1"), ("CC", "no-such-compiler")])
+def test_without_compilation_the_virtual_machine_finds_the_same_optimum(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, variable: str, value: str
+) -> None:
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    reference = design_cycle(_small_task(), compiled=False)
+    monkeypatch.setenv(variable, value)
+    _assert_same_design(design_cycle(_small_task()), reference)
+    assert _libraries(tmp_path) == []
