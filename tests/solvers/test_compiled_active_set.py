@@ -149,3 +149,22 @@ def test_sizes_outside_the_generated_ones_have_no_compiled_solve() -> None:
     np.testing.assert_array_equal(
         _solve(D, b, every, compiled=True).impulses, _solve(D, b, every, False).impulses
     )
+
+
+def test_without_compilation_the_reference_solves(monkeypatch: pytest.MonkeyPatch) -> None:
+    # UCONTROL_NO_COMPILE: no compiled solve; the solver's impulses are the reference's.
+    D = _rank_deficient(np.random.default_rng(3), 4, 2)
+    b = -D @ np.array([1.0, 0.5, 0.7, 1.2])
+    every = np.ones(4, dtype=bool)
+    reference = active_set_solution(D, b, every, 0.0)
+    assert reference is not None
+    monkeypatch.setenv("UCONTROL_NO_COMPILE", "1")
+    compiled_active_set.cache_clear()
+    try:
+        assert compiled_active_set(4) is None
+        solution = _solve(D, b, every, compiled=True)
+    finally:
+        monkeypatch.delenv("UCONTROL_NO_COMPILE")
+        compiled_active_set.cache_clear()
+    np.testing.assert_array_equal(solution.impulses, reference.impulses)
+    assert compiled_active_set(4) is not None

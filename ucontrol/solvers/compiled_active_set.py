@@ -32,19 +32,15 @@ Only sizes 2 to :data:`MAX_ROWS` are generated: the unrolled sweeps grow as the 
 
 from __future__ import annotations
 
-import ctypes
 import functools
 import logging
-import subprocess
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol.model.compile_cache import build_library, definition_key
-from ucontrol.model.compiled_function import compilation_possible
-from ucontrol.model.native_call import native_runner
+from ucontrol.model.compile_cache import definition_key
+from ucontrol.model.compiled_function import CompiledFunction, compilation_possible
 from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD, RANK_TOLERANCE
 
 if TYPE_CHECKING:
@@ -69,43 +65,21 @@ class CompiledActiveSet:
         m: Rows of the problem, 2 to :data:`MAX_ROWS`.
 
     Raises:
-        OSError: No C compiler, or the library does not load.
-        subprocess.SubprocessError: The compilation failed.
+        OSError: The Function did not compile (no C compiler, a failed build).
     """
 
     def __init__(self, m: int) -> None:
-        name = _name(m)
-        library = ctypes.CDLL(str(_library(m)))
-        entry, work = getattr(library, name), getattr(library, f"{name}_work")
-        sizes = [ctypes.c_longlong() for _ in range(4)]  # casadi_int: arguments, results, iw, w
-        if work(*(ctypes.byref(value) for value in sizes)) != 0:
-            raise OSError(f"{name}: its work sizes are not readable")
-        n_arg, n_res, n_iw, n_w = (max(int(value.value), 3) for value in sizes)
-        self._library = library  # keeps it loaded
-        self._inputs = [np.zeros(n) for n in (m * m, m, m)]
-        self._outputs = [np.zeros(n) for n in (m, m, 1)]
-        double_p = ctypes.POINTER(ctypes.c_double)
-        self._arg = (double_p * n_arg)(*(x.ctypes.data_as(double_p) for x in self._inputs))
-        self._res = (double_p * n_res)(*(x.ctypes.data_as(double_p) for x in self._outputs))
-        self._iw = np.zeros(n_iw, dtype=np.int64)
-        self._w = np.zeros(n_w)
-        address = int(ctypes.cast(entry, ctypes.c_void_p).value or 0)
-        copies = [(1, m, self._inputs[1]), (2, m, self._inputs[2])]  # b and the guess, by C
-        runner = native_runner(
-            address,
-            ctypes.addressof(self._arg),
-            ctypes.addressof(self._res),
-            self._iw.ctypes.data,
-            self._w.ctypes.data,
-            self,
-            name,
-            copies,
+        key = definition_key(
+            [_name(m), SWEEPS, CONVERGENCE, RANK_TOLERANCE],
+            [__name__, CompiledFunction.__module__],
         )
-        if runner is None:  # the extension not built: the reference is as fast
-            raise OSError("the native call extension is not built")
-        self._run = runner
-        self._D = self._inputs[0].reshape(m, m)  # D is symmetric: either order
-        self._impulses, self._velocity, self._residual = self._outputs
+        function = CompiledFunction.cached(_name(m), key, lambda: active_set_function(m))
+        if not function.compiled:  # casadi's virtual machine: slower than the reference
+            raise OSError(f"{_name(m)} was not compiled")
+        self._run = function.runner((0, 1, 2))  # D (flat), b and the guess, written first
+        self._impulses, self._velocity, self._residual = (
+            function.output_buffer(i) for i in range(3)
+        )
 
     def __call__(
         self, D: Vector, b: Vector, guess: NDArray[np.bool_]
@@ -120,8 +94,7 @@ class CompiledActiveSet:
         Raises:
             CompiledCallError: The compiled solve returned a non-zero status.
         """
-        self._D[...] = D
-        self._run(b, guess)  # (the guess assigned by numpy)
+        self._run(D.reshape(-1), b, guess)  # (D symmetric: its rows are its columns)
         residual = self._residual.item(0)
         if not residual <= POLISH_THRESHOLD:  # also a NaN
             return None
@@ -133,13 +106,13 @@ def compiled_active_set(m: int) -> CompiledActiveSet | None:
     """The compiled solve of size ``m``, or None where none is available.
 
     None outside 2 to :data:`MAX_ROWS` rows, or where nothing compiles (no C compiler,
-    ``UCONTROL_NO_COMPILE``, a failed build, no native call extension).
+    ``UCONTROL_NO_COMPILE``, a failed build).
     """
     if not 2 <= m <= MAX_ROWS or not compilation_possible():
         return None
     try:
         return CompiledActiveSet(m)
-    except (OSError, ImportError, AttributeError, subprocess.SubprocessError) as error:
+    except (OSError, ImportError) as error:
         _logger.info("active-set solve of %d rows not compiled (%s): numpy", m, error)
         return None
 
@@ -149,30 +122,17 @@ def _name(m: int) -> str:
     return f"active_set_solve_{m}"
 
 
-def _library(m: int) -> Path:
-    """The compiled library of the solve of ``m`` rows, built (once) if absent."""
-
-    def source() -> str:
-        import casadi as ca
-
-        generator = ca.CodeGenerator(f"{_name(m)}.c", {"with_header": False})
-        generator.add(active_set_function(m))
-        return str(generator.dump())
-
-    key = definition_key([_name(m), SWEEPS, CONVERGENCE, RANK_TOLERANCE], [__name__])
-    return build_library(_name(m), key, source)
-
-
 def active_set_function(m: int) -> ca.Function:
     """The casadi Function of the solve of ``m`` rows (module docstring).
 
-    Inputs ``D`` (m, m) [m/s per N s], ``b`` (m,) [m/s] and ``guess`` (m,) (1 active, 0 not);
-    outputs ``impulses`` (m,) [N s], ``velocity`` (m,) [m/s] and ``residual`` [m/s]
-    (infinite where not accepted).
+    Inputs ``D`` (m * m: the matrix (m, m) flattened) [m/s per N s], ``b`` (m,) [m/s] and
+    ``guess`` (m,) (1 active, 0 not); outputs ``impulses`` (m,) [N s], ``velocity`` (m,)
+    [m/s] and ``residual`` [m/s] (infinite where not accepted).
     """
     import casadi as ca
 
-    D = ca.SX.sym("D", m, m)
+    D_flat = ca.SX.sym("D", m * m)
+    D = ca.reshape(D_flat, m, m)  # (either order: D symmetric)
     b = ca.SX.sym("b", m)
     guess = ca.SX.sym("guess", m)
     A = [[D[i, j] * guess[i] * guess[j] for j in range(m)] for i in range(m)]
@@ -205,7 +165,7 @@ def active_set_function(m: int) -> ca.Function:
     residual = ca.if_else(accepted, residual, np.inf)
     return ca.Function(
         _name(m),
-        [D, b, guess],
+        [D_flat, b, guess],
         [ca.densify(x) for x in (impulses, velocity, residual)],
         ["D", "b", "guess"],
         ["impulses", "velocity", "residual"],
