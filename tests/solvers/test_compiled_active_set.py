@@ -60,7 +60,7 @@ def test_regular_problems_agree_with_the_reference_and_lemke(seed: int, m: int) 
 
 
 @pytest.mark.parametrize("seed", range(5))
-@pytest.mark.parametrize(("m", "rank"), [(2, 1), (3, 1), (4, 2), (4, 3), (6, 3), (6, 5)])
+@pytest.mark.parametrize(("m", "rank"), [(2, 1), (3, 1), (3, 2), (4, 1), (4, 2), (4, 3)])
 def test_rank_deficient_problems_keep_the_minimum_norm_impulses(
     seed: int, m: int, rank: int
 ) -> None:

@@ -48,9 +48,11 @@ if TYPE_CHECKING:
 
 Vector = NDArray[np.float64]
 
-#: Largest problem size whose solve is generated, in rows.
-MAX_ROWS = 6
-#: Cyclic Jacobi sweeps: quadratic convergence takes a 6-row matrix to round-off in fewer.
+#: Largest problem size whose solve is generated, in rows: four contacts (a table's or a
+#: quadruped's feet). The unrolled sweeps' C grows as the cube of the rows, and so does its
+#: first compilation: about 1.4 s of CPU for 4 rows, 7 s for 6 (cc -O1).
+MAX_ROWS = 4
+#: Cyclic Jacobi sweeps: quadratic convergence takes a 4-row matrix to round-off in fewer.
 SWEEPS = 8
 #: Largest off-diagonal entry after the sweeps, relative to the largest diagonal one, for which
 #: the diagonal is taken as the eigenvalues (else the reference solves).
