@@ -14,8 +14,9 @@ the same tree measured twice then agrees to about 0.3 % (docs/benchmarks.md).
 ``--python`` chooses the interpreter, hence the ucontrol tree it imports (a checkout's
 virtual environment), ``--tree`` the folder whose ``robots/`` holds the scenes.
 
-``--bench-loops`` measures loops of ``experiments/bench_step.py`` (the Panda, one contact)
-instead: ``--steps`` steps less 50, with the same instrumentation switch.
+``--bench-loops`` measures loops of ``experiments/bench_step.py`` (the Panda, ``--contacts``
+contacts: 1 by default, or 4) instead: ``--steps`` steps less 50, with the same
+instrumentation switch.
 
 Usage::
 
@@ -54,7 +55,8 @@ simulate(scene, duration=float(sys.argv[2]), progress=False)
 """
 
 
-#: The same for a loop of experiments/bench_step.py (one contact): ``--steps`` steps of it.
+#: The same for a loop of experiments/bench_step.py (its number of contacts the sixth
+#: argument): ``--steps`` steps of it.
 BENCH_CHILD = """
 import sys, time
 from pathlib import Path
@@ -62,7 +64,7 @@ sys.path.insert(0, sys.argv[5])
 import numpy as np
 import bench_step
 from ucontrol.bench import time_loop
-robot, contacts, control = bench_step.panda_setup(1)
+robot, contacts, control = bench_step.panda_setup(int(sys.argv[6]))
 step = bench_step.make_loops(robot, contacts, 1e-3, 1e-8)[sys.argv[1]]
 def forces(k, q, v):
     return control(q, v)
@@ -87,11 +89,13 @@ def count(
     workdir: Path,
     child: str = CHILD,
     experiments: Path = ROOT / "experiments",
+    extra: Sequence[str] = (),
 ) -> int:
     """Instructions callgrind collects over one run of ``duration`` [s] of ``scene``.
 
     With ``child`` = :data:`BENCH_CHILD`, ``scene`` is a loop of experiments/bench_step.py and
-    ``duration`` its number of steps, imported from ``experiments``.
+    ``duration`` its number of steps, imported from ``experiments``; ``extra`` are further
+    arguments of the child (the bench loop's number of contacts).
     """
     ready, go, out = workdir / "ready", workdir / "go", workdir / "callgrind.out"
     for path in (ready, go):
@@ -99,7 +103,7 @@ def count(
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONHASHSEED="0")
     command = ["valgrind", "--tool=callgrind", "--dump-instr=no", "--instr-atstart=no"]
     command += [f"--callgrind-out-file={out}", python, "-c", child]
-    command += [str(scene), repr(duration), str(ready), str(go), str(experiments)]
+    command += [str(scene), repr(duration), str(ready), str(go), str(experiments), *extra]
     process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:  # the child waits for `go`: never left behind, whatever fails here
         deadline = time.monotonic() + TIMEOUT_S
@@ -129,16 +133,19 @@ def per_step(python: str, scene: Path, duration: float, dt: float = 1e-3) -> flo
     return (long - short) / (round(duration / dt) - 2)
 
 
-def bench_loop_per_step(python: str, loop: str, steps: int, tree: Path = ROOT) -> float:
-    """Instructions per step of ``loop`` of experiments/bench_step.py, one contact.
+def bench_loop_per_step(
+    python: str, loop: str, steps: int, tree: Path = ROOT, contacts: int = 1
+) -> float:
+    """Instructions per step of ``loop`` of experiments/bench_step.py with ``contacts`` contacts.
 
     ``steps`` steps less 50, over their difference (the set-up, imports and warm-up cancel);
     the script from ``tree``'s experiments/.
     """
     with tempfile.TemporaryDirectory() as directory:
         workdir, experiments = Path(directory), tree / "experiments"
-        long = count(python, loop, steps, workdir, BENCH_CHILD, experiments)
-        short = count(python, loop, 50, workdir, BENCH_CHILD, experiments)
+        extra = (str(contacts),)
+        long = count(python, loop, steps, workdir, BENCH_CHILD, experiments, extra)
+        short = count(python, loop, 50, workdir, BENCH_CHILD, experiments, extra)
     return (long - short) / (steps - 50)
 
 
@@ -153,16 +160,23 @@ def main(argv: Sequence[str] | None = None) -> list[tuple[str, float]]:
         "--bench-loops",
         nargs="+",
         default=[],
-        help="loops of experiments/bench_step.py (one contact, e.g. 'ucontrol' "
-        "'mujoco mj_step') measured instead of scenes",
+        help="loops of experiments/bench_step.py (e.g. 'ucontrol' 'mujoco mj_step') measured "
+        "instead of scenes",
+    )
+    parser.add_argument(
+        "--contacts", type=int, default=1, help="contacts of the bench loops (1 or 4) [-]"
     )
     parser.add_argument("--steps", type=int, default=1050, help="steps of a bench loop [-]")
     args = parser.parse_args(argv)
     rows = []
     if args.bench_loops:
-        print("| bench_step loop, 1 contact | instructions per step |\n|:---|---:|")
+        print(f"| bench_step loop, {args.contacts} contact(s) | instructions per step |")
+        print("|:---|---:|")
         for loop in args.bench_loops:
-            rows.append((loop, bench_loop_per_step(args.python, loop, args.steps, args.tree)))
+            per_step_count = bench_loop_per_step(
+                args.python, loop, args.steps, args.tree, args.contacts
+            )
+            rows.append((loop, per_step_count))
             print(f"| {loop} | {rows[-1][1]:,.0f} |", flush=True)
         return rows
     print("| scene | instructions per step |\n|:---|---:|")

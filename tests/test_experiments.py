@@ -243,14 +243,18 @@ def test_instructions_per_step_runs(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 @pytest.mark.slow
-def test_instructions_per_step_counts_a_bench_loop(capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize("contacts", [1, 4])
+def test_instructions_per_step_counts_a_bench_loop(
+    capsys: pytest.CaptureFixture[str], contacts: int
+) -> None:
     import shutil
 
     if shutil.which("valgrind") is None or shutil.which("callgrind_control") is None:
         pytest.skip("valgrind's callgrind is not installed")
-    flags = ["--bench-loops", "ucontrol", "--steps", "60"]
+    flags = ["--bench-loops", "ucontrol", "--steps", "60", "--contacts", str(contacts)]
     [(name, instructions)] = _load("instructions_per_step").main(flags)
-    # A one-contact Panda step with its control law: about 120 000 instructions measured,
-    # never the set-up's millions (the 50-step run subtracted).
+    # A Panda step with its control law: about 120 000 instructions measured with one
+    # contact, 240 000 with four, never the set-up's millions (the 50-step run subtracted).
     assert name == "ucontrol" and 3e4 < instructions < 1e6
-    assert "| ucontrol |" in capsys.readouterr().out
+    output = capsys.readouterr().out
+    assert "| ucontrol |" in output and f"{contacts} contact(s)" in output

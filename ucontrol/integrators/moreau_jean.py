@@ -772,8 +772,8 @@ class MoreauJean:
                 if inverse_inertia is None:  # W = M (_compiled_free_step): M⁻¹ [Jᵀ Tᵀ]
                     pin.cholesky.decompose(self._model, data)
                     inverse_inertia = self._rigid_inverse_inertia
-        elif state.normal_rows is not None:
-            J = state.normal_rows[indices]
+        elif state.normal_rows is not None:  # (every row active: the rows as they are)
+            J = state.normal_rows if m == constraints.size else state.normal_rows[indices]
         else:
             J = constraints.jacobian(data, indices)
         if self.flexible is not None:  # constraints act on the links only
@@ -823,8 +823,14 @@ class MoreauJean:
         b = u_free + closure
         guess = None
         if self._guessing_solver is not None and tangents is None:  # the last step's active rows
-            guess = activation[indices] > 0.0 if held_rows is None else held_rows
-        solution = self._solve(D, b + rebound, indices, tangents, m_b, guess)
+            if held_rows is None:  # (every row active: the activation as it is)
+                thresholds = activation if m == constraints.size else activation[indices]
+                held_rows = thresholds > 0.0
+            guess = held_rows
+        # (e = 0 everywhere: no rebound terms to add)
+        solution = self._solve(
+            D, b if self._plastic else b + rebound, indices, tangents, m_b, guess
+        )
         plastic = False
         if self._guarded and np.count_nonzero(rebound):  # the energy guard
             u_plus = solution.velocity[:r] - rebound[:r] - closure[:r]
@@ -855,16 +861,9 @@ class MoreauJean:
             q_next = self._project(q_next, held if held.size else None)
         impacts = _closing_impacts(impulse, self.memory.activation, rows, state)
         self.memory = next_memory(impulse, rows, self._release)
-        return StepOutcome(
-            q_next,
-            v_next,
-            impulse,
-            active,
-            solution,
-            plastic=plastic,
-            friction_impulse=friction_impulse,
-            impacts=impacts,
-        )
+        return _record(StepOutcome, (
+            q_next, v_next, impulse, active, solution, 0, plastic, friction_impulse, impacts,
+        ))  # fmt: skip
 
     def _advance_theta(self, state: PlantEvaluation, v_next: Vector) -> Vector:
         r""":math:`q_k \oplus \mathrm{h}\big((1 - \theta) v_k + \theta v_{k+1}\big)` (step 4)."""

@@ -147,7 +147,9 @@ def active_set_solution(
     step is that of this one, and the solve on it (module docstring) is the polish the QP's
     solution would get. It is kept when its impulses are non-negative and its
     natural-map residual is at most :data:`POLISH_THRESHOLD`, the accuracy a polished QP
-    solution has; otherwise the caller solves the QP.
+    solution has; otherwise the caller solves the QP. The readable reference of the compiled
+    solve of :mod:`ucontrol.solvers.compiled_active_set`, which
+    :class:`~ucontrol.solvers.proxsuite_lcp.ProxsuiteLCPSolver` calls first.
 
     Args:
         D: Delassus matrix, symmetric positive semidefinite, shape (m, m), [m/s per N s].

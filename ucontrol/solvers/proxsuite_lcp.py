@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive
+from ucontrol.solvers.compiled_active_set import compiled_active_set
 from ucontrol.solvers.contact_solution import (
     ContactSolution,
     natural_map_residual,
@@ -63,6 +64,11 @@ class ProxsuiteLCPSolver:
         active_set_start: Try the exact solve on a guessed active set before the QP when
             :meth:`solve` is given one (Moreau–Jean gives its last step's); False always
             solves the QP.
+        compiled_start: Run the active-set start's solve and check compiled where a C
+            compiler is available (:mod:`ucontrol.solvers.compiled_active_set`, 2 to
+            :data:`~ucontrol.solvers.compiled_active_set.MAX_ROWS` rows), the numpy reference
+            (:func:`~ucontrol.solvers.lcp_refinement.active_set_solution`) where it does not
+            accept its impulses; False runs the reference alone.
     """
 
     name = "proxsuite"
@@ -76,10 +82,12 @@ class ProxsuiteLCPSolver:
         residual_tolerance: float = 1e-8,
         exact_single: bool = True,
         active_set_start: bool = True,
+        compiled_start: bool = True,
     ):
         self.residual_tolerance = as_positive("residual_tolerance", residual_tolerance)
         self.exact_single = exact_single
         self.active_set_start = active_set_start
+        self.compiled_start = compiled_start
         self.polish = polish
         self._qp = WarmStartedQP(eps_abs=eps_abs, max_iter=max_iter, fixed_constraints=True)
         self.eps_abs = self._qp.eps_abs
@@ -113,6 +121,13 @@ class ProxsuiteLCPSolver:
         if m == 1 and self.exact_single:
             return single_constraint_solution(D, b, start)
         if guess is not None and self.active_set_start:
+            compiled = compiled_active_set(m) if self.compiled_start else None
+            solved = compiled(D, b, guess) if compiled is not None else None
+            if solved is not None:
+                impulses, velocity, residual = solved
+                return ContactSolution(
+                    impulses, velocity, "solved", 0, residual, time.perf_counter() - start, True
+                )
             guessed = active_set_solution(D, b, guess, start)
             if guessed is not None:
                 return guessed
