@@ -861,9 +861,9 @@ class MoreauJean:
             q_next = self._project(q_next, held if held.size else None)
         impacts = _closing_impacts(impulse, self.memory.activation, rows, state)
         self.memory = next_memory(impulse, rows, self._release)
-        return _record(StepOutcome, (
-            q_next, v_next, impulse, active, solution, 0, plastic, friction_impulse, impacts,
-        ))  # fmt: skip
+        return StepOutcome(
+            q_next, v_next, impulse, active, solution, 0, plastic, friction_impulse, impacts
+        )
 
     def _advance_theta(self, state: PlantEvaluation, v_next: Vector) -> Vector:
         r""":math:`q_k \oplus \mathrm{h}\big((1 - \theta) v_k + \theta v_{k+1}\big)` (step 4)."""
