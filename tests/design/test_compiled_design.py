@@ -150,7 +150,19 @@ def test_a_large_program_is_built_in_the_background_then_loaded_with_the_same_op
     reference = design_cycle(_small_task(), compiled=False)
     with open(gate) as held:
         fcntl.flock(held, fcntl.LOCK_EX)  # the build's compiler waits until released
-        first = design_cycle(_small_task())  # returns without the library, its build started
+        reader, writer = os.openpty()  # stderr on a real (pseudo-)terminal
+        with (
+            os.fdopen(writer, "w") as terminal,
+            os.fdopen(reader, "rb", buffering=0) as screen,
+            monkeypatch.context() as on_terminal,
+        ):
+            on_terminal.setattr("sys.stderr", terminal)
+            first = design_cycle(_small_task())  # returns without the library, build started
+            terminal.flush()
+            said = screen.read(4096).decode()  # the one line said, far below a pty's buffer
+        assert said.count("\n") == 1, said
+        assert said.startswith("ucontrol: compiling this design's derivatives (a large"), said
+        assert "in the background" in said and "later runs of this task load them" in said
         assert _libraries(large) == []
         (lock,) = (large / "casadi").glob("design_nlp_*.so.lock")
         with open(lock) as probe, pytest.raises(BlockingIOError):

@@ -19,7 +19,7 @@ each derivative of a substep once.
 - Same program: the operations of the virtual machine's inlined intervals, grouped by
   substep, whose rounding alone differs (two-link: the same 22 iterations, the cost 1.1e-15
   apart relative; docs/benchmarks.md, "Issue 30, item 4: fifth round").
-- Large programs (``background``: the Panda's MX intervals, 31 MB of C, about 11 minutes of
+- Large programs (``background``: the Panda's MX intervals, 31 MB of C, 4 to 11 minutes of
   ``gcc -O1`` and 2.2 GB): the first run does not wait for the compiler. It writes the C,
   starts its build in a detached, niced process (``build_library(..., background=True)``),
   says so on the terminal and solves in the virtual machine; a run while the build goes on
@@ -51,7 +51,7 @@ NOTICE = (
 )
 #: Said on the terminal when a large program's build starts in the background.
 BACKGROUND_NOTICE = (
-    "this design's derivatives (a large program: about 10 minutes, niced; this run solves "
+    "this design's derivatives (a large program: 4 to 11 minutes, niced; this run solves "
     "without them, later runs of this task load them)"
 )
 
