@@ -8,7 +8,9 @@ The compiled path is the default where a C compiler is present; ``compiled=False
 
 from __future__ import annotations
 
+import fcntl
 import os
+import sys
 import tomllib
 from pathlib import Path
 
@@ -17,9 +19,9 @@ import pytest
 from conftest import needs_compiled_code
 from two_link_design import ROBOTS, TASK, two_link_design
 
-from ucontrol.design import DesignTask, design_cycle
+from ucontrol.design import DesignTask, cycle_transcription, design_cycle
 from ucontrol.model import compile_cache
-from ucontrol.model.compile_cache import CACHE_ENV
+from ucontrol.model.compile_cache import CACHE_ENV, wait_for_builds
 from ucontrol.model.compiled_function import NO_COMPILE_ENV
 
 pytestmark = pytest.mark.slow  # designs: seconds each
@@ -104,3 +106,89 @@ def test_without_compilation_the_virtual_machine_finds_the_same_optimum(
     monkeypatch.setenv(variable, value)
     _assert_same_design(design_cycle(_small_task()), reference)
     assert _libraries(tmp_path) == []
+
+
+@pytest.fixture
+def large(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """The two-link task taken for a large model (MX intervals: built in the background).
+
+    Returns the cache directory (fresh), nothing said on the terminal.
+    """
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.setattr(cycle_transcription, "INLINE_JOINTS", 1)  # two joints are "many"
+    monkeypatch.setattr(compile_cache, "_announced", True)
+    assert wait_for_builds(0.0) == []  # none left by another test
+    return tmp_path / "cache"
+
+
+def _gated_compiler(tmp_path: Path) -> tuple[str, Path]:
+    """A compiler command that runs ``cc`` once the returned gate file's lock is free."""
+    gate, script = tmp_path / "gate", tmp_path / "gated-cc"
+    gate.touch()
+    script.write_text(
+        f"#!{sys.executable}\n"
+        "import fcntl, os, sys\n"
+        f"with open({str(gate)!r}) as gate:\n"
+        "    fcntl.flock(gate, fcntl.LOCK_EX)\n"
+        "os.execvp('cc', ['cc', *sys.argv[1:]])\n"
+    )
+    script.chmod(0o755)
+    return str(script), gate
+
+
+def _leftovers(cache: Path) -> list[str]:
+    """What the cache directory holds besides libraries: lock files, work directories."""
+    return sorted(path.name for path in (cache / "casadi").iterdir() if path.suffix != ".so")
+
+
+@needs_compiled_code
+def test_a_large_program_is_built_in_the_background_then_loaded_with_the_same_optimum(
+    large: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    compiler, gate = _gated_compiler(tmp_path)
+    monkeypatch.setenv("CC", compiler)
+    reference = design_cycle(_small_task(), compiled=False)
+    with open(gate) as held:
+        fcntl.flock(held, fcntl.LOCK_EX)  # the build's compiler waits until released
+        reader, writer = os.openpty()  # stderr on a real (pseudo-)terminal
+        with (
+            os.fdopen(writer, "w") as terminal,
+            os.fdopen(reader, "rb", buffering=0) as screen,
+            monkeypatch.context() as on_terminal,
+        ):
+            on_terminal.setattr("sys.stderr", terminal)
+            first = design_cycle(_small_task())  # returns without the library, build started
+            terminal.flush()
+            said = screen.read(4096).decode()  # the one line said, far below a pty's buffer
+        assert said.count("\n") == 1, said
+        assert said.startswith("ucontrol: compiling this design's derivatives (a large"), said
+        assert "in the background" in said and "later runs of this task load them" in said
+        assert _libraries(large) == []
+        (lock,) = (large / "casadi").glob("design_nlp_*.so.lock")
+        with open(lock) as probe, pytest.raises(BlockingIOError):
+            fcntl.flock(probe, fcntl.LOCK_EX | fcntl.LOCK_NB)  # held by the build
+        second = design_cycle(_small_task())  # neither waits nor builds again
+    assert wait_for_builds(120.0) == [0]  # one build, finished
+    (library,) = _libraries(large)
+    assert _leftovers(large) == [lock.name]  # its work directory removed
+    loaded = design_cycle(_small_task())
+    assert wait_for_builds(0.0) == []  # loaded: nothing built
+    assert _libraries(large) == [library]
+    for design in (first, second, loaded):
+        _assert_same_design(design, reference)
+
+
+@needs_compiled_code
+def test_a_failed_background_build_leaves_nothing_and_the_next_run_tries_again(
+    large: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    reference = design_cycle(_small_task(), compiled=False)
+    monkeypatch.setenv("CC", "false")  # a compiler that fails
+    for _ in range(2):
+        _assert_same_design(design_cycle(_small_task()), reference)
+        assert wait_for_builds(120.0) == [1]  # tried, failed
+        assert _libraries(large) == [] and _leftovers(large) == []
+    monkeypatch.setenv("CC", "no-such-compiler")  # nothing to try
+    _assert_same_design(design_cycle(_small_task()), reference)
+    assert wait_for_builds(0.0) == []
+    assert _libraries(large) == [] and _leftovers(large) == []

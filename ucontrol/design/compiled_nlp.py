@@ -19,6 +19,12 @@ each derivative of a substep once.
 - Same program: the operations of the virtual machine's inlined intervals, grouped by
   substep, whose rounding alone differs (two-link: the same 22 iterations, the cost 1.1e-15
   apart relative; docs/benchmarks.md, "Issue 30, item 4: fifth round").
+- Large programs (``background``: the Panda's MX intervals, 31 MB of C, 4 to 11 minutes of
+  ``gcc -O1`` and 2.2 GB): the first run does not wait for the compiler. It writes the C,
+  starts its build in a detached, niced process (``build_library(..., background=True)``),
+  says so on the terminal and solves in the virtual machine; a run while the build goes on
+  solves there too without starting another; a later run loads the library. A failed build
+  leaves no library and no lock: the next run tries again.
 - Fallback: :func:`solve_compiled` returns None without a C compiler or when the build fails;
   the caller then solves in casadi's virtual machine, as it does where
   ``UCONTROL_NO_COMPILE=1`` (:class:`~ucontrol.design.cycle_transcription.CycleTranscription`
@@ -43,6 +49,11 @@ STEM = "design_nlp"
 NOTICE = (
     "this design's derivatives (first run of a task only: about a minute; later runs load them)"
 )
+#: Said on the terminal when a large program's build starts in the background.
+BACKGROUND_NOTICE = (
+    "this design's derivatives (a large program: 4 to 11 minutes, niced; this run solves "
+    "without them, later runs of this task load them)"
+)
 
 _logger = logging.getLogger(__name__)
 
@@ -52,6 +63,8 @@ def solve_compiled(
     options: dict[str, Any],
     ipopt: dict[str, Any],
     on_iteration: Callable[[int, Callable[[], dict[str, Any]]], None] | None = None,
+    *,
+    background: bool = False,
 ) -> tuple[Callable[[Any], Any], dict[str, Any]] | None:
     """Solve ``opti``'s program with IPOPT on its compiled derivatives.
 
@@ -62,12 +75,14 @@ def solve_compiled(
         on_iteration: Called after each IPOPT iteration with its number (from 0) and a
             function returning the solver's statistics so far (``iterations``: ``obj``,
             ``inf_pr``, ``inf_du``).
+        background: Where the library is not built yet, build it in a detached background
+            process and return None (a large program, whose compiler would take minutes).
 
     Returns:
         A function evaluating an expression of ``opti``'s variables and constraint
-        multipliers at the solution, and the solver's statistics; or None where nothing can
-        be compiled (no C compiler, a failed build: the caller solves in casadi's virtual
-        machine).
+        multipliers at the solution, and the solver's statistics; or None where nothing
+        compiled can be used yet (no C compiler, a failed build, a background build started
+        or running: the caller solves in casadi's virtual machine).
     """
     x, p = opti.x, opti.p
     program = ca.Function("nlp", [x, p], [opti.f, opti.g], ["x", "p"], ["f", "g"])
@@ -87,7 +102,11 @@ def solve_compiled(
         # limited-memory); IPOPT's other options are read at the solve, not compiled
         hessian = ipopt.get("hessian_approximation", "exact")
         key = definition_key([_definition(opti), hessian], [__name__])
-        library = build_library(STEM, key, source, notice=NOTICE)
+        notice = BACKGROUND_NOTICE if background else NOTICE
+        library = build_library(STEM, key, source, notice=notice, background=background)
+        if library is None:
+            _logger.info("design derivatives built in the background: casadi's virtual machine")
+            return None
         if on_iteration is not None:
             sizes = {"x": x.numel(), "g": opti.g.numel(), "p": p.numel()}
             callback = _IterationCallback(sizes, on_iteration, lambda: solver.stats())

@@ -90,15 +90,17 @@ class CycleTranscription:
     Args:
         task: The design task.
         compiled: Solve with the program's derivatives compiled to C and cached across runs
-            (:mod:`ucontrol.design.compiled_nlp`; models with at most :data:`INLINE_JOINTS`
-            joints); default: where a C compiler is present and ``UCONTROL_NO_COMPILE`` is
-            not set. False: casadi's virtual machine, the same optimum.
+            (:mod:`ucontrol.design.compiled_nlp`; for models with more than
+            :data:`INLINE_JOINTS` joints the library is built in the background by the first
+            run, which solves in casadi's virtual machine, and loaded by later runs);
+            default: where a C compiler is present and ``UCONTROL_NO_COMPILE`` is not set.
+            False: casadi's virtual machine, the same optimum.
 
     Attributes:
         task: The task.
         nv: Joint coordinates.
         compiled: Whether the solve runs compiled derivatives (else, or when their build
-            fails, casadi's virtual machine).
+            fails or still runs in the background, casadi's virtual machine).
         functions: The casadi Functions of the model: ``gap``, ``normal_velocity``,
             ``position`` (tracked frame), ``free`` and ``contact`` RK4 intervals, ``impact``,
             ``contact_force``, ``normal_acceleration``.
@@ -131,7 +133,7 @@ class CycleTranscription:
         self.inline = nv <= INLINE_JOINTS
         if compiled is None:
             compiled = compilation_possible()
-        self.compiled = self.inline and compiled
+        self.compiled = compiled
         sym: Any = ca.SX if self.inline else ca.MX
         q: Any
         v: Any
@@ -563,7 +565,11 @@ class CycleTranscription:
             "hessian_approximation": task.solver.hessian,
         }
         start = time.process_time()
-        solved = solve_compiled(opti, options, ipopt, on_iteration) if compiled else None
+        solved = (
+            solve_compiled(opti, options, ipopt, on_iteration, background=not self.inline)
+            if compiled
+            else None
+        )
         if solved is not None:
             value, stats = solved
         else:

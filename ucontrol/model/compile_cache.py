@@ -20,6 +20,11 @@ Shared by :mod:`ucontrol.model.compiled_function` (one library per casadi Functi
   the Function, so without importing casadi: it loads the library and reads the Function's
   signature from it (``ucontrol.model.compiled_function``). A miss builds the Function as
   before.
+- Background: a large program's library (minutes of ``gcc``) may be built by a detached,
+  niced process (``build_library(..., background=True)``): the caller goes on without it,
+  the process holds the entry's lock while it compiles (a second caller finds it held and
+  neither waits nor builds), and renames the library into place when done. A failed build
+  removes its work directory and its lock file: the next caller tries again.
 - Size: at most :data:`MAX_LIBRARIES` libraries, the least recently used removed after a build
   (a library's modification time is its last use: each lookup that finds it touches it). A
   process that has loaded a removed library keeps it; a later lookup builds it again.
@@ -40,17 +45,28 @@ import sys
 import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Literal, overload
 
+#: C source, or a callable returning it.
+Source = str | Callable[[], str]
+#: Compiler flags.
+Flags = tuple[str, ...]
 #: Overrides the cache directory.
 CACHE_ENV = "UCONTROL_CACHE_DIR"
 #: Compiler flags (optimisation level chosen for build time: the laws are a few thousand lines).
 CFLAGS = ("-O1", "-fPIC", "-shared")
 #: Seconds a build may take before it is abandoned for the fallback.
 BUILD_TIMEOUT_S = 300.0
+#: Seconds a background build may take before it is abandoned (the Panda's design: ~11 min).
+BACKGROUND_TIMEOUT_S = 3600.0
+#: Niceness added to a background build (the compiler runs behind the user's work).
+BACKGROUND_NICENESS = 10
 #: Libraries kept in the cache; a build beyond them removes the least recently used.
 MAX_LIBRARIES = 256
 #: What a build compiles, by default (said on the terminal).
 _LAWS = "this scene's laws (first run only; later runs load them)"
+#: The background builds this process started (:func:`wait_for_builds`).
+_builds: list[subprocess.Popen[bytes]] = []
 #: Whether this process has said on the terminal that it compiles (said once).
 _announced = False
 
@@ -73,14 +89,33 @@ def compiler_command() -> list[str]:
     return command
 
 
+@overload
 def build_library(
     stem: str,
     key: str,
-    source: str | Callable[[], str],
+    source: Source,
+    flags: tuple[str, ...] = ...,
+    *,
+    notice: str = ...,
+    background: Literal[False] = ...,
+) -> Path: ...
+
+
+@overload
+def build_library(
+    stem: str, key: str, source: Source, flags: Flags = ..., *, background: bool, notice: str = ...
+) -> Path | None: ...
+
+
+def build_library(
+    stem: str,
+    key: str,
+    source: Source,
     flags: tuple[str, ...] = (),
     *,
     notice: str = _LAWS,
-) -> Path:
+    background: bool = False,
+) -> Path | None:
     """Path of the shared library compiled from C ``source``, built (once) into the cache.
 
     Args:
@@ -89,11 +124,19 @@ def build_library(
         source: The C source, or a callable returning it (called only to build).
         flags: Compiler flags after :data:`CFLAGS`.
         notice: What is compiled, and how long it may take, said on the terminal before the
-            process's first build.
+            process's first build (with ``background``: said on every start of a build).
+        background: Where the library is not built yet, write the source and compile it in a
+            detached process niced by :data:`BACKGROUND_NICENESS` (:func:`wait_for_builds`
+            waits for it), and return None at once; None too while another process builds
+            it.
+
+    Returns:
+        The library's path; None with ``background`` where it is not built yet.
 
     Raises:
         OSError: No C compiler.
-        subprocess.SubprocessError: The compilation failed or timed out.
+        subprocess.SubprocessError: The compilation failed or timed out (not in the
+            background: a failed background build leaves no library and no lock file).
     """
     library = library_path(stem, key, flags)
     directory = library.parent
@@ -101,23 +144,98 @@ def build_library(
     if _touch(library):
         return library
     with open(directory / f"{library.name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # one builder; the others wait, then find it built
+        try:
+            # one builder; in the foreground the others wait, then find it built
+            fcntl.flock(lock, fcntl.LOCK_EX | (fcntl.LOCK_NB if background else 0))
+        except BlockingIOError:  # built in the background by another process meanwhile
+            return None
         if _touch(library):
             return library
-        _announce(directory, notice)
-        with tempfile.TemporaryDirectory(dir=directory) as work:
-            path = Path(work) / f"{stem}.c"
+        built = Path(tempfile.mkdtemp(dir=directory))
+        work: Path | None = built  # removed here unless a background build owns it
+        command = [*compiler_command(), *CFLAGS, *flags, "-o", str(built / library.name)]
+        try:
+            path = built / f"{stem}.c"
             path.write_text(source if isinstance(source, str) else source())
-            target = Path(work) / library.name
-            subprocess.run(
-                [*compiler_command(), *CFLAGS, *flags, "-o", str(target), str(path), "-lm"],
-                check=True,
-                capture_output=True,
-                timeout=BUILD_TIMEOUT_S,
-            )
-            os.replace(target, library)  # atomic: readers see no partial library
-    _remove_least_recently_used(directory, library)
+            command += [str(path), "-lm"]
+            if background:
+                _start_background_build(command, library, lock.fileno(), notice)
+                work = None  # the build's own: it removes it
+                return None
+            _announce(directory, notice)
+            _compile(command, library, BUILD_TIMEOUT_S)
+        finally:
+            if work is not None:
+                shutil.rmtree(work, ignore_errors=True)
     return library
+
+
+def _compile(command: list[str], library: Path, timeout: float) -> None:
+    """Run the compiler ``command`` (its output last), then rename its output to ``library``.
+
+    Raises:
+        subprocess.SubprocessError: The compilation failed or timed out.
+    """
+    subprocess.run(command, check=True, capture_output=True, timeout=timeout)
+    os.replace(command[command.index("-o") + 1], library)  # atomic: no partial library seen
+    _remove_least_recently_used(library.parent, library)
+
+
+def _start_background_build(command: list[str], library: Path, lock: int, notice: str) -> None:
+    """Compile in a detached process that inherits (and so holds) the ``lock`` descriptor.
+
+    The process outlives its caller (its own session: a terminal's interrupt spares it). It
+    is recorded for :func:`wait_for_builds`.
+    """
+    child = subprocess.Popen(
+        [sys.executable, "-m", __name__, str(library), str(lock), *command],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        pass_fds=(lock,),
+        start_new_session=True,
+    )
+    _builds.append(child)
+    if sys.stderr.isatty():
+        print(
+            f"ucontrol: compiling {notice} in the background (pid {child.pid}) into "
+            f"{library.parent}",
+            file=sys.stderr,
+        )
+
+
+def wait_for_builds(timeout: float) -> list[int]:
+    """Wait for the background builds this process started; their exit codes (0: built).
+
+    Args:
+        timeout: Seconds to wait for each [s].
+
+    Raises:
+        subprocess.TimeoutExpired: A build runs longer than ``timeout``.
+    """
+    codes = [child.wait(timeout) for child in _builds]
+    _builds.clear()
+    return codes
+
+
+def _background_main(arguments: list[str]) -> int:
+    """A background build (``python -m ucontrol.model.compile_cache LIBRARY LOCK CC ...``).
+
+    Holds the lock descriptor it inherited until it exits; compiles niced, renames the
+    library into place; on failure removes the lock file (the next caller tries again). In
+    every case removes the compiler's work directory.
+    """
+    library, lock, command = Path(arguments[0]), int(arguments[1]), arguments[2:]
+    os.nice(BACKGROUND_NICENESS)
+    try:
+        _compile(command, library, BACKGROUND_TIMEOUT_S)
+    except (OSError, subprocess.SubprocessError):
+        Path(f"{library}.lock").unlink(missing_ok=True)  # still held: no one builds meanwhile
+        return 1
+    finally:
+        shutil.rmtree(Path(command[command.index("-o") + 1]).parent, ignore_errors=True)
+        os.close(lock)
+    return 0
 
 
 def library_path(stem: str, key: str, flags: tuple[str, ...] = ()) -> Path:
@@ -250,3 +368,7 @@ def _announce(directory: Path, notice: str) -> None:
         f"ucontrol: compiling {notice} into {directory}",
         file=sys.stderr,
     )
+
+
+if __name__ == "__main__":
+    sys.exit(_background_main(sys.argv[1:]))
