@@ -179,15 +179,22 @@ def test_a_large_program_is_built_in_the_background_then_loaded_with_the_same_op
 
 
 @needs_compiled_code
-def test_a_failed_background_build_leaves_nothing_and_the_next_run_tries_again(
+def test_a_failed_background_build_leaves_its_marker_alone_and_is_not_started_again(
     large: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     reference = design_cycle(_small_task(), compiled=False)
     monkeypatch.setenv("CC", "false")  # a compiler that fails
-    for _ in range(2):
-        _assert_same_design(design_cycle(_small_task()), reference)
-        assert wait_for_builds(120.0) == [1]  # tried, failed
-        assert _libraries(large) == [] and _leftovers(large) == []
+    _assert_same_design(design_cycle(_small_task()), reference)
+    assert wait_for_builds(120.0) == [1]  # tried, failed
+    (marker,) = _leftovers(large)  # no lock file, no work directory: the marker alone
+    assert marker.endswith(".so.failed") and _libraries(large) == []
+    _assert_same_design(design_cycle(_small_task()), reference)
+    assert wait_for_builds(0.0) == []  # not started again
+    (large / "casadi" / marker).unlink()  # removed: the next run tries again
+    _assert_same_design(design_cycle(_small_task()), reference)
+    assert wait_for_builds(120.0) == [1]
+    (large / "casadi" / marker).unlink()
+    assert _libraries(large) == [] and _leftovers(large) == []
     monkeypatch.setenv("CC", "no-such-compiler")  # nothing to try
     _assert_same_design(design_cycle(_small_task()), reference)
     assert wait_for_builds(0.0) == []

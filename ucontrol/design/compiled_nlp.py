@@ -24,7 +24,8 @@ each derivative of a substep once.
   starts its build in a detached, niced process (``build_library(..., background=True)``),
   says so on the terminal and solves in the virtual machine; a run while the build goes on
   solves there too without starting another; a later run loads the library. A failed build
-  leaves no library and no lock: the next run tries again.
+  leaves no library and no lock but its marker: later runs do not start it again until the
+  marker is removed (:func:`~ucontrol.model.compile_cache.failure_marker`).
 - Fallback: :func:`solve_compiled` returns None without a C compiler or when the build fails;
   the caller then solves in casadi's virtual machine, as it does where
   ``UCONTROL_NO_COMPILE=1`` (:class:`~ucontrol.design.cycle_transcription.CycleTranscription`

@@ -24,7 +24,10 @@ Shared by :mod:`ucontrol.model.compiled_function` (one library per casadi Functi
   niced process (``build_library(..., background=True)``): the caller goes on without it,
   the process holds the entry's lock while it compiles (a second caller finds it held and
   neither waits nor builds), and renames the library into place when done. A failed build
-  removes its work directory and its lock file: the next caller tries again.
+  removes its work directory and its lock file and leaves a marker, ``<library>.failed``
+  (the compiler's last words): later callers do not start the same build again, which would
+  fail again after minutes of the compiler (out of memory, say), until the marker is
+  removed (:func:`failure_marker`). Another compiler or flags name another library.
 - Size: at most :data:`MAX_LIBRARIES` libraries, the least recently used removed after a build
   (a library's modification time is its last use: each lookup that finds it touches it). A
   process that has loaded a removed library keeps it; a later lookup builds it again.
@@ -143,6 +146,14 @@ def build_library(
     directory.mkdir(parents=True, exist_ok=True)
     if _touch(library):
         return library
+    if background and failure_marker(library).exists():  # failed before: not again
+        if sys.stderr.isatty():
+            print(
+                f"ucontrol: {notice} not compiled: an earlier build failed "
+                f"({failure_marker(library)}; remove it to try again)",
+                file=sys.stderr,
+            )
+        return None
     with open(directory / f"{library.name}.lock", "w") as lock:
         try:
             # one builder; in the foreground the others wait, then find it built
@@ -204,6 +215,11 @@ def _start_background_build(command: list[str], library: Path, lock: int, notice
         )
 
 
+def failure_marker(library: Path) -> Path:
+    """The file a failed background build of ``library`` leaves: remove it to try again."""
+    return library.with_name(f"{library.name}.failed")
+
+
 def wait_for_builds(timeout: float) -> list[int]:
     """Wait for the background builds this process started; their exit codes (0: built).
 
@@ -222,14 +238,17 @@ def _background_main(arguments: list[str]) -> int:
     """A background build (``python -m ucontrol.model.compile_cache LIBRARY LOCK CC ...``).
 
     Holds the lock descriptor it inherited until it exits; compiles niced, renames the
-    library into place; on failure removes the lock file (the next caller tries again). In
-    every case removes the compiler's work directory.
+    library into place; on failure writes the :func:`failure_marker` (the compiler's last
+    output) and removes the lock file. In every case removes the compiler's work directory.
     """
     library, lock, command = Path(arguments[0]), int(arguments[1]), arguments[2:]
     os.nice(BACKGROUND_NICENESS)
     try:
         _compile(command, library, BACKGROUND_TIMEOUT_S)
-    except (OSError, subprocess.SubprocessError):
+    except (OSError, subprocess.SubprocessError) as error:
+        said = getattr(error, "stderr", None) or b""
+        reason = f"{error}\n{said.decode(errors='replace')[-2000:]}"
+        failure_marker(library).write_text(reason)
         Path(f"{library}.lock").unlink(missing_ok=True)  # still held: no one builds meanwhile
         return 1
     finally:
