@@ -44,15 +44,19 @@ def _start(arguments: list[str], progress: str = "--progress") -> subprocess.Pop
 
 
 def _run_until_progress(out: Path, progress_steps: int) -> subprocess.Popen[bytes]:
-    """`ucontrol run ball` for 1000 s simulated, once its progress bar passed N steps."""
-    child = _start(["run", "ball", "--duration", "1000", "--out", str(out), "--dt", "1e-3"])
+    """`ucontrol run ball` for 10⁴ s simulated, once its progress bar passed N steps.
+
+    Ten million steps: the run goes on for minutes (the ball steps at about 90,000 a second
+    here), long past the first checkpoint (10 s of wall time) that a test waits for.
+    """
+    child = _start(["run", "ball", "--duration", "10000", "--out", str(out), "--dt", "1e-3"])
     assert child.stderr is not None
     seen, end = b"", time.monotonic() + DEADLINE_S
-    while time.monotonic() < end:  # tqdm reports every 1000 steps: "2.00k/1.00M"
+    while time.monotonic() < end:  # tqdm reports every 1000 steps: "2.00k/10.0M"
         ready, _, _ = select.select([child.stderr], [], [], 1.0)
         if ready:
             seen += os.read(child.stderr.fileno(), 4096)
-            counts = re.findall(rb"([\d.]+)(k?)/1\.00M", seen)
+            counts = re.findall(rb"([\d.]+)(k?)/10\.0M", seen)
             done = [float(n) * (1000 if k else 1) for n, k in counts]
             if done and max(done) >= progress_steps:
                 return child
