@@ -62,6 +62,7 @@ manifold (a table on four feet, a quadruped).
 
 from __future__ import annotations
 
+import itertools
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -83,6 +84,13 @@ from ucontrol.integrators.step_stages import (
 )
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.plant import PlantEvaluation
+from ucontrol.solvers.compiled_active_set import (
+    CONVERGENCE,
+    MAX_ROWS,
+    SWEEPS,
+    active_set_terms,
+)
+from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD, RANK_TOLERANCE
 
 if TYPE_CHECKING:
     from ucontrol.contact.compiled_rows import ConstraintRows
@@ -94,6 +102,7 @@ _GENERATED_BY = (
     "ucontrol.integrators.compiled_free_step",
     "ucontrol.integrators.step_stages",
     "ucontrol.model.compiled_function",
+    "ucontrol.solvers.compiled_active_set",
 )
 #: The constants of :mod:`~ucontrol.integrators.step_stages` (part of the definition key).
 _STAGE_CONSTANTS = (
@@ -152,16 +161,19 @@ class CompiledFreeStep:
         single_rows: bool = False,
         positions: bool = True,
         tangential: int = 0,
+        several_rows: bool = False,
     ) -> None:
         from ucontrol.model.compile_cache import definition_key
         from ucontrol.model.compiled_function import CompiledFunction
 
         nv = data_nle.size
         size = nv if flexible is None else nv + flexible.nf
-        if not positions and (single_rows or flexible is not None):
+        if not positions and (single_rows or several_rows or flexible is not None):
             raise InvalidParameterError(
-                "positions", positions, "True with one-row steps or flexible joints"
+                "positions", positions, "True with one-row or several-row steps or flexible joints"
             )
+        if several_rows and not 2 <= n <= MAX_ROWS:
+            raise InvalidParameterError("several_rows", several_rows, f"False with {n} constraints")
         W0, Kq, F = _constant_terms(nv, size, dt, theta, flexible, viscous)
         restitution = np.asarray(rules.restitution, dtype=float)
         elastic = tuple(bool(e) for e in restitution.tolist())  # the rows with a rebound
@@ -169,7 +181,8 @@ class CompiledFreeStep:
         # (with the shared stages' tolerances as they are now: constants of the Function)
         definition = definition_key(
             ["free_step", nv, size, n, float(rules.threshold), rules.newton_law, elastic,
-             single_rows, positions, tangential,
+             single_rows, positions, tangential, several_rows, SWEEPS, CONVERGENCE,
+             RANK_TOLERANCE, POLISH_THRESHOLD,
              *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
             _GENERATED_BY,
         )  # fmt: skip
@@ -177,7 +190,7 @@ class CompiledFreeStep:
             "free_step",
             definition,
             lambda: _free_step_function(
-                nv, size, n, rules, elastic, single_rows, positions, tangential
+                nv, size, n, rules, elastic, single_rows, positions, tangential, several_rows
             ),
         )
         self.compiled = self.function.compiled
@@ -201,6 +214,13 @@ class CompiledFreeStep:
         # Each one-row step's outputs: the impulses of every row (n,), its impulse and LCP
         # velocity (1,) each, its scalars (_SINGLE_ROW_SCALARS,), v_{k+1}, q_{k+1} (N,) each.
         self._row_slices = _one_row_slices(self._split[-1], n, size) if single_rows else ()
+        # The several-row step's outputs, after the one-row steps': the impulses and LCP
+        # velocities of every row (n,) each, its scalars (_SEVERAL_ROW_SCALARS,), v_{k+1} and
+        # q_{k+1} (N,) each.
+        self.several_rows = several_rows
+        start = self._split[-1] + len(self._row_slices) * (n + _SINGLE_ROW_SCALARS + 2 * size)
+        ends = np.cumsum([start, n, n, _SEVERAL_ROW_SCALARS, size, size]).tolist()
+        self._several_slices = tuple(slice(a, b) for a, b in itertools.pairwise(ends))
         self._positions = positions
         buffer = self.function.input_buffer
         self._activation = buffer(index("activation"))
@@ -348,6 +368,27 @@ class CompiledFreeStep:
             last[q_next],
         )
 
+    def several_row(self) -> SeveralRowStep | None:
+        """The last call's step with its active set of several rows, or None if not solved.
+
+        The exact solve on the rows of the active set held by the step memory (the
+        active-set start of :class:`~ucontrol.solvers.ProxsuiteLCPSolver`, in the same
+        compiled call: :func:`~ucontrol.solvers.compiled_active_set.active_set_terms`), None
+        where it does not solve the step's LCP (the caller's contact step then solves it) or
+        where some active row has a rebound (the energy guard's steps). Views of the outputs,
+        the masks as Python ints.
+        """
+        assert self._last is not None and self.several_rows
+        last = self._last
+        impulses, velocity, scalars, v_next, q_next = self._several_slices
+        residual, active, held, impacts = last[scalars].tolist()
+        if not residual <= POLISH_THRESHOLD:  # (also NaN)
+            return None
+        return (
+            last[impulses], last[velocity], residual, int(active), int(held), int(impacts),
+            last[v_next], last[q_next],
+        )  # fmt: skip
+
 
 #: The scalars of a one-row step's block of outputs, after the impulses of every row: P, w, the
 #: residual, whether solved, plastic and an impact.
@@ -384,6 +425,18 @@ def _one_row_slices(first: int, n: int, size: int) -> tuple[tuple[slice, ...], .
 #: :math:`q_{k+1}` (N,).
 SingleRowStep = tuple[Vector, Vector, Vector, float, float, bool, bool, bool, Vector, Vector]
 
+#: The scalars of the several-row step's block of outputs: the residual and the masks of the
+#: active, held and impact rows.
+_SEVERAL_ROW_SCALARS = 4
+
+#: The step with several active rows, from :meth:`CompiledFreeStep.several_row`: the normal
+#: impulses (n,) in [N s] and LCP velocities D P + b (n,) in [m/s] of every row (those of the
+#: rows outside the active set meaningless), the natural-map residual in [m/s], the masks
+#: (bit i for constraint i) of the active rows, of the rows with an impulse (held at the next
+#: step) and of the impacts (:func:`~ucontrol.integrators.step_stages.is_impact`),
+#: :math:`v_{k+1}` (N,) and :math:`q_{k+1}` (N,).
+SeveralRowStep = tuple[Vector, Vector, float, int, int, int, Vector, Vector]
+
 
 class ImpactRules(NamedTuple):
     """The impact law of :class:`~ucontrol.integrators.moreau_jean.MoreauJean`'s normal rows.
@@ -408,6 +461,7 @@ def _free_step_function(
     single_rows: bool,
     positions: bool,
     tangential: int,
+    several_rows: bool,
 ) -> Any:
     """The casadi Function of :class:`CompiledFreeStep` (the module docstring's terms).
 
@@ -482,6 +536,13 @@ def _free_step_function(
                     offsets[1][i], kinetic, h, th, activation[i], velocity[i],
                 )
             )  # fmt: skip
+    if several_rows:
+        parts.append(
+            _several_row_step(
+                n, rules, elastic, q, v, J, v_free, Winv_Jt, delassus, offsets, active,
+                activation, velocity, h, th,
+            )
+        )  # fmt: skip
     return ca.Function("free_step", inputs, [ca.vertcat(*parts)], names, ["terms"])
 
 
@@ -539,6 +600,51 @@ def _single_row_step(
     impact = is_impact(impulse, activation, u_minus)
     impulses = (impulse if j == i else ca.SX(0.0) for j in range(n))
     return ca.vertcat(*impulses, impulse, w, residual, solved, plastic, impact, v_next, q_next)
+
+
+def _several_row_step(
+    n: int,
+    rules: ImpactRules,
+    elastic: tuple[bool, ...],
+    q: Any,
+    v: Any,
+    J: Any,
+    v_free: Any,
+    Winv_Jt: Any,
+    delassus: Any,
+    offsets: tuple[Any, Any],
+    active: Any,
+    activation: Any,
+    u_minus: Any,
+    h: Any,
+    theta: Any,
+) -> Any:
+    r"""The step of the active rows ``active`` (n,), solved on those the memory holds.
+
+    The LCP of the active rows, :math:`D_{AA} P_A + b_A` with :math:`b = J v^{free} + c + e
+    u^-` (``offsets``: the impact law of every row), solved exactly on the rows of A whose
+    ``activation`` is positive and checked on A
+    (:func:`~ucontrol.solvers.compiled_active_set.active_set_terms`); not accepted (an
+    infinite residual) where an active row has a rebound under the ``"closing"`` law, whose
+    energy guard the caller's step applies. Outputs (2n + 4 + 2N,): the impulses and
+    velocities of every row, the residual, the masks of the active rows, of those with an
+    impulse and of the impacts (bit i for row i), :math:`v_{k+1}`, :math:`q_{k+1}`.
+    """
+    import casadi as ca
+
+    rebound, closure = offsets
+    b = J[:n, :] @ v_free + closure + rebound
+    guess = active * (activation > 0.0)
+    impulses, w, residual = active_set_terms(delassus[:n, :n], b, guess, active)
+    if rules.newton_law == "closing" and any(elastic):  # the energy guard's steps: not here
+        rebounds = ca.sum1(active * (rebound != 0.0))
+        residual = ca.if_else(rebounds > 0.0, np.inf, residual)
+    v_next = v_free + Winv_Jt[:, :n] @ impulses
+    q_next = q + theta_displacement(v, v_next, h, theta)
+    bits = ca.DM([2.0**i for i in range(n)])
+    impact = is_impact(impulses, activation, u_minus)
+    masks = (ca.dot(bits, x) for x in (active, impulses > 0.0, impact))
+    return ca.vertcat(impulses, w, residual, *masks, v_next, q_next)
 
 
 def _casadi_ops() -> ArrayOps:

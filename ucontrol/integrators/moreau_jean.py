@@ -229,6 +229,7 @@ from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidP
 from ucontrol.integrators.step_stages import (
     NO_ACTIVE_ROW,
     NUMPY_OPS,
+    SEVERAL_ACTIVE_ROWS,
     StepMemory,
     active_set,
     fresh_memory,
@@ -246,6 +247,7 @@ from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.plant import PlantEvaluation, StepOutcome, evaluate_plant, evaluate_rigid_rows
+from ucontrol.solvers.compiled_active_set import MAX_ROWS
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
 from ucontrol.solvers.coulomb_problem import CoulombProblem
@@ -461,6 +463,20 @@ class MoreauJean:
             self._implicit_forces = implicit  # W without the links' M(q)
         self._closure_rules = constraints.has_closure_rules
         self._free_step = self._compiled_free_step()
+        if self._free_step is not None and self._free_step.several_rows:
+            # For each mask of rows (bit i for constraint i): the active set and the rows'
+            # indices, shared read-only, and the memory after a step whose impulses are those
+            # rows'.
+            sets = [
+                np.array([mask >> i & 1 for i in range(constraints.size)], dtype=bool)
+                for mask in range(2**constraints.size)
+            ]
+            self._mask_sets = tuple((_read_only(a), _read_only(a.nonzero()[0])) for a in sets)
+            self._mask_memories = tuple(
+                StepMemory(_read_only(next_memory(a.astype(float), rows, self._release)
+                                      .activation), False)
+                for a, rows in self._mask_sets
+            )  # fmt: skip
         if self._free_step is not None and self._rigid_rows is not None:
             self._free_step.read_rows_of(self._rigid_rows)  # no copies of q, v and the rows
 
@@ -544,8 +560,26 @@ class MoreauJean:
             and getattr(self.solver, "exact_single", False) is True,
             positions=vector_space,
             tangential=self._rows.tangential,
+            several_rows=self._several_rows_compiled(),
         )
         return step if step.compiled else None
+
+    def _several_rows_compiled(self) -> bool:
+        """Whether the compiled free step also solves the steps with several active rows.
+
+        Its exact solve on the rows the memory holds is that of the frictionless active-set
+        start (:meth:`~ucontrol.solvers.ProxsuiteLCPSolver.solve`, compiled): with that
+        solver, frictionless, on a robot whose joints are vector spaces, with 2 to
+        :data:`~ucontrol.solvers.compiled_active_set.MAX_ROWS` constraints.
+        """
+        solver = self._guessing_solver
+        return (
+            solver is not None
+            and solver.compiled_start
+            and self._vector_space
+            and not self._friction
+            and 2 <= self.constraints.size <= MAX_ROWS
+        )
 
     @property
     def fast_paths(self) -> tuple[str, ...]:
@@ -566,6 +600,7 @@ class MoreauJean:
             ("constraint rows", self._rows is not None),
             ("free step", free is not None),
             ("single row", free is not None and free.single_rows),
+            ("several rows", free is not None and free.several_rows),
             ("tangent rows", rows is not None and rows.tangential > 0),
             ("active-set start", self._guessing_solver is not None),
         )
@@ -652,6 +687,10 @@ class MoreauJean:
             if not memory.first and not self._closure_rules:  # its active set is the step's
                 if row >= 0.0 and free_step.single_rows:  # the whole step, from the call
                     return self._single_row_outcome(free_step, int(row), state)
+                if row == SEVERAL_ACTIVE_ROWS and free_step.several_rows:
+                    outcome = self._several_row_outcome(free_step, state)
+                    if outcome is not None:  # (else not solved on the guess: the steps below)
+                        return outcome
                 if row == NO_ACTIVE_ROW:  # (a free step has no joint or bilateral rows)
                     v_free, q_free, _ = free_step.free_terms()
                     return self._free_outcome(state, v_free, q_free, self._none_active)
@@ -729,6 +768,30 @@ class MoreauJean:
         self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
         active = self._row_actives[i]
         return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
+
+    def _several_row_outcome(
+        self, free_step: CompiledFreeStep, state: PlantEvaluation
+    ) -> StepOutcome | None:
+        """The outcome of a step with several active rows from the compiled call, or None.
+
+        None where the call's exact solve on the held rows does not solve the step's LCP
+        (:meth:`~ucontrol.integrators.compiled_free_step.CompiledFreeStep.several_row`):
+        :meth:`_contact_outcome` then solves it. The solution is the active-set start's
+        (polished, no QP iteration); its solve time, part of the call, is not measured apart
+        (0 s).
+        """
+        step = free_step.several_row()
+        if step is None:
+            return None
+        impulse, velocity, residual, active_mask, held, impact_mask, v_next, q_next = step
+        active, rows = self._mask_sets[active_mask]
+        solution = ContactSolution(impulse[rows], velocity[rows], "solved", 0, residual, 0.0, True)
+        self.memory = self._mask_memories[held]
+        impacts: tuple[tuple[int, float], ...] = ()
+        if impact_mask:
+            t_k = 0.0 if state.t is None else float(state.t)
+            impacts = tuple((i, t_k) for i in self._mask_sets[impact_mask][1].tolist())
+        return StepOutcome(q_next, v_next, impulse, active, solution, 0, False, None, impacts)
 
     def _contact_outcome(
         self,
