@@ -172,8 +172,8 @@ class CompiledFreeStep:
             raise InvalidParameterError(
                 "positions", positions, "True with one-row or several-row steps or flexible joints"
             )
-        if several_rows and not 2 <= n <= MAX_ROWS:
-            raise InvalidParameterError("several_rows", several_rows, f"False with {n} constraints")
+        if several_rows and n < 2:
+            raise InvalidParameterError("several_rows", several_rows, f"False with {n} constraint")
         W0, Kq, F = _constant_terms(nv, size, dt, theta, flexible, viscous)
         restitution = np.asarray(rules.restitution, dtype=float)
         elastic = tuple(bool(e) for e in restitution.tolist())  # the rows with a rebound
@@ -181,8 +181,7 @@ class CompiledFreeStep:
         # (with the shared stages' tolerances as they are now: constants of the Function)
         definition = definition_key(
             ["free_step", nv, size, n, float(rules.threshold), rules.newton_law, elastic,
-             single_rows, positions, tangential, several_rows, SWEEPS, CONVERGENCE,
-             RANK_TOLERANCE, POLISH_THRESHOLD,
+             single_rows, positions, tangential,
              *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
             _GENERATED_BY,
         )  # fmt: skip
@@ -190,7 +189,7 @@ class CompiledFreeStep:
             "free_step",
             definition,
             lambda: _free_step_function(
-                nv, size, n, rules, elastic, single_rows, positions, tangential, several_rows
+                nv, size, n, rules, elastic, single_rows, positions, tangential
             ),
         )
         self.compiled = self.function.compiled
@@ -214,13 +213,24 @@ class CompiledFreeStep:
         # Each one-row step's outputs: the impulses of every row (n,), its impulse and LCP
         # velocity (1,) each, its scalars (_SINGLE_ROW_SCALARS,), v_{k+1}, q_{k+1} (N,) each.
         self._row_slices = _one_row_slices(self._split[-1], n, size) if single_rows else ()
-        # The several-row step's outputs, after the one-row steps': the impulses and LCP
-        # velocities of every row (n,) each, its scalars (_SEVERAL_ROW_SCALARS,), v_{k+1} and
-        # q_{k+1} (N,) each.
-        self.several_rows = several_rows
-        start = self._split[-1] + len(self._row_slices) * (n + _SINGLE_ROW_SCALARS + 2 * size)
-        ends = np.cumsum([start, n, n, _SEVERAL_ROW_SCALARS, size, size]).tolist()
+        # The several-row step (a Function of its own, run only for those steps): its outputs
+        # the impulses and LCP velocities of every row (n,) each, its scalars
+        # (_SEVERAL_ROW_SCALARS,), v_{k+1} and q_{k+1} (N,) each.
+        ends = np.cumsum([0, n, n, _SEVERAL_ROW_SCALARS, size, size]).tolist()
         self._several_slices = tuple(slice(a, b) for a, b in itertools.pairwise(ends))
+        self._several: CompiledFunction | None = None
+        if several_rows:
+            layout = (nv, size, n, self._split[-1])
+            key = definition_key(
+                ["several_row_step", *layout, rules.newton_law, elastic, SWEEPS, CONVERGENCE,
+                 RANK_TOLERANCE, *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
+                _GENERATED_BY,
+            )  # fmt: skip
+            several = CompiledFunction.cached(
+                "several_row_step", key, lambda: _several_row_function(*layout, rules, elastic)
+            )
+            self._several = several if several.compiled else None
+        self.several_rows = self._several is not None
         self._positions = positions
         buffer = self.function.input_buffer
         self._activation = buffer(index("activation"))
@@ -237,6 +247,7 @@ class CompiledFreeStep:
         self._last: Vector | None = None  # the last call's outputs
         self._activation_source: Vector | None = None  # the activation input's last source
         self._source: ConstraintRows | None = None  # see read_rows_of
+        self._bind_several_rows()
 
     def __call__(
         self, state: PlantEvaluation, tau: Vector, activation: Vector
@@ -318,6 +329,24 @@ class CompiledFreeStep:
         self._q_input = function.input_buffer(index("q")) if self._positions else None
         self._inputs = tuple(function.input_buffer(index(name)) for name in _STEP_INPUTS[1:])
         self._source = rows
+        self._bind_several_rows()
+
+    def _bind_several_rows(self) -> None:
+        """Bind the several-row step's inputs to this call's outputs and inputs' memory.
+
+        Its inputs are the terms this call wrote last and the step's inputs as this call
+        reads them (bound where this call's are): a run copies nothing.
+        """
+        several = self._several
+        if several is None:
+            return
+        free = self.function
+        terms = self._out[: self._split[-1]]  # (those before the one-row steps')
+        several.bind_input(several.index_in("terms"), terms)
+        for name in ("q", "v", "J_t", "u", "activation", "scalars", "kinetic"):
+            several.bind_input(several.index_in(name), free.input_buffer(free.index_in(name)))
+        self._several_run = several.runner()
+        self._several_out = several.output_buffer(0)
 
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
         r""":math:`W^{-1} J_a^T` (N, m) and :math:`J_a W^{-1} J_a^T` (m, m) of rows ``indices``.
@@ -369,17 +398,19 @@ class CompiledFreeStep:
         )
 
     def several_row(self) -> SeveralRowStep | None:
-        """The last call's step with its active set of several rows, or None if not solved.
+        """The last run's step with its active set of several rows, or None if not solved.
 
         The exact solve on the rows of the active set held by the step memory (the
-        active-set start of :class:`~ucontrol.solvers.ProxsuiteLCPSolver`, in the same
-        compiled call: :func:`~ucontrol.solvers.compiled_active_set.active_set_terms`), None
-        where it does not solve the step's LCP (the caller's contact step then solves it) or
-        where some active row has a rebound (the energy guard's steps). Views of the outputs,
-        the masks as Python ints.
+        active-set start of :class:`~ucontrol.solvers.ProxsuiteLCPSolver`, by a second
+        compiled call on the last run's terms:
+        :func:`~ucontrol.solvers.compiled_active_set.active_set_terms`), None
+        where it does not solve the step's LCP or the energy guard refuses its impulses (the
+        caller's contact step then solves it). Views of the outputs, the masks as Python
+        ints.
         """
         assert self._last is not None and self.several_rows
-        last = self._last
+        self._several_run()  # (on the last run's terms, still in the output buffer)
+        last = self._several_out.copy()
         impulses, velocity, scalars, v_next, q_next = self._several_slices
         residual, active, held, impacts = last[scalars].tolist()
         if not residual <= POLISH_THRESHOLD:  # (also NaN)
@@ -461,7 +492,6 @@ def _free_step_function(
     single_rows: bool,
     positions: bool,
     tangential: int,
-    several_rows: bool,
 ) -> Any:
     """The casadi Function of :class:`CompiledFreeStep` (the module docstring's terms).
 
@@ -536,13 +566,6 @@ def _free_step_function(
                     offsets[1][i], kinetic, h, th, activation[i], velocity[i],
                 )
             )  # fmt: skip
-    if several_rows:
-        parts.append(
-            _several_row_step(
-                n, rules, elastic, q, v, J, v_free, Winv_Jt, delassus, offsets, active,
-                activation, velocity, h, th,
-            )
-        )  # fmt: skip
     return ca.Function("free_step", inputs, [ca.vertcat(*parts)], names, ["terms"])
 
 
@@ -602,49 +625,88 @@ def _single_row_step(
     return ca.vertcat(*impulses, impulse, w, residual, solved, plastic, impact, v_next, q_next)
 
 
-def _several_row_step(
+def _several_row_function(
+    nv: int,
+    size: int,
     n: int,
+    terms_size: int,
     rules: ImpactRules,
     elastic: tuple[bool, ...],
-    q: Any,
-    v: Any,
-    J: Any,
-    v_free: Any,
-    Winv_Jt: Any,
-    delassus: Any,
-    offsets: tuple[Any, Any],
-    active: Any,
-    activation: Any,
-    u_minus: Any,
-    h: Any,
-    theta: Any,
 ) -> Any:
-    r"""The step of the active rows ``active`` (n,), solved on those the memory holds.
+    r"""The casadi Function of the step of several active rows, solved on those the memory holds.
 
-    The LCP of the active rows, :math:`D_{AA} P_A + b_A` with :math:`b = J v^{free} + c + e
-    u^-` (``offsets``: the impact law of every row), solved exactly on the rows of A whose
-    ``activation`` is positive and checked on A
-    (:func:`~ucontrol.solvers.compiled_active_set.active_set_terms`); not accepted (an
-    infinite residual) where an active row has a rebound under the ``"closing"`` law, whose
-    energy guard the caller's step applies. Outputs (2n + 4 + 2N,): the impulses and
-    velocities of every row, the residual, the masks of the active rows, of those with an
-    impulse and of the impacts (bit i for row i), :math:`v_{k+1}`, :math:`q_{k+1}`.
+    Its inputs: the free step's ``terms`` (their first ``terms_size`` values read: those
+    before the one-row steps'), and the free step's ``q``, ``v``, ``J_t``, ``u``,
+    ``activation``, ``scalars`` and ``kinetic``. The LCP of the active rows A (by
+    :func:`~ucontrol.integrators.step_stages.is_active`), :math:`D_{AA} P_A + b_A` with
+    :math:`b = J v^{free} + c + e u^-` (the impact law of every row, from the terms), is
+    solved exactly on the rows of A whose ``activation`` is positive and checked on A
+    (:func:`~ucontrol.solvers.compiled_active_set.active_set_terms`), the rows of A gathered
+    into at most :data:`~ucontrol.solvers.compiled_active_set.MAX_ROWS` slots. Not accepted
+    (an infinite residual) with more active rows than slots, or where the energy guard of the
+    ``"closing"`` law refuses the impulses of rows with a rebound (the caller's step then
+    solves the plastic problem).
+    Outputs (2n + 4 + 2N,): the impulses and velocities of every row, the residual, the masks
+    of the active rows, of those with an impulse and of the impacts (bit i for row i),
+    :math:`v_{k+1}`, :math:`q_{k+1}`.
     """
     import casadi as ca
 
-    rebound, closure = offsets
-    b = J[:n, :] @ v_free + closure + rebound
+    terms = ca.SX.sym("terms", terms_size)
+    q, v = ca.SX.sym("q", size), ca.SX.sym("v", size)
+    rows_t, u_minus = ca.SX.sym("J_t", nv, n), ca.SX.sym("u", n)
+    activation, scalars = ca.SX.sym("activation", n), ca.SX.sym("scalars", 3)
+    kinetic = ca.SX.sym("kinetic", 1)
+    J = ca.horzcat(rows_t.T, ca.SX.zeros(n, size - nv))
+    ends = np.cumsum([0, size, size, n, size * n, n * n, n, n]).tolist()
+    v_free, _, predicted, Winv_Jt, delassus, rebound, closure = (
+        terms[a:b] for a, b in itertools.pairwise(ends)
+    )
+    Winv_Jt, delassus = ca.reshape(Winv_Jt, size, n), ca.reshape(delassus, n, n)
+    active = is_active(predicted, activation)
+    b = J @ v_free + closure + rebound
     guess = active * (activation > 0.0)
-    impulses, w, residual = active_set_terms(delassus[:n, :n], b, guess, active)
-    if rules.newton_law == "closing" and any(elastic):  # the energy guard's steps: not here
-        rebounds = ca.sum1(active * (rebound != 0.0))
-        residual = ca.if_else(rebounds > 0.0, np.inf, residual)
-    v_next = v_free + Winv_Jt[:, :n] @ impulses
+    # The active rows gathered into K slots, in their order (row i into slot k when k rows
+    # before it are active): S[k][i] is 1 or 0, so that the gathered values are the rows'
+    # exactly, and the solve that of the problem of the active rows alone.
+    slots, before, S = min(n, MAX_ROWS), ca.SX(0.0), []
+    for i in range(n):
+        S.append([active[i] * (before == k) for k in range(slots)])
+        before += active[i]
+
+    def gather(x: Any) -> list[Any]:
+        return [sum(S[i][k] * x[i] for i in range(n)) for k in range(slots)]
+
+    rows_of = [gather(delassus[:n, j]) for j in range(n)]  # D[:, j] gathered, per column j
+    D = ca.SX(slots, slots)
+    for k in range(slots):
+        column = [rows_of[j][k] for j in range(n)]  # D[row of slot k, :]
+        for slot, value in enumerate(gather(column)):
+            D[k, slot] = value
+    solved, w_slots, residual = active_set_terms(
+        D, ca.vertcat(*gather(b)), ca.vertcat(*gather(guess)), ca.vertcat(*gather(active))
+    )
+    impulses = ca.vertcat(*(sum(S[i][k] * solved[k] for k in range(slots)) for i in range(n)))
+    w = ca.vertcat(*(sum(S[i][k] * w_slots[k] for k in range(slots)) for i in range(n)))
+    h, theta = scalars[0], scalars[1]
+    # More active rows than slots, or impulses the energy guard refuses: not solved here.
+    residual = ca.if_else(before > slots, np.inf, residual)
+    if rules.newton_law == "closing" and any(elastic):  # the energy guard, on the rows of A
+        u_plus = w - rebound - closure
+        gain = impulse_energy_gain(_casadi_ops(), impulses, J @ v_free, u_plus, J @ v, theta)
+        guarded = ca.logic_and(
+            ca.sum1(active * (rebound != 0.0)) > 0.0, gains_energy(gain, kinetic)
+        )
+        residual = ca.if_else(guarded, np.inf, residual)
+    v_next = v_free + Winv_Jt @ impulses
     q_next = q + theta_displacement(v, v_next, h, theta)
     bits = ca.DM([2.0**i for i in range(n)])
     impact = is_impact(impulses, activation, u_minus)
     masks = (ca.dot(bits, x) for x in (active, impulses > 0.0, impact))
-    return ca.vertcat(impulses, w, residual, *masks, v_next, q_next)
+    outputs = ca.vertcat(impulses, w, residual, *masks, v_next, q_next)
+    inputs = [terms, q, v, rows_t, u_minus, activation, scalars, kinetic]
+    names = ["terms", "q", "v", "J_t", "u", "activation", "scalars", "kinetic"]
+    return ca.Function("several_row_step", inputs, [outputs], names, ["step"])
 
 
 def _casadi_ops() -> ArrayOps:

@@ -247,7 +247,6 @@ from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.model.robot_model import RobotModel
 from ucontrol.plant import PlantEvaluation, StepOutcome, evaluate_plant, evaluate_rigid_rows
-from ucontrol.solvers.compiled_active_set import MAX_ROWS
 from ucontrol.solvers.contact_solution import ContactSolution
 from ucontrol.solvers.contact_solver import CoulombSolver, LCPSolver
 from ucontrol.solvers.coulomb_problem import CoulombProblem
@@ -463,20 +462,10 @@ class MoreauJean:
             self._implicit_forces = implicit  # W without the links' M(q)
         self._closure_rules = constraints.has_closure_rules
         self._free_step = self._compiled_free_step()
-        if self._free_step is not None and self._free_step.several_rows:
-            # For each mask of rows (bit i for constraint i): the active set and the rows'
-            # indices, shared read-only, and the memory after a step whose impulses are those
-            # rows'.
-            sets = [
-                np.array([mask >> i & 1 for i in range(constraints.size)], dtype=bool)
-                for mask in range(2**constraints.size)
-            ]
-            self._mask_sets = tuple((_read_only(a), _read_only(a.nonzero()[0])) for a in sets)
-            self._mask_memories = tuple(
-                StepMemory(_read_only(next_memory(a.astype(float), rows, self._release)
-                                      .activation), False)
-                for a, rows in self._mask_sets
-            )  # fmt: skip
+        # For each mask of rows met (bit i for constraint i), built on first use: the active
+        # set, the rows' indices (shared, read-only) and the memory after a step whose
+        # impulses are those rows' (_mask_terms).
+        self._masks: dict[int, tuple[NDArray[np.bool_], NDArray[np.intp], StepMemory]] = {}
         if self._free_step is not None and self._rigid_rows is not None:
             self._free_step.read_rows_of(self._rigid_rows)  # no copies of q, v and the rows
 
@@ -569,8 +558,9 @@ class MoreauJean:
 
         Its exact solve on the rows the memory holds is that of the frictionless active-set
         start (:meth:`~ucontrol.solvers.ProxsuiteLCPSolver.solve`, compiled): with that
-        solver, frictionless, on a robot whose joints are vector spaces, with 2 to
-        :data:`~ucontrol.solvers.compiled_active_set.MAX_ROWS` constraints.
+        solver, frictionless, on a robot whose joints are vector spaces, with at least two
+        constraints (of which at most
+        :data:`~ucontrol.solvers.compiled_active_set.MAX_ROWS` active).
         """
         solver = self._guessing_solver
         return (
@@ -578,7 +568,7 @@ class MoreauJean:
             and solver.compiled_start
             and self._vector_space
             and not self._friction
-            and 2 <= self.constraints.size <= MAX_ROWS
+            and self.constraints.size >= 2
         )
 
     @property
@@ -784,14 +774,29 @@ class MoreauJean:
         if step is None:
             return None
         impulse, velocity, residual, active_mask, held, impact_mask, v_next, q_next = step
-        active, rows = self._mask_sets[active_mask]
+        masks = self._masks
+        active, rows, _ = masks.get(active_mask) or self._mask_terms(active_mask)
         solution = ContactSolution(impulse[rows], velocity[rows], "solved", 0, residual, 0.0, True)
-        self.memory = self._mask_memories[held]
+        self.memory = (masks.get(held) or self._mask_terms(held))[2]
         impacts: tuple[tuple[int, float], ...] = ()
         if impact_mask:
             t_k = 0.0 if state.t is None else float(state.t)
-            impacts = tuple((i, t_k) for i in self._mask_sets[impact_mask][1].tolist())
+            closing = (masks.get(impact_mask) or self._mask_terms(impact_mask))[1]
+            impacts = tuple((i, t_k) for i in closing.tolist())
         return StepOutcome(q_next, v_next, impulse, active, solution, 0, False, None, impacts)
+
+    def _mask_terms(self, mask: int) -> tuple[NDArray[np.bool_], NDArray[np.intp], StepMemory]:
+        """The rows of ``mask`` (bit i for constraint i): a set (n,), indices, a memory.
+
+        The memory is that after a step whose impulses are on those rows; each read-only,
+        remembered and shared by the following steps.
+        """
+        rows = np.array([mask >> i & 1 for i in range(self.constraints.size)], dtype=bool)
+        indices = rows.nonzero()[0]
+        held = next_memory(rows.astype(float), indices, self._release).activation
+        terms = _read_only(rows), _read_only(indices), StepMemory(_read_only(held), False)
+        self._masks[mask] = terms
+        return terms
 
     def _contact_outcome(
         self,
