@@ -434,18 +434,17 @@ class MoreauJean:
         self.memory = fresh_memory(constraints.size)
         # The memory after a step without impulses, and that step's outcome: shared, read-only.
         self._free_memory = StepMemory(_read_only(np.zeros(constraints.size)), False)
-        # The memory after a one-row step whose row i carried an impulse, for each i.
-        self._row_memories = tuple(
-            StepMemory(_read_only(memory.activation), False)
-            for memory in (
-                next_memory(row, (i,), self._release)
-                for i, row in enumerate(np.eye(constraints.size))
-            )
-        )
+        # For each mask of rows met (bit i for constraint i): the active set, the rows'
+        # indices and the memory after a step whose impulses are those rows' (_mask_terms).
+        self._masks: dict[int, tuple[NDArray[np.bool_], NDArray[np.intp], StepMemory]] = {}
+        # The active set of a one-row step of row i, and the memory after it when row i
+        # carried an impulse, for each i.
+        one_rows = [self._mask_terms(1 << i) for i in range(constraints.size)]
+        self._row_actives = tuple(active for active, _, _ in one_rows)
+        self._row_memories = tuple(memory for _, _, memory in one_rows)
         self._no_impulse = _read_only(np.zeros(constraints.size))
-        # The active sets of the steps with no active row and with row i alone, shared.
+        # The active set of the steps with no active row, shared.
         self._none_active = _read_only(np.zeros(constraints.size, dtype=bool))
-        self._row_actives = tuple(_read_only(row) for row in np.eye(constraints.size, dtype=bool))
         self._no_friction_impulse = (
             _read_only(np.zeros((constraints.size, 3))) if constraints.has_friction else None
         )
@@ -462,10 +461,6 @@ class MoreauJean:
             self._implicit_forces = implicit  # W without the links' M(q)
         self._closure_rules = constraints.has_closure_rules
         self._free_step = self._compiled_free_step()
-        # For each mask of rows met (bit i for constraint i), built on first use: the active
-        # set, the rows' indices (shared, read-only) and the memory after a step whose
-        # impulses are those rows' (_mask_terms).
-        self._masks: dict[int, tuple[NDArray[np.bool_], NDArray[np.intp], StepMemory]] = {}
         if self._free_step is not None and self._rigid_rows is not None:
             self._free_step.read_rows_of(self._rigid_rows)  # no copies of q, v and the rows
 
