@@ -339,7 +339,6 @@ def test_several_row_steps_equal_the_numpy_path(name: str, rng: np.random.Genera
             error[2] = max(error[2], np.abs(a.impulse - b.impulse).max() / scale_p)
         if a.active.sum() >= 2:
             seen["compiled" if a.solution.solve_time_s == 0.0 else "contact step"] += 1
-    print(seen, errors)
     assert seen["compiled"] >= 20 and seen["contact step"] >= 1, seen
     for error, (_, bounds) in zip(errors, references, strict=True):
         assert all(e <= bound for e, bound in zip(error, bounds, strict=True)), (error, bounds)
