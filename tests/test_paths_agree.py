@@ -60,6 +60,8 @@ def test_the_fast_paths_run_where_the_step_allows_them() -> None:
     """Not a comparison of the reference with itself: the tracking scenes run compiled."""
     for name in ("two_link_one_constraint", "two_link_flexible_one_constraint", "panda_table"):
         assert "free step" in _run(name)[1], name
+    for name in ("two_link_drop", "two_link_flexible_two_constraints"):  # contacts and stops
+        assert {"single row", "several rows"} <= set(_run(name)[1]), name
     for name in ("table_drop", "quadruped_stand"):  # free-flyer roots: their rows compiled
         assert "constraint rows" in _run(name)[1], name
     # With friction: the normal and tangential rows, M⁻¹ [Jᵀ Tᵀ] from the free step, with

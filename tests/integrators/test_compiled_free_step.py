@@ -7,18 +7,22 @@ tests/test_paths_agree.py); the paths are chosen by the public switch ``compiled
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import TRACKING_SCENES, needs_compiled_code
+from conftest import TRACKING_SCENES, load_experiment, needs_compiled_code
 
+from ucontrol.contact import ConstraintSet
 from ucontrol.exceptions import InvalidParameterError
+from ucontrol.integrators import MoreauJean
 from ucontrol.integrators.compiled_free_step import CompiledFreeStep, ImpactRules
 from ucontrol.integrators.step_stages import StepMemory
 from ucontrol.model.joint_friction import JointFriction
 from ucontrol.scene import load_scene
 from ucontrol.simulate import simulate
+from ucontrol.solvers import ProxsuiteLCPSolver
 
 pytestmark = needs_compiled_code  # every test compares a compiled path with the reference
 
@@ -233,14 +237,111 @@ def test_frictional_steps_with_rebounds_equal_the_numpy_path() -> None:
     assert min(seen.values()) >= 5
 
 
-def test_a_free_step_without_positions_has_no_one_row_steps() -> None:
+@pytest.mark.parametrize("rows", ["single_rows", "several_rows"])
+def test_a_free_step_without_positions_has_no_one_row_steps(rows: str) -> None:
     """Their q_{k+1} = q_k + h v would not be on a free-flyer's SE(3): refused."""
     rules = ImpactRules(np.zeros(4), 0.0, "closing")
     with pytest.raises(InvalidParameterError, match="positions"):
         CompiledFreeStep(
             np.zeros((6, 6)), np.zeros(6), 4, dt=1e-3, theta=0.5, horizon=5e-4, flexible=None,
-            viscous=None, rules=rules, single_rows=True, positions=False,
+            viscous=None, rules=rules, positions=False, **{rows: True},
         )  # fmt: skip
+
+
+def test_several_row_steps_need_several_constraints() -> None:
+    rules = ImpactRules(np.zeros(1), 0.0, "closing")
+    with pytest.raises(InvalidParameterError, match="several_rows"):
+        CompiledFreeStep(
+            np.zeros((6, 6)), np.zeros(6), 1, dt=1e-3, theta=0.5, horizon=5e-4, flexible=None,
+            viscous=None, rules=rules, several_rows=True,
+        )  # fmt: skip
+
+
+def _panda_on_four_contacts(**options: bool) -> tuple[MoreauJean, Any]:
+    """The Panda of experiments/bench_step.py pressing on a table with four contacts.
+
+    ``options``: ``compiled`` of the integrator and ``compiled_start`` of its solver.
+    """
+    bench_step = load_experiment("bench_step")
+    robot, contacts, control = bench_step.panda_setup(4)
+    solver = ProxsuiteLCPSolver(compiled_start=options.get("compiled_start", True))
+    integrator = MoreauJean(
+        robot, ConstraintSet(robot, contacts), dt=1e-3, solver=solver,
+        compiled=options.get("compiled", True),
+    )  # fmt: skip
+    return integrator, (bench_step.Q0, control)
+
+
+def _several_row_cases(name: str, rng: np.random.Generator) -> Any:
+    """(compiled, references, start, control) of :func:`test_several_row_steps_...`.
+
+    The references: the numpy step (``compiled=False``) and, for the Panda, the compiled free
+    step with the solver's numpy active-set start (``compiled_start=False``), each with its
+    largest relative differences (v, q, P) accepted.
+    """
+    if name == "panda_four_contacts":
+        compiled, (q, control) = _panda_on_four_contacts()
+        numpy_start = _panda_on_four_contacts(compiled_start=False)[0]
+        reference = _panda_on_four_contacts(compiled=False)[0]
+        assert "several rows" not in numpy_start.fast_paths
+        # Measured: 6.3e-12, 3.1e-15, 5.4e-12 against the numpy step (its free step's
+        # round-off through a Delassus matrix of condition 1e8), 4.5e-15, 6.9e-18, 2.1e-13
+        # against the numpy active-set start (Jacobi's eigenvectors against LAPACK's).
+        references = ((reference, (2e-11, 1e-14, 2e-11)), (numpy_start, (2e-14, 1e-16, 1e-12)))
+        v = 0.05 * rng.normal(size=q.size)
+        return compiled, references, (q + 0.002 * rng.normal(size=q.size), v), control
+    # The two-link arm dropped onto its two contacts (e = 0.7) and its stops, from before it
+    # comes to rest on several of them (from 1.37 s on), without torques (the scene's law).
+    scene = load_scene(name)
+    log = simulate(scene, duration=1.3, progress=False).log
+    compiled, reference = scene.build_integrator(), scene.build_integrator(compiled=False)
+    start = np.asarray(log.q)[-1], np.asarray(log.v)[-1] + 0.05 * rng.normal(size=2)
+    return compiled, ((reference, (1e-12, 1e-15, 1e-12)),), start, lambda q, v: np.zeros(2)
+
+
+@pytest.mark.parametrize("name", ["panda_four_contacts", "two_link_drop"])
+def test_several_row_steps_equal_the_numpy_path(name: str, rng: np.random.Generator) -> None:
+    """Several active rows: the compiled call's solve on the held rows as the numpy paths'.
+
+    Along the first reference's trajectory from a perturbed start (the Panda pressing on four
+    contacts under its PD law; the two-link arm coming to rest on its contacts and stops),
+    each step is taken by every path from the same state and memory. The compiled call's
+    steps report 0 s of solve time: those (the guess right) and the others (rows closing or
+    opening, rebounds under the energy guard, more active rows than the call's four slots)
+    are counted, and each must occur.
+    """
+    compiled, references, (q, v), control = _several_row_cases(name, rng)
+    assert "several rows" in compiled.fast_paths
+    seen = {"compiled": 0, "contact step": 0}
+    errors = [[0.0, 0.0, 0.0] for _ in references]
+    for _ in range(600):
+        memory, tau = references[0][0].memory, control(q, v)
+        outcomes = []
+        for integrator in (compiled, *(reference for reference, _ in references)):
+            integrator.memory = memory
+            outcomes.append(integrator.step(integrator.evaluate(q, v), tau))
+        a = outcomes[0]
+        q, v = outcomes[1].q, outcomes[1].v
+        for b, error in zip(outcomes[1:], errors, strict=True):
+            np.testing.assert_array_equal(a.active, b.active)
+            assert a.impacts == b.impacts and a.plastic == b.plastic
+            if b.active.sum() < 2:
+                continue
+            assert a.solution.status == b.solution.status == "solved"
+            # The rows with an impulse are held next; the QP may leave 1e-20 N s where the
+            # exact solve has 0.
+            held = compiled.memory.activation > 0.0
+            np.testing.assert_array_equal(held, a.impulse > 0.0)
+            assert np.all(held[b.impulse > 1e-12]), (a.impulse, b.impulse)
+            scale_v, scale_p = 1.0 + np.abs(b.v).max(), 1.0 + np.abs(b.impulse).max()
+            error[0] = max(error[0], np.abs(a.v - b.v).max() / scale_v)
+            error[1] = max(error[1], np.abs(a.q - b.q).max() / scale_v)
+            error[2] = max(error[2], np.abs(a.impulse - b.impulse).max() / scale_p)
+        if a.active.sum() >= 2:
+            seen["compiled" if a.solution.solve_time_s == 0.0 else "contact step"] += 1
+    assert seen["compiled"] >= 20 and seen["contact step"] >= 1, seen
+    for error, (_, bounds) in zip(errors, references, strict=True):
+        assert all(e <= bound for e, bound in zip(error, bounds, strict=True)), (error, bounds)
 
 
 def _copy(array: np.ndarray | None) -> np.ndarray | None:
@@ -295,7 +396,7 @@ def test_viscous_step_solves_the_theta_implicit_update() -> None:
 
 def test_without_a_compiler_there_is_no_compiled_step(monkeypatch: pytest.MonkeyPatch) -> None:
     scene = load_scene("two_link_flexible_one_constraint")  # compiled where a compiler is
-    compiled = ("constraint rows", "free step", "single row", "active-set start")
+    compiled = ("constraint rows", "free step", "single row", "several rows", "active-set start")
     assert scene.build_integrator().fast_paths == compiled
     monkeypatch.setenv("UCONTROL_NO_COMPILE", "1")
     integrator = scene.build_integrator()

@@ -62,6 +62,7 @@ manifold (a table on four feet, a quadruped).
 
 from __future__ import annotations
 
+import itertools
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -83,6 +84,13 @@ from ucontrol.integrators.step_stages import (
 )
 from ucontrol.model.flexible_joints import FlexibleJoints
 from ucontrol.plant import PlantEvaluation
+from ucontrol.solvers.compiled_active_set import (
+    CONVERGENCE,
+    MAX_ROWS,
+    SWEEPS,
+    active_set_terms,
+)
+from ucontrol.solvers.lcp_refinement import POLISH_THRESHOLD, RANK_TOLERANCE
 
 if TYPE_CHECKING:
     from ucontrol.contact.compiled_rows import ConstraintRows
@@ -94,6 +102,7 @@ _GENERATED_BY = (
     "ucontrol.integrators.compiled_free_step",
     "ucontrol.integrators.step_stages",
     "ucontrol.model.compiled_function",
+    "ucontrol.solvers.compiled_active_set",
 )
 #: The constants of :mod:`~ucontrol.integrators.step_stages` (part of the definition key).
 _STAGE_CONSTANTS = (
@@ -152,16 +161,19 @@ class CompiledFreeStep:
         single_rows: bool = False,
         positions: bool = True,
         tangential: int = 0,
+        several_rows: bool = False,
     ) -> None:
         from ucontrol.model.compile_cache import definition_key
         from ucontrol.model.compiled_function import CompiledFunction
 
         nv = data_nle.size
         size = nv if flexible is None else nv + flexible.nf
-        if not positions and (single_rows or flexible is not None):
+        if not positions and (single_rows or several_rows or flexible is not None):
             raise InvalidParameterError(
-                "positions", positions, "True with one-row steps or flexible joints"
+                "positions", positions, "True with one-row or several-row steps or flexible joints"
             )
+        if several_rows and n < 2:
+            raise InvalidParameterError("several_rows", several_rows, f"False with {n} constraint")
         W0, Kq, F = _constant_terms(nv, size, dt, theta, flexible, viscous)
         restitution = np.asarray(rules.restitution, dtype=float)
         elastic = tuple(bool(e) for e in restitution.tolist())  # the rows with a rebound
@@ -201,6 +213,24 @@ class CompiledFreeStep:
         # Each one-row step's outputs: the impulses of every row (n,), its impulse and LCP
         # velocity (1,) each, its scalars (_SINGLE_ROW_SCALARS,), v_{k+1}, q_{k+1} (N,) each.
         self._row_slices = _one_row_slices(self._split[-1], n, size) if single_rows else ()
+        # The several-row step (a Function of its own, run only for those steps): its outputs
+        # the impulses and LCP velocities of every row (n,) each, its scalars
+        # (_SEVERAL_ROW_SCALARS,), v_{k+1} and q_{k+1} (N,) each.
+        ends = np.cumsum([0, n, n, _SEVERAL_ROW_SCALARS, size, size]).tolist()
+        self._several_slices = tuple(slice(a, b) for a, b in itertools.pairwise(ends))
+        self._several: CompiledFunction | None = None
+        if several_rows:
+            layout = (nv, size, n, self._split[-1])
+            key = definition_key(
+                ["several_row_step", *layout, rules.newton_law, elastic, SWEEPS, CONVERGENCE,
+                 RANK_TOLERANCE, *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
+                _GENERATED_BY,
+            )  # fmt: skip
+            several = CompiledFunction.cached(
+                "several_row_step", key, lambda: _several_row_function(*layout, rules, elastic)
+            )
+            self._several = several if several.compiled else None
+        self.several_rows = self._several is not None
         self._positions = positions
         buffer = self.function.input_buffer
         self._activation = buffer(index("activation"))
@@ -217,6 +247,7 @@ class CompiledFreeStep:
         self._last: Vector | None = None  # the last call's outputs
         self._activation_source: Vector | None = None  # the activation input's last source
         self._source: ConstraintRows | None = None  # see read_rows_of
+        self._bind_several_rows()
 
     def __call__(
         self, state: PlantEvaluation, tau: Vector, activation: Vector
@@ -298,6 +329,24 @@ class CompiledFreeStep:
         self._q_input = function.input_buffer(index("q")) if self._positions else None
         self._inputs = tuple(function.input_buffer(index(name)) for name in _STEP_INPUTS[1:])
         self._source = rows
+        self._bind_several_rows()
+
+    def _bind_several_rows(self) -> None:
+        """Bind the several-row step's inputs to this call's outputs and inputs' memory.
+
+        Its inputs are the terms this call wrote last and the step's inputs as this call
+        reads them (bound where this call's are): a run copies nothing.
+        """
+        several = self._several
+        if several is None:
+            return
+        free = self.function
+        terms = self._out[: self._split[-1]]  # (those before the one-row steps')
+        several.bind_input(several.index_in("terms"), terms)
+        for name in ("q", "v", "J_t", "u", "activation", "scalars", "kinetic"):
+            several.bind_input(several.index_in(name), free.input_buffer(free.index_in(name)))
+        self._several_run = several.runner()
+        self._several_out = several.output_buffer(0)
 
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
         r""":math:`W^{-1} J_a^T` (N, m) and :math:`J_a W^{-1} J_a^T` (m, m) of rows ``indices``.
@@ -348,6 +397,29 @@ class CompiledFreeStep:
             last[q_next],
         )
 
+    def several_row(self) -> SeveralRowStep | None:
+        """The last run's step with its active set of several rows, or None if not solved.
+
+        The exact solve on the rows of the active set held by the step memory (the
+        active-set start of :class:`~ucontrol.solvers.ProxsuiteLCPSolver`, by a second
+        compiled call on the last run's terms:
+        :func:`~ucontrol.solvers.compiled_active_set.active_set_terms`), None
+        where it does not solve the step's LCP or the energy guard refuses its impulses (the
+        caller's contact step then solves it). Views of the outputs, the masks as Python
+        ints.
+        """
+        assert self._last is not None and self.several_rows
+        self._several_run()  # (on the last run's terms, still in the output buffer)
+        last = self._several_out.copy()
+        impulses, velocity, scalars, v_next, q_next = self._several_slices
+        residual, active, held, impacts = last[scalars].tolist()
+        if not residual <= POLISH_THRESHOLD:  # (also NaN)
+            return None
+        return (
+            last[impulses], last[velocity], residual, int(active), int(held), int(impacts),
+            last[v_next], last[q_next],
+        )  # fmt: skip
+
 
 #: The scalars of a one-row step's block of outputs, after the impulses of every row: P, w, the
 #: residual, whether solved, plastic and an impact.
@@ -383,6 +455,18 @@ def _one_row_slices(first: int, n: int, size: int) -> tuple[tuple[slice, ...], .
 #: impact (:func:`~ucontrol.integrators.step_stages.is_impact`), :math:`v_{k+1}` (N,) and
 #: :math:`q_{k+1}` (N,).
 SingleRowStep = tuple[Vector, Vector, Vector, float, float, bool, bool, bool, Vector, Vector]
+
+#: The scalars of the several-row step's block of outputs: the residual and the masks of the
+#: active, held and impact rows.
+_SEVERAL_ROW_SCALARS = 4
+
+#: The step with several active rows, from :meth:`CompiledFreeStep.several_row`: the normal
+#: impulses (n,) in [N s] and LCP velocities D P + b (n,) in [m/s] of every row (those of the
+#: rows outside the active set meaningless), the natural-map residual in [m/s], the masks
+#: (bit i for constraint i) of the active rows, of the rows with an impulse (held at the next
+#: step) and of the impacts (:func:`~ucontrol.integrators.step_stages.is_impact`),
+#: :math:`v_{k+1}` (N,) and :math:`q_{k+1}` (N,).
+SeveralRowStep = tuple[Vector, Vector, float, int, int, int, Vector, Vector]
 
 
 class ImpactRules(NamedTuple):
@@ -539,6 +623,90 @@ def _single_row_step(
     impact = is_impact(impulse, activation, u_minus)
     impulses = (impulse if j == i else ca.SX(0.0) for j in range(n))
     return ca.vertcat(*impulses, impulse, w, residual, solved, plastic, impact, v_next, q_next)
+
+
+def _several_row_function(
+    nv: int,
+    size: int,
+    n: int,
+    terms_size: int,
+    rules: ImpactRules,
+    elastic: tuple[bool, ...],
+) -> Any:
+    r"""The casadi Function of the step of several active rows, solved on those the memory holds.
+
+    Its inputs: the free step's ``terms`` (their first ``terms_size`` values read: those
+    before the one-row steps'), and the free step's ``q``, ``v``, ``J_t``, ``u``,
+    ``activation``, ``scalars`` and ``kinetic``. The LCP of the active rows A (by
+    :func:`~ucontrol.integrators.step_stages.is_active`), :math:`D_{AA} P_A + b_A` with
+    :math:`b = J v^{free} + c + e u^-` (the impact law of every row, from the terms), is
+    solved exactly on the rows of A whose ``activation`` is positive and checked on A
+    (:func:`~ucontrol.solvers.compiled_active_set.active_set_terms`), the rows of A gathered
+    into at most :data:`~ucontrol.solvers.compiled_active_set.MAX_ROWS` slots. Not accepted
+    (an infinite residual) with more active rows than slots, or where the energy guard of the
+    ``"closing"`` law refuses the impulses of rows with a rebound (the caller's step then
+    solves the plastic problem).
+    Outputs (2n + 4 + 2N,): the impulses and velocities of every row, the residual, the masks
+    of the active rows, of those with an impulse and of the impacts (bit i for row i),
+    :math:`v_{k+1}`, :math:`q_{k+1}`.
+    """
+    import casadi as ca
+
+    terms = ca.SX.sym("terms", terms_size)
+    q, v = ca.SX.sym("q", size), ca.SX.sym("v", size)
+    rows_t, u_minus = ca.SX.sym("J_t", nv, n), ca.SX.sym("u", n)
+    activation, scalars = ca.SX.sym("activation", n), ca.SX.sym("scalars", 3)
+    kinetic = ca.SX.sym("kinetic", 1)
+    J = ca.horzcat(rows_t.T, ca.SX.zeros(n, size - nv))
+    ends = np.cumsum([0, size, size, n, size * n, n * n, n, n]).tolist()
+    v_free, _, predicted, Winv_Jt, delassus, rebound, closure = (
+        terms[a:b] for a, b in itertools.pairwise(ends)
+    )
+    Winv_Jt, delassus = ca.reshape(Winv_Jt, size, n), ca.reshape(delassus, n, n)
+    active = is_active(predicted, activation)
+    b = J @ v_free + closure + rebound
+    guess = active * (activation > 0.0)
+    # The active rows gathered into K slots, in their order (row i into slot k when k rows
+    # before it are active): S[k][i] is 1 or 0, so that the gathered values are the rows'
+    # exactly, and the solve that of the problem of the active rows alone.
+    slots, before, S = min(n, MAX_ROWS), ca.SX(0.0), []
+    for i in range(n):
+        S.append([active[i] * (before == k) for k in range(slots)])
+        before += active[i]
+
+    def gather(x: Any) -> list[Any]:
+        return [sum(S[i][k] * x[i] for i in range(n)) for k in range(slots)]
+
+    rows_of = [gather(delassus[:n, j]) for j in range(n)]  # D[:, j] gathered, per column j
+    D = ca.SX(slots, slots)
+    for k in range(slots):
+        column = [rows_of[j][k] for j in range(n)]  # D[row of slot k, :]
+        for slot, value in enumerate(gather(column)):
+            D[k, slot] = value
+    solved, w_slots, residual = active_set_terms(
+        D, ca.vertcat(*gather(b)), ca.vertcat(*gather(guess)), ca.vertcat(*gather(active))
+    )
+    impulses = ca.vertcat(*(sum(S[i][k] * solved[k] for k in range(slots)) for i in range(n)))
+    w = ca.vertcat(*(sum(S[i][k] * w_slots[k] for k in range(slots)) for i in range(n)))
+    h, theta = scalars[0], scalars[1]
+    # More active rows than slots, or impulses the energy guard refuses: not solved here.
+    residual = ca.if_else(before > slots, np.inf, residual)
+    if rules.newton_law == "closing" and any(elastic):  # the energy guard, on the rows of A
+        u_plus = w - rebound - closure
+        gain = impulse_energy_gain(_casadi_ops(), impulses, J @ v_free, u_plus, J @ v, theta)
+        guarded = ca.logic_and(
+            ca.sum1(active * (rebound != 0.0)) > 0.0, gains_energy(gain, kinetic)
+        )
+        residual = ca.if_else(guarded, np.inf, residual)
+    v_next = v_free + Winv_Jt @ impulses
+    q_next = q + theta_displacement(v, v_next, h, theta)
+    bits = ca.DM([2.0**i for i in range(n)])
+    impact = is_impact(impulses, activation, u_minus)
+    masks = (ca.dot(bits, x) for x in (active, impulses > 0.0, impact))
+    outputs = ca.vertcat(impulses, w, residual, *masks, v_next, q_next)
+    inputs = [terms, q, v, rows_t, u_minus, activation, scalars, kinetic]
+    names = ["terms", "q", "v", "J_t", "u", "activation", "scalars", "kinetic"]
+    return ca.Function("several_row_step", inputs, [outputs], names, ["step"])
 
 
 def _casadi_ops() -> ArrayOps:

@@ -229,6 +229,7 @@ from ucontrol.exceptions import ContactSolveError, ContactSolveWarning, InvalidP
 from ucontrol.integrators.step_stages import (
     NO_ACTIVE_ROW,
     NUMPY_OPS,
+    SEVERAL_ACTIVE_ROWS,
     StepMemory,
     active_set,
     fresh_memory,
@@ -433,18 +434,17 @@ class MoreauJean:
         self.memory = fresh_memory(constraints.size)
         # The memory after a step without impulses, and that step's outcome: shared, read-only.
         self._free_memory = StepMemory(_read_only(np.zeros(constraints.size)), False)
-        # The memory after a one-row step whose row i carried an impulse, for each i.
-        self._row_memories = tuple(
-            StepMemory(_read_only(memory.activation), False)
-            for memory in (
-                next_memory(row, (i,), self._release)
-                for i, row in enumerate(np.eye(constraints.size))
-            )
-        )
+        # For each mask of rows met (bit i for constraint i): the active set, the rows'
+        # indices and the memory after a step whose impulses are those rows' (_mask_terms).
+        self._masks: dict[int, tuple[NDArray[np.bool_], NDArray[np.intp], StepMemory]] = {}
+        # The active set of a one-row step of row i, and the memory after it when row i
+        # carried an impulse, for each i.
+        one_rows = [self._mask_terms(1 << i) for i in range(constraints.size)]
+        self._row_actives = tuple(active for active, _, _ in one_rows)
+        self._row_memories = tuple(memory for _, _, memory in one_rows)
         self._no_impulse = _read_only(np.zeros(constraints.size))
-        # The active sets of the steps with no active row and with row i alone, shared.
+        # The active set of the steps with no active row, shared.
         self._none_active = _read_only(np.zeros(constraints.size, dtype=bool))
-        self._row_actives = tuple(_read_only(row) for row in np.eye(constraints.size, dtype=bool))
         self._no_friction_impulse = (
             _read_only(np.zeros((constraints.size, 3))) if constraints.has_friction else None
         )
@@ -544,8 +544,27 @@ class MoreauJean:
             and getattr(self.solver, "exact_single", False) is True,
             positions=vector_space,
             tangential=self._rows.tangential,
+            several_rows=self._several_rows_compiled(),
         )
         return step if step.compiled else None
+
+    def _several_rows_compiled(self) -> bool:
+        """Whether the compiled free step also solves the steps with several active rows.
+
+        Its exact solve on the rows the memory holds is that of the frictionless active-set
+        start (:meth:`~ucontrol.solvers.ProxsuiteLCPSolver.solve`, compiled): with that
+        solver, frictionless, on a robot whose joints are vector spaces, with at least two
+        constraints (of which at most
+        :data:`~ucontrol.solvers.compiled_active_set.MAX_ROWS` active).
+        """
+        solver = self._guessing_solver
+        return (
+            solver is not None
+            and solver.compiled_start
+            and self._vector_space
+            and not self._friction
+            and self.constraints.size >= 2
+        )
 
     @property
     def fast_paths(self) -> tuple[str, ...]:
@@ -566,6 +585,7 @@ class MoreauJean:
             ("constraint rows", self._rows is not None),
             ("free step", free is not None),
             ("single row", free is not None and free.single_rows),
+            ("several rows", free is not None and free.several_rows),
             ("tangent rows", rows is not None and rows.tangential > 0),
             ("active-set start", self._guessing_solver is not None),
         )
@@ -652,6 +672,10 @@ class MoreauJean:
             if not memory.first and not self._closure_rules:  # its active set is the step's
                 if row >= 0.0 and free_step.single_rows:  # the whole step, from the call
                     return self._single_row_outcome(free_step, int(row), state)
+                if row == SEVERAL_ACTIVE_ROWS and free_step.several_rows:
+                    outcome = self._several_row_outcome(free_step, state)
+                    if outcome is not None:  # (else not solved on the guess: the steps below)
+                        return outcome
                 if row == NO_ACTIVE_ROW:  # (a free step has no joint or bilateral rows)
                     v_free, q_free, _ = free_step.free_terms()
                     return self._free_outcome(state, v_free, q_free, self._none_active)
@@ -729,6 +753,45 @@ class MoreauJean:
         self.memory = self._row_memories[i] if P_i > 0.0 else self._free_memory
         active = self._row_actives[i]
         return StepOutcome(q_next, v_next, impulse, active, solution, 0, plastic, None, impacts)
+
+    def _several_row_outcome(
+        self, free_step: CompiledFreeStep, state: PlantEvaluation
+    ) -> StepOutcome | None:
+        """The outcome of a step with several active rows from the compiled call, or None.
+
+        None where the call's exact solve on the held rows does not solve the step's LCP
+        (:meth:`~ucontrol.integrators.compiled_free_step.CompiledFreeStep.several_row`):
+        :meth:`_contact_outcome` then solves it. The solution is the active-set start's
+        (polished, no QP iteration); its solve time, part of the call, is not measured apart
+        (0 s).
+        """
+        step = free_step.several_row()
+        if step is None:
+            return None
+        impulse, velocity, residual, active_mask, held, impact_mask, v_next, q_next = step
+        masks = self._masks
+        active, rows, _ = masks.get(active_mask) or self._mask_terms(active_mask)
+        solution = ContactSolution(impulse[rows], velocity[rows], "solved", 0, residual, 0.0, True)
+        self.memory = (masks.get(held) or self._mask_terms(held))[2]
+        impacts: tuple[tuple[int, float], ...] = ()
+        if impact_mask:
+            t_k = 0.0 if state.t is None else float(state.t)
+            closing = (masks.get(impact_mask) or self._mask_terms(impact_mask))[1]
+            impacts = tuple((i, t_k) for i in closing.tolist())
+        return StepOutcome(q_next, v_next, impulse, active, solution, 0, False, None, impacts)
+
+    def _mask_terms(self, mask: int) -> tuple[NDArray[np.bool_], NDArray[np.intp], StepMemory]:
+        """The rows of ``mask`` (bit i for constraint i): a set (n,), indices, a memory.
+
+        The memory is that after a step whose impulses are on those rows; each read-only,
+        remembered and shared by the following steps.
+        """
+        rows = np.array([mask >> i & 1 for i in range(self.constraints.size)], dtype=bool)
+        indices = rows.nonzero()[0]
+        held = next_memory(rows.astype(float), indices, self._release).activation
+        terms = _read_only(rows), _read_only(indices), StepMemory(_read_only(held), False)
+        self._masks[mask] = terms
+        return terms
 
     def _contact_outcome(
         self,

@@ -137,6 +137,36 @@ def active_set_function(m: int) -> ca.Function:
     D = ca.reshape(D_flat, m, m)  # (either order: D symmetric)
     b = ca.SX.sym("b", m)
     guess = ca.SX.sym("guess", m)
+    impulses, velocity, residual = active_set_terms(D, b, guess)
+    return ca.Function(
+        _name(m),
+        [D_flat, b, guess],
+        [ca.densify(x) for x in (impulses, velocity, residual)],
+        ["D", "b", "guess"],
+        ["impulses", "velocity", "residual"],
+    )
+
+
+def active_set_terms(
+    D: ca.SX, b: ca.SX, guess: ca.SX, rows: ca.SX | None = None
+) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """The solve and check of the module docstring on casadi's symbols.
+
+    Args:
+        D: Delassus matrix (m, m), symmetric [m/s per N s].
+        b: Free constraint velocity plus restitution term (m,) [m/s].
+        guess: The rows guessed active (m,): 1 or 0.
+        rows: The rows of the problem (m,), 1 or 0, or None for every row: the residual is
+            that of these rows (the others, with ``guess`` 0 on them, are left out of the
+            problem: a step's rows outside its active set).
+
+    Returns:
+        Impulses (m,) [N s] (0 off the guess), velocities ``D P + b`` (m,) [m/s] and the
+        residual [m/s] (infinite where not accepted).
+    """
+    import casadi as ca
+
+    m = b.shape[0]
     A = [[D[i, j] * guess[i] * guess[j] for j in range(m)] for i in range(m)]
     V = [[ca.SX(1.0 if i == j else 0.0) for j in range(m)] for i in range(m)]
     for _ in range(SWEEPS):
@@ -159,19 +189,13 @@ def active_set_function(m: int) -> ca.Function:
     residual = ca.SX(0.0)
     for i in range(m):
         scale = ca.if_else(D[i, i] <= 0.0, 1.0, D[i, i])  # [m/s per N s]
-        residual = ca.fmax(residual, ca.fabs(ca.fmin(scale * P[i], velocity[i])))
+        row = ca.fabs(ca.fmin(scale * P[i], velocity[i]))
+        residual = ca.fmax(residual, row if rows is None else ca.if_else(rows[i], row, 0.0))
     accepted = ca.logic_and(
         ca.logic_and(off_diagonal <= CONVERGENCE * largest, largest > 0.0),
         functools.reduce(ca.fmin, P) >= 0.0,
     )
-    residual = ca.if_else(accepted, residual, np.inf)
-    return ca.Function(
-        _name(m),
-        [D_flat, b, guess],
-        [ca.densify(x) for x in (impulses, velocity, residual)],
-        ["D", "b", "guess"],
-        ["impulses", "velocity", "residual"],
-    )
+    return impulses, velocity, ca.if_else(accepted, residual, np.inf)
 
 
 def _rotate(A: list[list[ca.SX]], V: list[list[ca.SX]], p: int, q: int) -> None:
