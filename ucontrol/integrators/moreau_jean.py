@@ -890,10 +890,7 @@ class MoreauJean:
                 thresholds = activation if m == constraints.size else activation[indices]
                 held_rows = thresholds > 0.0
             guess = held_rows
-        # (e = 0 everywhere: no rebound terms to add)
-        solution = self._solve(
-            D, b if self._plastic else b + rebound, indices, tangents, m_b, guess
-        )
+        solution = self._solve(D, b + rebound, indices, tangents, m_b, guess)
         plastic = False
         if self._guarded and np.count_nonzero(rebound):  # the energy guard
             u_plus = solution.velocity[:r] - rebound[:r] - closure[:r]
@@ -1304,12 +1301,7 @@ def _closing_impacts(
     step's start.
     """
     u_minus, t_k = state.normal_velocity, 0.0 if state.t is None else float(state.t)
-    if len(rows) == 1:  # one row: its floats alone, without building lists
-        i = rows[0]
-        if is_impact(impulse.item(i), activation.item(i), u_minus.item(i)):
-            return ((int(i), t_k),)
-        return ()
-    # Python floats (a third of numpy scalars' cost): by lists from two rows
+    # Python floats (a third of numpy scalars' cost)
     impulse, activation, u_minus = impulse.tolist(), activation.tolist(), u_minus.tolist()
     impacts: tuple[tuple[int, float], ...] = ()
     for i in rows:
