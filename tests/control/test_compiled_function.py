@@ -251,8 +251,8 @@ def _inputs(scene: Scene, rng: np.random.Generator, steps: int):
 @pytest.mark.parametrize(
     "name", ["two_link_flexible_one_constraint", "two_link_flexible_two_constraints"]
 )
-def test_flexible_law_compiled_equals_fallback(name, tmp_path, monkeypatch):
-    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+def test_flexible_law_compiled_equals_fallback(name, monkeypatch):
+    # the session's cache: the scenes' laws, compiled once for every test that runs them
     scene = Scene.from_toml(ROBOTS / f"{name}.toml")
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
     compiled = scene.build_controller()
@@ -271,9 +271,9 @@ def test_flexible_law_compiled_equals_fallback(name, tmp_path, monkeypatch):
 @pytest.mark.parametrize(
     "name", ["two_link_one_constraint", "two_link_two_constraints", "panda_table"]
 )
-def test_rigid_law_compiled_equals_its_reference(name, tmp_path, monkeypatch):
+def test_rigid_law_compiled_equals_its_reference(name, monkeypatch):
     """The compiled rigid law against its reference: the same Function in casadi's VM."""
-    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    # the session's cache: the scenes' laws, compiled once for every test that runs them
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
     scene = Scene.from_toml(ROBOTS / f"{name}.toml")
     compiled = scene.build_controller()
@@ -334,13 +334,13 @@ def test_only_a_small_robots_law_takes_the_symbolic_kinematics(no_compile, monke
     assert "C" in panda._law_index and "q" not in panda._law_index
 
 
-def test_gains_and_stiffness_are_parameters_of_one_library(tmp_path, monkeypatch):
+def test_gains_and_stiffness_are_parameters_of_one_library(monkeypatch):
     """Sweeping gains (rigid) or gains and stiffness (flexible) reuses the compiled law."""
     from dataclasses import replace
 
     from ucontrol.control import BrogliatoController, FlexibleBrogliatoController
 
-    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    # the session's cache: the two-link laws, compiled once for every test that runs them
     monkeypatch.delenv(NO_COMPILE_ENV, raising=False)
     rigid = Scene.from_toml(ROBOTS / "two_link_one_constraint.toml").build_controller()
     gains = replace(rigid.gains, gamma1=3.0 * rigid.gains.gamma1, gamma2=0.5)

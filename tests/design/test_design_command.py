@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from two_link_design import COARSE_GRID
 
 from ucontrol.design import DesignedCycle, cycle_transcription
 from ucontrol.design.command import add_design_parser, run_design
@@ -27,7 +28,7 @@ def _write_task(path: Path, **changes: object) -> Path:
     table = tomllib.loads((ROBOTS / "two_link_one_constraint_task.toml").read_text())
     lines = [f'scene = "{ROBOTS / "two_link_one_constraint.toml"}"']
     table.pop("scene")
-    table["grid"] = {"flight_intervals": 6, "contact_intervals": 6, "substeps": 3}
+    table["grid"] = dict(COARSE_GRID)
     table["solver"]["progress_every"] = 5
     for key, value in changes.items():
         table["contact_phases"][0][key] = value

@@ -12,6 +12,10 @@ from ucontrol.design import DesignedCycle, DesignReport, DesignTask, design_cycl
 
 ROBOTS = Path(__file__).resolve().parents[2] / "robots"
 TASK = ROBOTS / "two_link_one_constraint_task.toml"
+#: A coarse grid of the task (6 + 6 intervals of 3 RK4 steps) for the tests that need a solve
+#: but not the shipped grid's optimum: the same program for them all (bounds and IPOPT's
+#: options are not part of it), compiled once per cache instead of once per test.
+COARSE_GRID = {"flight_intervals": 6, "contact_intervals": 6, "substeps": 3}
 
 
 @functools.cache
