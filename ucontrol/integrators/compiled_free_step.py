@@ -218,19 +218,11 @@ class CompiledFreeStep:
         # (_SEVERAL_ROW_SCALARS,), v_{k+1} and q_{k+1} (N,) each.
         ends = np.cumsum([0, n, n, _SEVERAL_ROW_SCALARS, size, size]).tolist()
         self._several_slices = tuple(slice(a, b) for a, b in itertools.pairwise(ends))
+        # Loaded by the first step with several active rows (_load_several_rows): a run without
+        # one neither builds nor loads it.
         self._several: CompiledFunction | None = None
-        if several_rows:
-            layout = (nv, size, n, self._split[-1])
-            key = definition_key(
-                ["several_row_step", *layout, rules.newton_law, elastic, SWEEPS, CONVERGENCE,
-                 RANK_TOLERANCE, *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
-                _GENERATED_BY,
-            )  # fmt: skip
-            several = CompiledFunction.cached(
-                "several_row_step", key, lambda: _several_row_function(*layout, rules, elastic)
-            )
-            self._several = several if several.compiled else None
-        self.several_rows = self._several is not None
+        self._several_definition = (nv, size, n, self._split[-1], rules, elastic)
+        self.several_rows = several_rows
         self._positions = positions
         buffer = self.function.input_buffer
         self._activation = buffer(index("activation"))
@@ -338,7 +330,7 @@ class CompiledFreeStep:
         reads them (bound where this call's are): a run copies nothing.
         """
         several = self._several
-        if several is None:
+        if several is None:  # (not loaded yet: bound when it is)
             return
         free = self.function
         terms = self._out[: self._split[-1]]  # (those before the one-row steps')
@@ -347,6 +339,34 @@ class CompiledFreeStep:
             several.bind_input(several.index_in(name), free.input_buffer(free.index_in(name)))
         self._several_run = several.runner()
         self._several_out = several.output_buffer(0)
+
+    def _load_several_rows(self) -> bool:
+        """Build or load the several-row step's library and bind it; whether it is compiled.
+
+        Where it does not compile, :attr:`several_rows` becomes False: the caller's contact
+        step solves those steps.
+        """
+        from ucontrol.model.compile_cache import definition_key
+        from ucontrol.model.compiled_function import CompiledFunction
+
+        nv, size, n, terms, rules, elastic = self._several_definition
+        key = definition_key(
+            ["several_row_step", nv, size, n, terms, rules.newton_law, elastic, SWEEPS,
+             CONVERGENCE, RANK_TOLERANCE,
+             *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
+            _GENERATED_BY,
+        )  # fmt: skip
+        several = CompiledFunction.cached(
+            "several_row_step",
+            key,
+            lambda: _several_row_function(nv, size, n, terms, rules, elastic),
+        )
+        if not several.compiled:
+            self.several_rows = False
+            return False
+        self._several = several
+        self._bind_several_rows()
+        return True
 
     def contact_terms(self, indices: NDArray[np.intp]) -> tuple[Vector, Vector]:
         r""":math:`W^{-1} J_a^T` (N, m) and :math:`J_a W^{-1} J_a^T` (m, m) of rows ``indices``.
@@ -406,9 +426,11 @@ class CompiledFreeStep:
         :func:`~ucontrol.solvers.compiled_active_set.active_set_terms`), None
         where it does not solve the step's LCP or the energy guard refuses its impulses (the
         caller's contact step then solves it). Views of the outputs, the masks as Python
-        ints.
+        ints. The first call builds or loads the compiled library.
         """
         assert self._last is not None and self.several_rows
+        if self._several is None and not self._load_several_rows():
+            return None
         self._several_run()  # (on the last run's terms, still in the output buffer)
         last = self._several_out.copy()
         impulses, velocity, scalars, v_next, q_next = self._several_slices
