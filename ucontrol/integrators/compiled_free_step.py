@@ -221,7 +221,8 @@ class CompiledFreeStep:
         # Loaded by the first step with several active rows (_load_several_rows): a run without
         # one neither builds nor loads it.
         self._several: CompiledFunction | None = None
-        self._several_definition = (nv, size, n, self._split[-1], rules, elastic)
+        # (the ends of the terms it reads: v_free, q_free, gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ, impact law)
+        self._several_definition = (nv, size, n, tuple(self._split), rules, elastic)
         self.several_rows = several_rows
         self._positions = positions
         buffer = self.function.input_buffer
@@ -349,9 +350,9 @@ class CompiledFreeStep:
         from ucontrol.model.compile_cache import definition_key
         from ucontrol.model.compiled_function import CompiledFunction
 
-        nv, size, n, terms, rules, elastic = self._several_definition
+        nv, size, n, split, rules, elastic = self._several_definition
         key = definition_key(
-            ["several_row_step", nv, size, n, terms, rules.newton_law, elastic, SWEEPS,
+            ["several_row_step", nv, size, n, split, rules.newton_law, elastic, SWEEPS,
              CONVERGENCE, RANK_TOLERANCE,
              *(getattr(step_stages, name) for name in _STAGE_CONSTANTS)],
             _GENERATED_BY,
@@ -359,7 +360,7 @@ class CompiledFreeStep:
         several = CompiledFunction.cached(
             "several_row_step",
             key,
-            lambda: _several_row_function(nv, size, n, terms, rules, elastic),
+            lambda: _several_row_function(nv, size, n, split, rules, elastic),
         )
         if not several.compiled:
             self.several_rows = False
@@ -651,14 +652,16 @@ def _several_row_function(
     nv: int,
     size: int,
     n: int,
-    terms_size: int,
+    split: tuple[int, ...],
     rules: ImpactRules,
     elastic: tuple[bool, ...],
 ) -> Any:
     r"""The casadi Function of the step of several active rows, solved on those the memory holds.
 
-    Its inputs: the free step's ``terms`` (their first ``terms_size`` values read: those
-    before the one-row steps'), and the free step's ``q``, ``v``, ``J_t``, ``u``,
+    Its inputs: the free step's ``terms`` up to its active row (``split``: the ends of
+    :math:`v^{free}`, :math:`q^{free}`, the gaps, :math:`W^{-1}J^T`, :math:`JW^{-1}J^T`, the
+    impact law's two terms and the active row; the one-row steps' after them unread), and the
+    free step's ``q``, ``v``, ``J_t``, ``u``,
     ``activation``, ``scalars`` and ``kinetic``. The LCP of the active rows A (by
     :func:`~ucontrol.integrators.step_stages.is_active`), :math:`D_{AA} P_A + b_A` with
     :math:`b = J v^{free} + c + e u^-` (the impact law of every row, from the terms), is
@@ -674,15 +677,14 @@ def _several_row_function(
     """
     import casadi as ca
 
-    terms = ca.SX.sym("terms", terms_size)
+    terms = ca.SX.sym("terms", split[-1])
     q, v = ca.SX.sym("q", size), ca.SX.sym("v", size)
     rows_t, u_minus = ca.SX.sym("J_t", nv, n), ca.SX.sym("u", n)
     activation, scalars = ca.SX.sym("activation", n), ca.SX.sym("scalars", 3)
     kinetic = ca.SX.sym("kinetic", 1)
     J = ca.horzcat(rows_t.T, ca.SX.zeros(n, size - nv))
-    ends = np.cumsum([0, size, size, n, size * n, n * n, n, n]).tolist()
     v_free, _, predicted, Winv_Jt, delassus, rebound, closure = (
-        terms[a:b] for a, b in itertools.pairwise(ends)
+        terms[a:b] for a, b in itertools.pairwise((0, *split[:7]))
     )
     Winv_Jt, delassus = ca.reshape(Winv_Jt, size, n), ca.reshape(delassus, n, n)
     active = is_active(predicted, activation)
