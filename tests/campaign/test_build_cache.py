@@ -122,6 +122,39 @@ def test_reused_builds_give_the_logs_of_fresh_ones(
     assert stats.built[CONTROLLER] == sum(run[2] == "built" for run in runs)
 
 
+#: (scene, duration, draws): runs on one cache, the first as the scene is, then each draw of
+#: the numbers of its constraints (restitutions, friction coefficients, planes, stop bounds).
+NUMBER_DRAWS = [
+    ("two_link_one_constraint", 6.0, [
+        {"contacts.0.restitution": 0.35, "surfaces.ground.point.1": -3e-3, "stops.1.upper": -0.01},
+        {"contacts.0.restitution": 0.9},
+    ]),
+    ("panda_table", 2.0, [{"contacts.0.restitution": 0.9, "surfaces.table.point.2": 0.197}]),
+    ("panda_table_friction", 2.5, [
+        {"contacts.0.friction": 0.15, "surfaces.table.normal": [0.02, 0.0, 1.0]},
+    ]),
+    ("solo_landing", 0.6, [{"contacts.2.friction": 0.4, "surfaces.ground.point.2": -2e-3}]),
+    ("compass_walker", 2.0, [{"contacts.0.friction": 5.0, "contacts.1.friction": 5.0}]),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("scene", "duration", "draws"), NUMBER_DRAWS)
+def test_an_integrator_takes_drawn_numbers_with_the_logs_of_a_fresh_build(
+    scene: str, duration: float, draws: list[dict[str, Any]]
+) -> None:
+    base, path = _table(scene, duration)
+    cache = BuildCache()
+    result, build = simulate_cached(base, path, cache)
+    assert build[INTEGRATOR] == "built"
+    for overrides in draws:
+        table = apply_overrides(base, overrides)
+        result, build = simulate_cached(table, path, cache)
+        assert build[INTEGRATOR] == "reused", overrides  # no rebuild for numbers
+        _assert_same_log(result.log, _fresh(table, path))
+        assert len(result.log.impacts.t) > 0, overrides
+    assert cache.stats().built[INTEGRATOR] == 1
+
+
 def test_run_task_records_how_it_got_its_objects() -> None:
     table, path = _table("two_link_one_constraint", 0.5)
     task = {

@@ -257,6 +257,47 @@ def test_several_row_steps_need_several_constraints() -> None:
         )  # fmt: skip
 
 
+def test_a_free_step_takes_restitutions_non_zero_where_its_own_are() -> None:
+    """Rows without restitution have constant-0 rebound terms: a new one there is refused."""
+    rules = ImpactRules(np.array([0.5, 0.0]), 0.0, "closing")
+    step = CompiledFreeStep(
+        np.zeros((2, 2), order="F"), np.zeros(2), 2, dt=1e-3, theta=0.5, horizon=5e-4, flexible=None,
+        viscous=None, rules=rules,
+    )  # fmt: skip
+    step.use_restitution(np.array([0.9, 0.0]))
+    for wrong in ([0.0, 0.0], [0.5, 0.1], [0.5]):
+        with pytest.raises(InvalidParameterError, match="restitution"):
+            step.use_restitution(np.array(wrong))
+
+
+def _drawn(scene: Any, draw: dict[str, Any]) -> Any:
+    """``scene`` with other numbers: ``draw`` maps "contacts", "stops" or a surface's name to
+    the entries set on each (tests/campaign/test_build_cache.py runs integrators given them)."""
+    contacts = []
+    for contact in scene.contacts:
+        surface = contact.surface
+        if surface.name in draw:
+            surface = dataclasses.replace(surface, **draw[surface.name])
+        contacts.append(
+            dataclasses.replace(contact, surface=surface, **draw.get("contacts", {}))
+        )
+    stops = tuple(dataclasses.replace(s, **draw.get("stops", {})) for s in scene.stops)
+    return dataclasses.replace(scene, contacts=tuple(contacts), stops=stops)
+
+
+def test_an_integrator_refuses_constraints_that_differ_in_more_than_numbers() -> None:
+    scene = load_scene("two_link_one_constraint")
+    integrator = scene.build_integrator()
+    plastic = _drawn(scene, {"contacts": {"restitution": 0.0}})  # no rebound terms there
+    frictional = _drawn(scene, {"contacts": {"friction": 0.4}})  # tangential rows
+    rolling = _drawn(scene, {"contacts": {"radius": 0.01}})
+    other = load_scene("two_link_two_constraints")  # another set of contacts
+    for constraints in (plastic, frictional, rolling, other):
+        assert not integrator.use_constraints(constraints.constraints)
+    assert integrator.constraints is scene.constraints  # unchanged
+    assert integrator.use_constraints(_drawn(scene, {"contacts": {"restitution": 0.1}}).constraints)
+
+
 def _panda_on_four_contacts(**options: bool) -> tuple[MoreauJean, Any]:
     """The Panda of experiments/bench_step.py pressing on a table with four contacts.
 

@@ -31,7 +31,9 @@ from ucontrol.campaign.build_cache import (
     REUSED,
     WORKER_CACHE,
     BuildCache,
+    controller_family,
     controller_key,
+    integrator_family,
     integrator_key,
     reusable_controller,
     reusable_integrator,
@@ -168,8 +170,9 @@ def simulate_cached(
 ) -> tuple[Any, dict[str, str]]:
     """Run the scene ``table`` (from file ``path``) with builds of ``cache`` where it has them.
 
-    The integrator and the controller are taken from ``cache`` under the run's keys
-    (:func:`~ucontrol.campaign.build_cache.integrator_key`, ``controller_key``) and reset, or
+    The integrator and the controller are taken from ``cache`` under the run's keys and
+    families (:mod:`~ucontrol.campaign.build_cache`), given the run's numbers where they were
+    built for others (its constraints', its controller's believed inertias) and reset, or
     built; they go back to it after the run.
 
     Returns:
@@ -177,24 +180,35 @@ def simulate_cached(
         was ``"built"`` or ``"reused"``. Objects go back to the cache only after a run that
         completed (a failed run's are dropped).
     """
+    from ucontrol.scene.controller_builders import retarget_controller
     from ucontrol.simulate import simulate
 
-    scene, keys = _cached_scene(table, path)
+    scene, keys, families = _cached_scene(table, path)
     build = {}
-    integrator = cache.checkout(INTEGRATOR, keys[INTEGRATOR])
+    integrator = cache.checkout(
+        INTEGRATOR,
+        keys[INTEGRATOR],
+        families[INTEGRATOR],
+        lambda cached: cached.use_constraints(scene.constraints),
+    )
     if integrator is None:
         integrator, build[INTEGRATOR] = scene.build_integrator(), BUILT
     else:
         integrator.reset()  # no step memory, no warm starts: as a fresh build
         build[INTEGRATOR] = REUSED
-    controller = cache.checkout(CONTROLLER, keys[CONTROLLER])
+    controller = cache.checkout(
+        CONTROLLER,
+        keys[CONTROLLER],
+        families[CONTROLLER],
+        lambda cached: retarget_controller(cached, scene),
+    )
     if controller is None:
         controller, build[CONTROLLER] = scene.build_controller(), BUILT
     else:
         controller.reset()
         build[CONTROLLER] = REUSED
     result = simulate(scene.use_integrator(integrator), controller, progress=False)
-    _keep(cache, keys, integrator, controller)
+    _keep(cache, keys, families, integrator, controller)
     return result, build
 
 
@@ -218,34 +232,46 @@ def prepare_worker(task: Mapping[str, Any], cache: BuildCache = WORKER_CACHE) ->
         importlib.import_module(module)
     try:
         path = scene_file(task["scene_ref"])
-        scene, keys = _cached_scene(apply_overrides(task["scene"], task["parameters"]), path)
+        table = apply_overrides(task["scene"], task["parameters"])
+        scene, keys, families = _cached_scene(table, path)
         integrator, controller = scene.build_integrator(), scene.build_controller()
     except Exception as error:  # the run builds again and records it
         return f"{type(error).__name__}: {error}"
     if task.get("reuse", True):
-        _keep(cache, keys, integrator, controller)
+        _keep(cache, keys, families, integrator, controller)
     return ""
 
 
-def _cached_scene(table: dict[str, Any], path: Path) -> tuple[Any, dict[str, str]]:
-    """The scene of ``table`` (from file ``path``) that takes a built integrator, and its keys."""
+def _cached_scene(
+    table: dict[str, Any], path: Path
+) -> tuple[Any, dict[str, str], dict[str, str]]:
+    """The scene of ``table`` (from file ``path``) that takes a built integrator, its keys and
+    its families (:mod:`~ucontrol.campaign.build_cache`)."""
     from ucontrol.campaign.prebuilt_scene import PrebuiltScene
 
     built = PrebuiltScene.from_dict(table, base_dir=path.parent, default_name=path.stem)
     scene = cast(PrebuiltScene, built)  # from_dict builds the class it is called on
-    keys = {
-        INTEGRATOR: integrator_key(str(path), table),
-        CONTROLLER: controller_key(str(path), table),
+    where = str(path)
+    keys = {INTEGRATOR: integrator_key(where, table), CONTROLLER: controller_key(where, table)}
+    families = {
+        INTEGRATOR: integrator_family(where, table),
+        CONTROLLER: controller_family(where, table),
     }
-    return scene, keys
+    return scene, keys, families
 
 
-def _keep(cache: BuildCache, keys: Mapping[str, str], integrator: Any, controller: Any) -> None:
-    """Put the objects that can be reset into ``cache`` under their keys."""
+def _keep(
+    cache: BuildCache,
+    keys: Mapping[str, str],
+    families: Mapping[str, str],
+    integrator: Any,
+    controller: Any,
+) -> None:
+    """Put the objects that can be reset into ``cache`` under their keys and families."""
     if reusable_integrator(integrator):
-        cache.checkin(INTEGRATOR, keys[INTEGRATOR], integrator)
+        cache.checkin(INTEGRATOR, keys[INTEGRATOR], integrator, families[INTEGRATOR])
     if reusable_controller(controller):
-        cache.checkin(CONTROLLER, keys[CONTROLLER], controller)
+        cache.checkin(CONTROLLER, keys[CONTROLLER], controller, families[CONTROLLER])
 
 
 def run_campaign(

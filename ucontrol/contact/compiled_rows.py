@@ -98,23 +98,12 @@ class ConstraintRows:
         self._names = self.function.index_in, self.function.index_out  # by name
         index, out = self._names
         self._energies = self.function.output_buffer(out("energies")) if dynamics else None
-        # Column-major (4, n_c) and (2, n_s) inputs: the rows of the (n_c, 4) and (n_s, 2) terms.
-        self.function.input_buffer(index("planes"))[:] = constraints.plane_terms.ravel()
-        self.function.input_buffer(index("stops"))[:] = constraints.stop_terms.ravel()
         #: Tangential rows of the call (those of every frictional contact, in their order).
         self.tangential = sum(counts)
-        directions = constraints.point_directions
-        # The tangents (k, 3), world coordinates: column-major (3, k) input.
-        self._tangents = _read_only(
-            np.concatenate([directions[i, 1 : 1 + c, :3] for i, c in enumerate(counts)])
-            if self.tangential
-            else np.zeros((0, 3))
-        )
-        self.function.input_buffer(index("tangents"))[:] = self._tangents.ravel()
         # Each contact's first tangential row among all the rows (n + its offset).
         self._first_tangent = (n + np.cumsum(counts) - np.asarray(counts, dtype=int)).tolist()
         self._counts = counts
-        self._selections: dict[tuple[int, ...], tuple[NDArray[np.intp], Vector]] = {}
+        self.use_constraints(constraints)  # the planes', stops' and tangents' terms
         self._n, self._nv = n, nv
         self._parts = (slice(0, n), slice(n, 2 * n), slice(2 * n, None))
         self._q, self._v = (
@@ -126,6 +115,28 @@ class ConstraintRows:
         self.last_rows: Vector | None = None  # the normal rows of the last call's values
         #: The normal, then tangential rows of the last call, shape (n + tangential, nv).
         self.last_contact_rows: Vector | None = None
+
+    def use_constraints(self, constraints: ConstraintSet) -> None:
+        """Compute the rows of ``constraints``: the set the call was built for, up to numbers.
+
+        ``constraints`` may differ from that set in their numbers alone
+        (:meth:`~ucontrol.contact.ConstraintSet.differs_in_numbers_only`): the planes', stops'
+        and tangents' terms are inputs of the call, written here; nothing is built again.
+        """
+        index = self._names[0]
+        # Column-major (4, n_c) and (2, n_s) inputs: the rows of the (n_c, 4) and (n_s, 2) terms.
+        self.function.input_buffer(index("planes"))[:] = constraints.plane_terms.ravel()
+        self.function.input_buffer(index("stops"))[:] = constraints.stop_terms.ravel()
+        directions, counts = constraints.point_directions, self._counts
+        # The tangents (k, 3), world coordinates: column-major (3, k) input.
+        self._tangents = _read_only(
+            np.concatenate([directions[i, 1 : 1 + c, :3] for i, c in enumerate(counts)])
+            if self.tangential
+            else np.zeros((0, 3))
+        )
+        self.function.input_buffer(index("tangents"))[:] = self._tangents.ravel()
+        # The selections of the active sets met (contact_selection), with these tangents.
+        self._selections: dict[tuple[int, ...], tuple[NDArray[np.intp], Vector]] = {}
 
     @property
     def compiled(self) -> bool:

@@ -343,6 +343,34 @@ class ConstraintSet:
             data, lambda: [placements[frame_id].translation for frame_id in self._frame_ids]
         )
 
+    def differs_in_numbers_only(self, other: ConstraintSet) -> bool:
+        """Whether ``other`` is this set up to its numbers: what an integrator can be given.
+
+        The numbers that may differ: restitutions (0 on the same constraints), friction
+        coefficients (> 0 on the same ones), plane points and normals, and stop bounds. The
+        rest must be equal: the robot's model, the constraints' names, frames, radii and stop
+        coordinates, the closure rules and the axis of planar motion. Only sets of point
+        contacts against fixed planes and joint stops qualify (no sphere pair, collision pair,
+        bilateral or clearance constraint, no moving surface).
+        """
+        sets = (self, other)
+        if any(
+            s.sphere_contacts or s.collision is not None or s.bilateral is not None
+            for s in sets
+        ) or any(s.clearances or s.time_dependent for s in sets):
+            return False
+
+        def shape(s: ConstraintSet) -> tuple[Any, ...]:
+            rules = [(c.closes_ahead_of, c.direction_of_travel, c.ahead_frame) for c in s.contacts]
+            axis = None if s.planar_axis is None else s.planar_axis.tolist()
+            return (
+                s.names, s._frame_ids, [c.radius for c in s.contacts], s.stop_coordinates,
+                s.tangent_count.tolist(), (s.restitution != 0.0).tolist(), rules, axis,
+            )  # fmt: skip
+
+        same_robot = other.robot is self.robot or other.robot.model == self.robot.model
+        return same_robot and shape(self) == shape(other)
+
     def _ahead_rules(self, robot: RobotModel) -> list[tuple[int, int, int, Vector]]:
         """(constraint, ahead frame, other frame, direction) of each ``closes_ahead_of``."""
         frames = {contact.frame for contact in self.contacts}

@@ -242,6 +242,22 @@ class CompiledFreeStep:
         self._source: ConstraintRows | None = None  # see read_rows_of
         self._bind_several_rows()
 
+    def use_restitution(self, restitution: Vector) -> None:
+        """Apply Newton's law with ``restitution`` (n,) from now on: an input of the call.
+
+        Raises:
+            InvalidParameterError: ``restitution`` is 0 where the call's is not, or the
+                converse (the rebound terms of the rows without restitution are constants 0
+                of the call).
+        """
+        elastic = self._several_definition[5]
+        given = np.asarray(restitution, dtype=float)
+        if given.shape != (len(elastic),) or tuple((given != 0.0).tolist()) != elastic:
+            raise InvalidParameterError(
+                "restitution", given.tolist(), f"non-zero exactly where {list(elastic)}"
+            )
+        self.function.input_view(self.function.index_in("restitution"))[...] = given
+
     def __call__(
         self, state: PlantEvaluation, tau: Vector, activation: Vector
     ) -> tuple[Vector, Vector | None, Vector]:

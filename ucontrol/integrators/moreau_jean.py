@@ -501,6 +501,29 @@ class MoreauJean:
         if self.friction_solver is not None:
             self.friction_solver.reset()
 
+    def use_constraints(self, constraints: ConstraintSet) -> bool:
+        """Step against ``constraints`` from now on, if they differ from its own in numbers only.
+
+        Restitutions (0 on the same constraints), friction coefficients, plane points and
+        normals and stop bounds may differ
+        (:meth:`~ucontrol.contact.ConstraintSet.differs_in_numbers_only`); the compiled calls
+        take them as inputs, so nothing is built again, and the steps are then those of an
+        integrator built with ``constraints``. A campaign worker gives its integrator this way
+        to the runs that draw these numbers (:mod:`ucontrol.campaign.build_cache`). The step
+        memory and the solvers' warm starts are kept: :meth:`reset` starts a new run.
+
+        Returns:
+            Whether the constraints were taken (False: they differ otherwise; nothing changed).
+        """
+        if not self.constraints.differs_in_numbers_only(constraints):
+            return False
+        self.constraints = constraints
+        if self._rows is not None:
+            self._rows.use_constraints(constraints)
+        if self._free_step is not None:
+            self._free_step.use_restitution(constraints.restitution)
+        return True
+
     def _compiled_free_step(self) -> CompiledFreeStep | None:
         """The free part of the step as one compiled call, where the step allows it.
 
