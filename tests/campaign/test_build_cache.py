@@ -14,7 +14,9 @@ from ucontrol.campaign.build_cache import (
     CONTROLLER,
     INTEGRATOR,
     BuildCache,
+    controller_family,
     controller_key,
+    integrator_family,
     integrator_key,
 )
 from ucontrol.campaign.overrides import apply_overrides
@@ -233,6 +235,48 @@ def test_keys_follow_what_each_builder_reads() -> None:
     step = apply_overrides(table, {"integrator.theta": 0.6})
     assert integrator_key(where, table) != integrator_key(where, step)
     assert controller_key(where, table) == controller_key(where, step)
+
+
+def test_families_leave_out_the_numbers_the_objects_take() -> None:
+    table, path = _table("two_link_one_constraint", 1.0)
+    where = str(path)
+    numbers = {"contacts.0.restitution": 0.2, "surfaces.ground.point.1": -1e-3, "stops.0.lower": 0.1}
+    inertias = {"controller.model.mass_scale": 1.1, "controller.mass_scale": 0.9}
+    drawn, believed = apply_overrides(table, numbers), apply_overrides(table, inertias)
+    assert integrator_key(where, drawn) != integrator_key(where, table)
+    assert integrator_family(where, drawn) == integrator_family(where, table)
+    assert controller_family(where, drawn) == controller_family(where, table)
+    assert controller_key(where, believed) != controller_key(where, table)
+    assert controller_family(where, believed) == controller_family(where, table)
+    assert integrator_family(where, believed) == integrator_family(where, table)
+    assert table == _table("two_link_one_constraint", 1.0)[0]  # (not changed in place)
+    for other in ({"contacts.0.radius": 0.01}, {"robot.q0": [0.8, -1.5]}, {"controller.gamma1": 1}):
+        changed = apply_overrides(table, other)
+        assert controller_family(where, changed) != controller_family(where, table), other
+    step = apply_overrides(table, {"integrator.theta": 0.6})
+    assert integrator_family(where, step) != integrator_family(where, table)
+
+
+def test_an_object_of_the_family_is_adapted_or_put_back_unchanged() -> None:
+    cache = BuildCache(capacity=3)
+    cache.checkin(INTEGRATOR, "a1", "A1", "a")
+    cache.checkin(INTEGRATOR, "a2", "A2", "a")
+    tried: list[str] = []
+
+    def refuse(built: str) -> bool:
+        tried.append(built)
+        return False
+
+    assert cache.checkout(INTEGRATOR, "a3", "a", refuse) is None  # both tried, both back
+    assert tried == ["A2", "A1"]  # the most recently used first
+    assert cache.checkout(INTEGRATOR, "a1", "a", refuse) == "A1"  # its own key: as it is
+    assert tried == ["A2", "A1"]
+    assert cache.checkout(INTEGRATOR, "a3", "a", lambda built: True) == "A2"
+    assert cache.checkout(INTEGRATOR, "a3", "a", lambda built: True) is None  # both lent
+    cache.checkin(INTEGRATOR, "a3", "A2", "a")  # now the object of a3
+    assert cache.checkout(INTEGRATOR, "a3", "a", refuse) == "A2"
+    stats = cache.stats()
+    assert stats.reused[INTEGRATOR] == 3 and stats.built[INTEGRATOR] == 2
 
 
 def test_cache_is_bounded_and_lends_an_object_to_one_run_at_a_time() -> None:

@@ -125,6 +125,8 @@ def _drop(table: dict[str, Any], path: tuple[str, ...]) -> None:
     elif isinstance(table[head], Mapping):
         table[head] = dict(table[head])
         _drop(table[head], tuple(rest))
+        if not table[head]:  # (a table left empty reads as none)
+            del table[head]
 
 
 def _key(scene_path: str, table: Mapping[str, Any], ignored: Iterable[str]) -> str:
