@@ -33,6 +33,7 @@ from ucontrol.scene.pronk_table import pronk_from_table, pronk_keys
 from ucontrol.scene.raibert_table import RAIBERT_KEYS, raibert_from_table
 
 if TYPE_CHECKING:
+    from ucontrol.model.robot_model import RobotModel
     from ucontrol.scene.scene_data import SceneData
 
 _BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
@@ -115,14 +116,55 @@ def build_controller(scene: SceneData) -> Controller:
     controller but ``zero`` then compensates the joint friction of its model, if any
     (:class:`~ucontrol.control.friction_compensation.FrictionCompensation`).
     """
-    table = dict(scene.controller)
-    kind = check_controller_table(table)
-    view = controller_view(scene, table.pop("model", None))
+    kind, view, table = _believed_scene(scene)
     controller = _BUILDERS[kind](view, table)
     friction = view.joint_friction
     if kind == "zero" or friction is None or not (friction.coulomb.any() or friction.has_viscous):
         return controller
     return FrictionCompensation(controller, view.robot, friction)
+
+
+def retarget_controller(controller: Controller, scene: SceneData) -> bool:
+    """Give ``controller`` the believed inertias of ``scene``; whether it took them.
+
+    ``controller``, built by :func:`build_controller` for a scene that differs from ``scene``
+    in the controller's believed inertias alone (``[controller.model]`` ``mass_scale`` and
+    ``com_offset``, ``[controller]`` ``mass_scale``), takes those of ``scene``
+    (:meth:`~ucontrol.control.BrogliatoController.use_inertias`): it then runs as the
+    controller :func:`build_controller` builds for ``scene`` once ``reset()``. For the
+    campaigns' workers, which keep their built controllers for runs that draw other masses.
+
+    Returns:
+        Whether it took them; False, with nothing changed, for every controller but a rigid
+        :class:`~ucontrol.control.BrogliatoController` (one compensating joint friction, the
+        flexible joints' law, other types), and for a believed robot whose kinematics are not
+        the controller's: then build a new one.
+
+    Raises:
+        UnknownKeyError: A key of ``scene``'s ``[controller]`` or ``[controller.model]`` table
+            that they do not define.
+        NotFoundError: Unknown controller type, or a link or surface name the scene does not
+            have.
+    """
+    kind, view, table = _believed_scene(scene)
+    if kind != "brogliato":
+        return False
+    from ucontrol.control.brogliato_controller import BrogliatoController  # as _brogliato
+
+    if not isinstance(controller, BrogliatoController):
+        return False
+    return controller.use_inertias(_brogliato_robot(view, table))
+
+
+def _believed_scene(scene: SceneData) -> tuple[str, SceneData, dict[str, Any]]:
+    """The controller type of ``scene``, the scene as the controller believes it, its table.
+
+    The table is the ``[controller]`` table without its ``model``, which made the view
+    (:func:`controller_view`).
+    """
+    table = dict(scene.controller)
+    kind = check_controller_table(table)
+    return kind, controller_view(scene, table.pop("model", None)), table
 
 
 def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneData:
@@ -215,7 +257,7 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
         gamma2=require_key(table, section, "gamma2"),
         **{key: table[key] for key in _BROGLIATO_GAIN_KEYS if key in table},
     )
-    robot = scene.robot.with_scaled_inertia(table.get("mass_scale", 1.0))
+    robot = _brogliato_robot(scene, table)
     posture = table.get("posture", scene.q0)
     if scene.flexible is not None:  # the passivity-based law, through the motors (casadi)
         from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
@@ -224,6 +266,16 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
             robot, scene.flexible, task, cycle, gains, posture=posture
         )
     return BrogliatoController(robot, task, cycle, gains, posture=posture)
+
+
+def _brogliato_robot(view: SceneData, table: Mapping[str, Any]) -> RobotModel:
+    """The robot of a ``type = "brogliato"`` controller: its view's, with ``mass_scale``.
+
+    Args:
+        view: The scene as the controller believes it (:func:`controller_view`).
+        table: The ``[controller]`` table.
+    """
+    return view.robot.with_scaled_inertia(table.get("mass_scale", 1.0))
 
 
 def _reference_spreading(scene: SceneData, table: Mapping[str, Any]) -> Controller:
