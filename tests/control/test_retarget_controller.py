@@ -21,7 +21,7 @@ from ucontrol.campaign.overrides import apply_overrides
 from ucontrol.control import BrogliatoController, ContactState, FlexibleBrogliatoController
 from ucontrol.control.friction_compensation import FrictionCompensation
 from ucontrol.control.phase import Phase
-from ucontrol.exceptions import UnknownKeyError
+from ucontrol.exceptions import NotFoundError, UnknownKeyError
 from ucontrol.log import Log
 from ucontrol.model.robot_model import SMALL_ROBOT_MAX_NV
 from ucontrol.scene import Scene, builtin_scene
@@ -200,6 +200,10 @@ def test_a_believed_robot_of_other_kinematics_or_actuation_is_refused() -> None:
 def test_a_bad_believed_model_table_raises_as_the_builder() -> None:
     controller = _scene("two_link_one_constraint", {}).build_controller()
     scene = _scene("two_link_one_constraint", {})
-    bad = dataclasses.replace(scene, controller={**scene.controller, "model": {"masses": 1.1}})
-    with pytest.raises(UnknownKeyError, match="masses"):
-        retarget_controller(controller, bad)
+    for model, error, match in (
+        ({"masses": 1.1}, UnknownKeyError, "masses"),
+        ({"mass_scale": {"link9": 1.1}}, NotFoundError, "link9.*link1"),
+    ):
+        bad = dataclasses.replace(scene, controller={**scene.controller, "model": model})
+        with pytest.raises(error, match=match):
+            retarget_controller(controller, bad)

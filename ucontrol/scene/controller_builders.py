@@ -116,7 +116,9 @@ def build_controller(scene: SceneData) -> Controller:
     controller but ``zero`` then compensates the joint friction of its model, if any
     (:class:`~ucontrol.control.friction_compensation.FrictionCompensation`).
     """
-    kind, view, table = _believed_scene(scene)
+    table = dict(scene.controller)
+    kind = check_controller_table(table)
+    view = controller_view(scene, table.pop("model", None))
     controller = _BUILDERS[kind](view, table)
     friction = view.joint_friction
     if kind == "zero" or friction is None or not (friction.coulomb.any() or friction.has_viscous):
@@ -143,28 +145,19 @@ def retarget_controller(controller: Controller, scene: SceneData) -> bool:
     Raises:
         UnknownKeyError: A key of ``scene``'s ``[controller]`` or ``[controller.model]`` table
             that they do not define.
-        NotFoundError: Unknown controller type, or a link or surface name the scene does not
-            have.
+        NotFoundError: Unknown controller type, or a link name the scene does not have.
     """
-    kind, view, table = _believed_scene(scene)
-    if kind != "brogliato":
+    table = dict(scene.controller)
+    if check_controller_table(table) != "brogliato":
         return False
     from ucontrol.control.brogliato_controller import BrogliatoController  # as _brogliato
 
     if not isinstance(controller, BrogliatoController):
         return False
-    return controller.use_inertias(_brogliato_robot(view, table))
-
-
-def _believed_scene(scene: SceneData) -> tuple[str, SceneData, dict[str, Any]]:
-    """The controller type of ``scene``, the scene as the controller believes it, its table.
-
-    The table is the ``[controller]`` table without its ``model``, which made the view
-    (:func:`controller_view`).
-    """
-    table = dict(scene.controller)
-    kind = check_controller_table(table)
-    return kind, controller_view(scene, table.pop("model", None)), table
+    # The robot of controller_view's scene, without the rest of that scene (its contacts,
+    # friction and checks, which only a build reads).
+    robot = _believed_robot(scene, table.pop("model", None))
+    return controller.use_inertias(_brogliato_robot(robot, table))
 
 
 def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneData:
@@ -182,12 +175,7 @@ def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneD
     """
     if model is None:
         return scene
-    check_keys("[controller.model]", model, _MODEL_KEYS)
-    robot = perturbed_robot(
-        scene.robot,
-        mass_scale=model.get("mass_scale", 1.0),
-        com_offset=model.get("com_offset"),
-    )
+    robot = _believed_robot(scene, model)
     believed = model.get("surfaces", {})
     check_keys("[controller.model.surfaces]", believed, {c.surface.name for c in scene.contacts})
     contacts = []
@@ -209,6 +197,23 @@ def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneD
         )
     return dataclasses.replace(
         scene, robot=robot, contacts=tuple(contacts), joint_friction=friction
+    )
+
+
+def _believed_robot(scene: SceneData, model: Mapping[str, Any] | None) -> RobotModel:
+    """The robot of :func:`controller_view`: the scene's with the inertias ``model`` gives.
+
+    Raises:
+        UnknownKeyError: A key of ``model`` that :func:`controller_view` does not define.
+        NotFoundError: A link name the scene does not have.
+    """
+    if model is None:
+        return scene.robot
+    check_keys("[controller.model]", model, _MODEL_KEYS)
+    return perturbed_robot(
+        scene.robot,
+        mass_scale=model.get("mass_scale", 1.0),
+        com_offset=model.get("com_offset"),
     )
 
 
@@ -257,7 +262,7 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
         gamma2=require_key(table, section, "gamma2"),
         **{key: table[key] for key in _BROGLIATO_GAIN_KEYS if key in table},
     )
-    robot = _brogliato_robot(scene, table)
+    robot = _brogliato_robot(scene.robot, table)
     posture = table.get("posture", scene.q0)
     if scene.flexible is not None:  # the passivity-based law, through the motors (casadi)
         from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
@@ -268,14 +273,15 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
     return BrogliatoController(robot, task, cycle, gains, posture=posture)
 
 
-def _brogliato_robot(view: SceneData, table: Mapping[str, Any]) -> RobotModel:
-    """The robot of a ``type = "brogliato"`` controller: its view's, with ``mass_scale``.
+def _brogliato_robot(believed: RobotModel, table: Mapping[str, Any]) -> RobotModel:
+    """The robot of a ``type = "brogliato"`` controller: ``believed`` with ``mass_scale``.
 
     Args:
-        view: The scene as the controller believes it (:func:`controller_view`).
+        believed: The robot of the scene as the controller believes it
+            (:func:`controller_view`).
         table: The ``[controller]`` table.
     """
-    return view.robot.with_scaled_inertia(table.get("mass_scale", 1.0))
+    return believed.with_scaled_inertia(table.get("mass_scale", 1.0))
 
 
 def _reference_spreading(scene: SceneData, table: Mapping[str, Any]) -> Controller:
