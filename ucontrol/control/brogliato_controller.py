@@ -32,6 +32,7 @@ is checked against, tests/test_paths_agree.py).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -48,7 +49,7 @@ from ucontrol.control.task_coordinates import TaskCoordinates
 from ucontrol.exceptions import InvalidParameterError, NotFoundError
 from ucontrol.model.compile_cache import definition_key
 from ucontrol.model.compiled_function import CompiledFunction
-from ucontrol.model.robot_model import RobotModel
+from ucontrol.model.robot_model import RobotModel, inertia_parameters
 
 if TYPE_CHECKING:
     import casadi as ca
@@ -184,6 +185,7 @@ class BrogliatoController:
         # The rigid law (subclasses bring their own): one casadi Function, compiled or run by
         # casadi's virtual machine (UCONTROL_NO_COMPILE=1, no C compiler).
         self._rigid_law: CompiledFunction | None = None
+        self._inertia_input: NDArray[np.float64] | None = None  # the law's, if it has one
         # λ_d applied on the task rows (the state profile's output), or None: the time
         # profile's, ``desired.force``.
         self._lambda_d_output: Vector | None = None
@@ -229,12 +231,11 @@ class BrogliatoController:
         self._configuration_input = inputs.get("q")
         self._law_index = {name: law.index_in(name) for name in names}
         self._run_law = law.runner()
-        self._bind_data(self._data)
         inputs["parameters"][:] = _law_parameters(task, gains)  # constant per controller
-        if "inertia" in inputs:  # the model's inertias (e.g. mass-scaled), constant as well
-            from ucontrol.model.robot_model import inertia_parameters
-
-            inputs["inertia"][:] = inertia_parameters(model)
+        # The model's inertias (e.g. mass-scaled) where the law has them as an input: written
+        # with the data's bindings, per model (use_inertias).
+        self._inertia_input = inputs.get("inertia")
+        self._bind_model()
         # The other inputs are written in place at each call: v, q ⊖ q_p, the force term, and
         # the columns of the target (X_d, dX_d, ddX_d) and of the reference (X_d, dX_d),
         # each (m,).
@@ -259,6 +260,46 @@ class BrogliatoController:
         self._tau_output = outputs["tau"]
         if state_force:
             self._lambda_d_output = law.output_buffer(law.index_out("lambda_d"))
+
+    def _bind_model(self) -> None:
+        """Bind the law to the controller's own data and write its model's inertias."""
+        self._bind_data(self._data)
+        if self._inertia_input is not None:
+            self._inertia_input[:] = inertia_parameters(self._model)
+
+    def use_inertias(self, robot: RobotModel) -> bool:
+        """Take the masses, centres of mass and rotational inertias of ``robot``.
+
+        ``robot`` is this controller's :attr:`robot` with other inertias, e.g. another draw of
+        a campaign's believed masses (:func:`~ucontrol.model.model_uncertainty.perturbed_robot`,
+        :meth:`RobotModel.with_scaled_inertia`). From then on each call is that of a
+        controller built with ``robot``, without building its law again: :attr:`robot` is
+        ``robot``, M and h come from a new Pinocchio data of its model, and the law's
+        ``inertia`` input (the symbolic kinematics, :func:`_symbolic_kinematics`) holds its
+        inertias. What the controller derived from its robot when it was built is kinematic and
+        is kept: the law itself (its definition excludes the inertias), the task coordinates
+        (frame, A, b), the phase machine and its cycle, the posture, whether the task is
+        redundant. The plant's data (:meth:`use_plant_data`) is given up for the controller's
+        own, as a new controller has it; the state of the run (phases, events, measurements) is
+        kept: :meth:`reset` starts a new run.
+
+        Args:
+            robot: The controller's new model: the kinematics (joints, their placements and
+                limits, frames, armature, gravity) and the actuation of :attr:`robot`.
+
+        Returns:
+            Whether the inertias were taken. False, with nothing changed, for a robot of other
+            kinematics or actuation, or for a subclass with a law of its own (the flexible
+            joints' law, :class:`~ucontrol.control.FlexibleBrogliatoController`).
+        """
+        if self._rigid_law is None or robot.nu != self.robot.nu:
+            return False
+        if _with_inertias(robot.model, self._model.inertias) != self._model:
+            return False  # Pinocchio's equality: every field but the inertias
+        self.robot, self._model, self._data = robot, robot.model, pin.Data(robot.model)
+        self._plant_terms = False
+        self._bind_model()
+        return True
 
     def use_plant_data(self, data: pin.Data | None) -> bool:
         """Read M(q) and h(q, v) from the plant's evaluation instead of computing them.
@@ -564,12 +605,18 @@ def _law_parameters(task: TaskCoordinates, gains: BrogliatoGains) -> Vector:
     )
 
 
+def _with_inertias(model: pin.Model, inertias: Sequence[pin.Inertia]) -> pin.Model:
+    """A copy of ``model`` whose bodies have ``inertias`` (one per joint, the universe first)."""
+    copy = pin.Model(model)
+    for i, inertia in enumerate(inertias):
+        copy.inertias[i] = inertia
+    return copy
+
+
 def _without_inertias(model: pin.Model) -> str:
     """``model``'s serialized form with every body's inertia zeroed (the law's input)."""
-    copy = pin.Model(model)
-    for i in range(len(copy.inertias)):
-        copy.inertias[i] = pin.Inertia.Zero()
-    return str(copy.saveToString())
+    zero = [pin.Inertia.Zero()] * model.njoints
+    return str(_with_inertias(model, zero).saveToString())
 
 
 def _law_name(state_force: bool) -> str:

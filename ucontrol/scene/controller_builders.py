@@ -33,6 +33,7 @@ from ucontrol.scene.pronk_table import pronk_from_table, pronk_keys
 from ucontrol.scene.raibert_table import RAIBERT_KEYS, raibert_from_table
 
 if TYPE_CHECKING:
+    from ucontrol.model.robot_model import RobotModel
     from ucontrol.scene.scene_data import SceneData
 
 _BROGLIATO_GAIN_KEYS = ("force_gain", "posture_gain", "null_space_gain")
@@ -125,6 +126,40 @@ def build_controller(scene: SceneData) -> Controller:
     return FrictionCompensation(controller, view.robot, friction)
 
 
+def retarget_controller(controller: Controller, scene: SceneData) -> bool:
+    """Give ``controller`` the believed inertias of ``scene``; whether it took them.
+
+    ``controller``, built by :func:`build_controller` for a scene that differs from ``scene``
+    in the controller's believed inertias alone (``[controller.model]`` ``mass_scale`` and
+    ``com_offset``, ``[controller]`` ``mass_scale``), takes those of ``scene``
+    (:meth:`~ucontrol.control.BrogliatoController.use_inertias`): it then runs as the
+    controller :func:`build_controller` builds for ``scene`` once ``reset()``. For the
+    campaigns' workers, which keep their built controllers for runs that draw other masses.
+
+    Returns:
+        Whether it took them; False, with nothing changed, for every controller but a rigid
+        :class:`~ucontrol.control.BrogliatoController` (one compensating joint friction, the
+        flexible joints' law, other types), and for a believed robot whose kinematics are not
+        the controller's: then build a new one.
+
+    Raises:
+        UnknownKeyError: A key of ``scene``'s ``[controller]`` or ``[controller.model]`` table
+            that they do not define.
+        NotFoundError: Unknown controller type, or a link name the scene does not have.
+    """
+    table = dict(scene.controller)
+    if check_controller_table(table) != "brogliato":
+        return False
+    from ucontrol.control.brogliato_controller import BrogliatoController  # as _brogliato
+
+    if not isinstance(controller, BrogliatoController):
+        return False
+    # The robot of controller_view's scene, without the rest of that scene (its contacts,
+    # friction and checks, which only a build reads).
+    robot = _believed_robot(scene, table.pop("model", None))
+    return controller.use_inertias(_brogliato_robot(robot, table))
+
+
 def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneData:
     """The scene as a controller with a ``[controller.model]`` table believes it is.
 
@@ -140,12 +175,7 @@ def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneD
     """
     if model is None:
         return scene
-    check_keys("[controller.model]", model, _MODEL_KEYS)
-    robot = perturbed_robot(
-        scene.robot,
-        mass_scale=model.get("mass_scale", 1.0),
-        com_offset=model.get("com_offset"),
-    )
+    robot = _believed_robot(scene, model)
     believed = model.get("surfaces", {})
     check_keys("[controller.model.surfaces]", believed, {c.surface.name for c in scene.contacts})
     contacts = []
@@ -167,6 +197,23 @@ def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneD
         )
     return dataclasses.replace(
         scene, robot=robot, contacts=tuple(contacts), joint_friction=friction
+    )
+
+
+def _believed_robot(scene: SceneData, model: Mapping[str, Any] | None) -> RobotModel:
+    """The robot of :func:`controller_view`: the scene's with the inertias ``model`` gives.
+
+    Raises:
+        UnknownKeyError: A key of ``model`` that :func:`controller_view` does not define.
+        NotFoundError: A link name the scene does not have.
+    """
+    if model is None:
+        return scene.robot
+    check_keys("[controller.model]", model, _MODEL_KEYS)
+    return perturbed_robot(
+        scene.robot,
+        mass_scale=model.get("mass_scale", 1.0),
+        com_offset=model.get("com_offset"),
     )
 
 
@@ -215,7 +262,7 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
         gamma2=require_key(table, section, "gamma2"),
         **{key: table[key] for key in _BROGLIATO_GAIN_KEYS if key in table},
     )
-    robot = scene.robot.with_scaled_inertia(table.get("mass_scale", 1.0))
+    robot = _brogliato_robot(scene.robot, table)
     posture = table.get("posture", scene.q0)
     if scene.flexible is not None:  # the passivity-based law, through the motors (casadi)
         from ucontrol.control.flexible_brogliato_controller import FlexibleBrogliatoController
@@ -224,6 +271,17 @@ def _brogliato(scene: SceneData, table: Mapping[str, Any]) -> Controller:
             robot, scene.flexible, task, cycle, gains, posture=posture
         )
     return BrogliatoController(robot, task, cycle, gains, posture=posture)
+
+
+def _brogliato_robot(believed: RobotModel, table: Mapping[str, Any]) -> RobotModel:
+    """The robot of a ``type = "brogliato"`` controller: ``believed`` with ``mass_scale``.
+
+    Args:
+        believed: The robot of the scene as the controller believes it
+            (:func:`controller_view`).
+        table: The ``[controller]`` table.
+    """
+    return believed.with_scaled_inertia(table.get("mass_scale", 1.0))
 
 
 def _reference_spreading(scene: SceneData, table: Mapping[str, Any]) -> Controller:
