@@ -176,6 +176,30 @@ def test_another_controller_type_is_refused() -> None:
     )
 
 
+def test_other_believed_surfaces_are_refused() -> None:
+    """A surface the controller believes elsewhere (the scene's, or its model's) is refused.
+
+    The plant's surface, where the controller believes one of its own, is not its concern.
+    """
+    mass = {"controller.model.mass_scale": 0.85}
+    _assert_refused(
+        "two_link_one_constraint",
+        mass,
+        {"controller.model.mass_scale": 1.15, "surfaces.ground.point.1": -2e-3},
+        BrogliatoController,
+    )
+    believed = {**mass, "controller.model.surfaces.ground.point": [0.0, 0.0, 0.0]}
+    _assert_refused(
+        "two_link_one_constraint",
+        believed,
+        {**believed, "controller.model.surfaces.ground.point": [0.0, -1e-3, 0.0]},
+        BrogliatoController,
+    )
+    controller = _scene("two_link_one_constraint", believed).build_controller()
+    plant = {**believed, "surfaces.ground.point.1": -2e-3, "controller.model.mass_scale": 1.1}
+    assert retarget_controller(controller, _scene("two_link_one_constraint", plant))
+
+
 def _longer_forearm(scene: Scene) -> Scene:
     """``scene`` whose elbow is 2 % further from the shoulder (other kinematics)."""
     model = scene.robot.model.copy()

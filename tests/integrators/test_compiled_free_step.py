@@ -261,8 +261,8 @@ def test_a_free_step_takes_restitutions_non_zero_where_its_own_are() -> None:
     """Rows without restitution have constant-0 rebound terms: a new one there is refused."""
     rules = ImpactRules(np.array([0.5, 0.0]), 0.0, "closing")
     step = CompiledFreeStep(
-        np.zeros((2, 2), order="F"), np.zeros(2), 2, dt=1e-3, theta=0.5, horizon=5e-4, flexible=None,
-        viscous=None, rules=rules,
+        np.zeros((2, 2), order="F"), np.zeros(2), 2, dt=1e-3, theta=0.5, horizon=5e-4,
+        flexible=None, viscous=None, rules=rules,
     )  # fmt: skip
     step.use_restitution(np.array([0.9, 0.0]))
     for wrong in ([0.0, 0.0], [0.5, 0.1], [0.5]):
@@ -271,16 +271,16 @@ def test_a_free_step_takes_restitutions_non_zero_where_its_own_are() -> None:
 
 
 def _drawn(scene: Any, draw: dict[str, Any]) -> Any:
-    """``scene`` with other numbers: ``draw`` maps "contacts", "stops" or a surface's name to
-    the entries set on each (tests/campaign/test_build_cache.py runs integrators given them)."""
+    """``scene`` with other numbers, ``draw``: "contacts", "stops" or a surface's name to entries.
+
+    (tests/campaign/test_build_cache.py runs integrators given drawn numbers.)
+    """
     contacts = []
     for contact in scene.contacts:
         surface = contact.surface
         if surface.name in draw:
             surface = dataclasses.replace(surface, **draw[surface.name])
-        contacts.append(
-            dataclasses.replace(contact, surface=surface, **draw.get("contacts", {}))
-        )
+        contacts.append(dataclasses.replace(contact, surface=surface, **draw.get("contacts", {})))
     stops = tuple(dataclasses.replace(s, **draw.get("stops", {})) for s in scene.stops)
     return dataclasses.replace(scene, contacts=tuple(contacts), stops=stops)
 

@@ -87,14 +87,11 @@ def integrator_family(scene_path: str, table: Mapping[str, Any]) -> str:
 
 
 def controller_family(scene_path: str, table: Mapping[str, Any]) -> str:
-    """:func:`controller_key` without the numbers of :data:`CONSTRAINT_NUMBERS` and the
-    believed inertias (:data:`INERTIA_NUMBERS`)."""
+    """:func:`controller_key` without :data:`CONSTRAINT_NUMBERS` and :data:`INERTIA_NUMBERS`."""
     return controller_key(scene_path, _without_numbers(table, INERTIA_NUMBERS))
 
 
-def _without_numbers(
-    table: Mapping[str, Any], paths: Iterable[tuple[str, ...]]
-) -> dict[str, Any]:
+def _without_numbers(table: Mapping[str, Any], paths: Iterable[tuple[str, ...]]) -> dict[str, Any]:
     """A copy of ``table`` without the :data:`CONSTRAINT_NUMBERS` and the entries at ``paths``."""
     copy = dict(table)
     for name, keys in CONSTRAINT_NUMBERS.items():

@@ -242,11 +242,11 @@ def prepare_worker(task: Mapping[str, Any], cache: BuildCache = WORKER_CACHE) ->
     return ""
 
 
-def _cached_scene(
-    table: dict[str, Any], path: Path
-) -> tuple[Any, dict[str, str], dict[str, str]]:
-    """The scene of ``table`` (from file ``path``) that takes a built integrator, its keys and
-    its families (:mod:`~ucontrol.campaign.build_cache`)."""
+def _cached_scene(table: dict[str, Any], path: Path) -> tuple[Any, dict[str, str], dict[str, str]]:
+    """The scene of ``table`` (from file ``path``) that takes a built integrator, and its keys.
+
+    Its keys and its families, by kind (:mod:`~ucontrol.campaign.build_cache`).
+    """
     from ucontrol.campaign.prebuilt_scene import PrebuiltScene
 
     built = PrebuiltScene.from_dict(table, base_dir=path.parent, default_name=path.stem)

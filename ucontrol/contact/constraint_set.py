@@ -355,8 +355,7 @@ class ConstraintSet:
         """
         sets = (self, other)
         if any(
-            s.sphere_contacts or s.collision is not None or s.bilateral is not None
-            for s in sets
+            s.sphere_contacts or s.collision is not None or s.bilateral is not None for s in sets
         ) or any(s.clearances or s.time_dependent for s in sets):
             return False
 

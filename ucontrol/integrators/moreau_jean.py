@@ -493,10 +493,12 @@ class MoreauJean:
     def reset(self) -> None:
         """Start a new run as a new integrator would: no step memory, no warm starts.
 
-        Renews :attr:`memory` and resets the contact solvers, which start each solve from the
-        last one's solution.
+        Renews :attr:`memory`, resets the contact solvers, which start each solve from the
+        last one's solution, and forgets that :attr:`evaluation_data` was read (a controller of
+        the last run shared it; the next run's reads it again if it does).
         """
         self.memory = fresh_memory(self.constraints.size)
+        self._shared_data = False
         self.solver.reset()
         if self.friction_solver is not None:
             self.friction_solver.reset()

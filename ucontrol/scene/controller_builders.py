@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from ucontrol._validation import as_bool, check_keys, require_key
 from ucontrol.contact.plane import Plane
@@ -33,6 +35,7 @@ from ucontrol.scene.pronk_table import pronk_from_table, pronk_keys
 from ucontrol.scene.raibert_table import RAIBERT_KEYS, raibert_from_table
 
 if TYPE_CHECKING:
+    from ucontrol.contact.point_contact import PointContact
     from ucontrol.model.robot_model import RobotModel
     from ucontrol.scene.scene_data import SceneData
 
@@ -131,7 +134,8 @@ def retarget_controller(controller: Controller, scene: SceneData) -> bool:
 
     ``controller``, built by :func:`build_controller` for a scene that differs from ``scene``
     in the controller's believed inertias alone (``[controller.model]`` ``mass_scale`` and
-    ``com_offset``, ``[controller]`` ``mass_scale``), takes those of ``scene``
+    ``com_offset``, ``[controller]`` ``mass_scale``) and believing the same contacts of its
+    frame (the same surfaces), takes those of ``scene``
     (:meth:`~ucontrol.control.BrogliatoController.use_inertias`): it then runs as the
     controller :func:`build_controller` builds for ``scene`` once ``reset()``. For the
     campaigns' workers, which keep their built controllers for runs that draw other masses.
@@ -139,8 +143,9 @@ def retarget_controller(controller: Controller, scene: SceneData) -> bool:
     Returns:
         Whether it took them; False, with nothing changed, for every controller but a rigid
         :class:`~ucontrol.control.BrogliatoController` (one compensating joint friction, the
-        flexible joints' law, other types), and for a believed robot whose kinematics are not
-        the controller's: then build a new one.
+        flexible joints' law, other types), for other believed surfaces of the tracked
+        contacts (or moving ones), and for a believed robot whose kinematics are not the
+        controller's: then build a new one.
 
     Raises:
         UnknownKeyError: A key of ``scene``'s ``[controller]`` or ``[controller.model]`` table
@@ -151,13 +156,30 @@ def retarget_controller(controller: Controller, scene: SceneData) -> bool:
     if check_controller_table(table) != "brogliato":
         return False
     from ucontrol.control.brogliato_controller import BrogliatoController  # as _brogliato
+    from ucontrol.control.controller_table import tracked_contacts
 
     if not isinstance(controller, BrogliatoController):
         return False
-    # The robot of controller_view's scene, without the rest of that scene (its contacts,
-    # friction and checks, which only a build reads).
-    robot = _believed_robot(scene, table.pop("model", None))
+    # The robot and contacts of controller_view's scene, without the rest of that scene (its
+    # joint friction and checks, which only a build reads).
+    model = table.pop("model", None)
+    tracked = tracked_contacts(table, controller.task.frame, _believed_contacts(scene, model))
+    if not _same_contacts(tracked, controller.task.contacts):
+        return False
+    robot = _believed_robot(scene, model)
     return controller.use_inertias(_brogliato_robot(robot, table))
+
+
+def _same_contacts(given: Sequence[PointContact], built: Sequence[PointContact]) -> bool:
+    """Whether a controller's tracked contacts ``built`` are those ``given`` (fixed planes)."""
+    return len(given) == len(built) and all(
+        (a.name, a.frame, a.radius) == (b.name, b.frame, b.radius)
+        and a.surface.motion is None
+        and b.surface.motion is None
+        and np.array_equal(a.surface.point, b.surface.point)
+        and np.array_equal(a.surface.normal, b.surface.normal)
+        for a, b in zip(given, built, strict=True)
+    )
 
 
 def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneData:
@@ -176,7 +198,28 @@ def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneD
     if model is None:
         return scene
     robot = _believed_robot(scene, model)
-    believed = model.get("surfaces", {})
+    friction = scene.joint_friction
+    if "joint_friction" in model:
+        friction = JointFriction.from_table(
+            scene.robot, model["joint_friction"], "[controller.model] joint_friction"
+        )
+    return dataclasses.replace(
+        scene, robot=robot, contacts=_believed_contacts(scene, model), joint_friction=friction
+    )
+
+
+def _believed_contacts(
+    scene: SceneData, model: Mapping[str, Any] | None
+) -> tuple[PointContact, ...]:
+    """The contacts of :func:`controller_view`: the scene's, on the surfaces ``model`` gives.
+
+    Raises:
+        UnknownKeyError: A key of a believed surface's table that is not a plane's.
+        NotFoundError: A surface name the scene does not have.
+    """
+    believed = {} if model is None else model.get("surfaces", {})
+    if not believed:
+        return scene.contacts
     check_keys("[controller.model.surfaces]", believed, {c.surface.name for c in scene.contacts})
     contacts = []
     for contact in scene.contacts:
@@ -190,14 +233,7 @@ def controller_view(scene: SceneData, model: Mapping[str, Any] | None) -> SceneD
             )
             contact = dataclasses.replace(contact, surface=plane, name=contact.name)
         contacts.append(contact)
-    friction = scene.joint_friction
-    if "joint_friction" in model:
-        friction = JointFriction.from_table(
-            scene.robot, model["joint_friction"], "[controller.model] joint_friction"
-        )
-    return dataclasses.replace(
-        scene, robot=robot, contacts=tuple(contacts), joint_friction=friction
-    )
+    return tuple(contacts)
 
 
 def _believed_robot(scene: SceneData, model: Mapping[str, Any] | None) -> RobotModel:
