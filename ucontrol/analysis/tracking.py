@@ -85,10 +85,16 @@ class TrackingReport:
         }
 
 
-def tracking(log: Log) -> TrackingReport:
-    """Tracking and force errors of a run of :class:`ucontrol.control.BrogliatoController`."""
+def tracking(log: Log, *, cycles: list[CycleEvents] | None = None) -> TrackingReport:
+    """Tracking and force errors of a run of :class:`ucontrol.control.BrogliatoController`.
+
+    Args:
+        log: The run's log.
+        cycles: ``cycle_events(log)``, or None to compute them.
+    """
     error = np.linalg.norm(log.task_position - log.task_desired, axis=1)  # [m]
-    cycles = cycle_events(log)
+    if cycles is None:
+        cycles = cycle_events(log)
     first = cycles[0].start if cycles else len(log)
     return TrackingReport(
         initial_free_error_max=float(error[:first].max(initial=0.0)),

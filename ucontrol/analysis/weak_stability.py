@@ -21,6 +21,7 @@ from itertools import pairwise
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ucontrol.analysis.cycles import CycleEvents, cycle_events, finite_or_none
 from ucontrol.analysis.impacts import impact_mask
@@ -106,22 +107,38 @@ class WeakStabilityReport:
         }
 
 
-def weak_stability(log: Log) -> WeakStabilityReport:
+def weak_stability(
+    log: Log,
+    *,
+    cycles: list[CycleEvents] | None = None,
+    impacts: NDArray[np.bool_] | None = None,
+) -> WeakStabilityReport:
     """Measure the weak-stability conditions on a log of a phase-machine controller.
 
     Args:
         log: A run of :class:`ucontrol.control.BrogliatoController` (fields ``V``, ``V1``,
             ``phase``, ``contact_phase``, ``events``).
+        cycles: ``cycle_events(log)``, or None to compute them.
+        impacts: ``impact_mask(log)``, shape (N, n), or None to compute it.
     """
-    return WeakStabilityReport([_cycle(log, cycle) for cycle in cycle_events(log)])
+    if cycles is None:
+        cycles = cycle_events(log)
+    if impacts is None:
+        impacts = impact_mask(log)
+    stepped = impacts.any(axis=1)  # rows whose step holds an impact
+    return WeakStabilityReport([_cycle(log, cycle, impacts, stepped) for cycle in cycles])
 
 
-def _cycle(log: Log, cycle: CycleEvents) -> CycleStability:
+def _cycle(
+    log: Log,
+    cycle: CycleEvents,
+    impacts: NDArray[np.bool_],
+    stepped: NDArray[np.bool_],
+) -> CycleStability:
     rows = slice(cycle.start, cycle.stop)
     V = log.V[rows]
     transiting = np.isin(log.phase[rows], [int(phase) for phase in TRANSITION_PHASES])
     rise = np.diff(V, append=V[-1])  # V[k+1] - V[k]: the change over the step from row k
-    impacts = impact_mask(log)[rows].any(axis=1)
     return CycleStability(
         index=cycle.index,
         tau0=float(log.t[cycle.start]),
@@ -129,18 +146,24 @@ def _cycle(log: Log, cycle: CycleEvents) -> CycleStability:
         V_tau0=float(V[0]),
         V1_tau0=float(log.V1[cycle.start]),
         transition_rise=float(np.maximum(rise[transiting], 0.0).sum()),
-        impact_jumps=float(rise[transiting & impacts].sum()),
+        impact_jumps=float(rise[transiting & stepped[rows]].sum()),
         omega_max_rise=_max_rise(V, ~transiting),
         V_end=float(V[-1]),
-        **_contact_measures(log, cycle),
+        **_contact_measures(log, cycle, impacts),
     )
 
 
-def _contact_measures(log: Log, cycle: CycleEvents) -> dict[str, list[float]]:
-    """First-impact velocity, jumps of V, accumulation time and constrained force per contact."""
+def _contact_measures(
+    log: Log, cycle: CycleEvents, impacts: NDArray[np.bool_]
+) -> dict[str, list[float]]:
+    """First-impact velocity, jumps of V, accumulation time and constrained force per contact.
+
+    Args:
+        log: The run's log.
+        cycle: The cycle measured.
+        impacts: ``impact_mask(log)``, shape (N, n).
+    """
     columns = [log.constraint_index(name) for name in log.metadata["controller_contacts"]]
-    impacts = impact_mask(log)
-    dt = np.diff(log.t, append=log.t[-1])  # length of the step from each row [s]
     rows = np.arange(cycle.start, cycle.stop)
     velocity, jumps, accumulation, force = [], [], [], []
     last_row = len(log) - 1
@@ -153,7 +176,8 @@ def _contact_measures(log: Log, cycle: CycleEvents) -> dict[str, list[float]]:
         jumps.append(float((log.V[steps + 1] - log.V[steps]).sum()))
         if hits.size and math.isfinite(t_0) and math.isfinite(t_f):
             last = hits[-1]
-            accumulation.append(float(log.t[last] + dt[last] - log.t[hits[0]]))
+            step = log.t[last + 1] - log.t[last] if last < last_row else 0.0  # [s]
+            accumulation.append(float(log.t[last] + step - log.t[hits[0]]))
         else:
             accumulation.append(math.nan)
         held = rows[log.contact_phase[rows, i] == int(Phase.CONSTRAINED)]
