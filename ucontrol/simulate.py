@@ -23,8 +23,8 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
-from ucontrol.analysis.energy_balance import step_work
-from ucontrol.analysis.impacts import impact_mask
+from ucontrol.analysis.energy_balance import step_work, work_of
+from ucontrol.analysis.impacts import impact_cells, impact_mask, impacts_of
 from ucontrol.analysis.summary import summarize
 from ucontrol.control.controller import ContactState, Controller, LoggingController
 from ucontrol.exceptions import (
@@ -529,9 +529,7 @@ def _report_physics(
         warnings.warn(PlasticRedoWarning(plastic), stacklevel=4)
     dt = float(log.t[1] - log.t[0]) if len(log) > 1 else 0.0  # the run's step [s]
     pushed = [push.sample(dt) for push in scene.pushes] if dt > 0.0 else []
-    if impacts is None:
-        impacts = impact_mask(log)
-    _report_energy_gain(log, summary, pushed, impacts, step_work(log) if work is None else work)
+    _report_energy_gain(log, summary, pushed, impacts_of(log, impacts), work_of(log, None, work))
     if scene.constraints.bilateral is not None:
         _report_bilateral(scene.constraints.bilateral, log, summary)
     if summary.get("integrator") == "moreau_jean":
@@ -561,7 +559,7 @@ def _report_energy_gain(
     """
     steps = max(len(log) - 1, 0)
     gain = np.diff(log.energy[: steps + 1]) - work  # [J] per step
-    gain[impacts[:steps].any(axis=1)] = 0.0
+    gain[impact_cells(impacts[:steps])[0]] = 0.0
     gain[[k - 1 for k in pushed if 0 < k <= steps]] = 0.0  # the step that ends at a push
     accumulated = np.concatenate(([0.0], np.cumsum(gain)))
     low = np.minimum.accumulate(accumulated)

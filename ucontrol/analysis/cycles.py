@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ucontrol.control.phase import Event
+from ucontrol.exceptions import InvalidParameterError
 from ucontrol.log import Log
 
 #: Log fields a phase-machine controller writes and the cycle analyses read.
@@ -79,6 +80,28 @@ def cycle_events(log: Log) -> list[CycleEvents]:
                 accumulation_end=times(Event.ACCUMULATION_END),
                 takeoff=times(Event.TAKEOFF),
             )
+        )
+    return cycles
+
+
+def cycles_of(log: Log, cycles: list[CycleEvents] | None) -> list[CycleEvents]:
+    """The cycles of ``log``: ``cycles`` when a caller found them already, else found.
+
+    Args:
+        log: The run's log.
+        cycles: ``cycle_events(log)``, or None.
+
+    Raises:
+        InvalidParameterError: ``cycles`` are not cycle records ending at the last row of
+            ``log`` (those of another log).
+    """
+    if cycles is None:
+        return cycle_events(log)
+    if not all(isinstance(cycle, CycleEvents) for cycle in cycles) or (
+        cycles and cycles[-1].stop != len(log)
+    ):
+        raise InvalidParameterError(
+            "cycles", cycles, f"cycle_events(log) of this log (the last ending at row {len(log)})"
         )
     return cycles
 

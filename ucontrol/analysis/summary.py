@@ -8,8 +8,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ucontrol.analysis.cycles import CYCLE_FIELDS, cycle_events
-from ucontrol.analysis.energy_balance import step_work
-from ucontrol.analysis.impacts import impact_mask
+from ucontrol.analysis.energy_balance import work_of
+from ucontrol.analysis.impacts import impact_cells, impacts_of
 from ucontrol.log import SOLVED, UNSOLVED, Log
 
 #: Energy changes below this, relative to 1 + the largest absolute energy in [J], are rounding.
@@ -38,20 +38,21 @@ def summarize(
         theta: θ of the position update, used for the actuator work over a step.
         impacts: ``impact_mask(log)``, shape (N, n), or None to compute it.
         work: ``step_work(log, theta)`` in [J], shape (N - 1,), or None to compute it.
+
+    Raises:
+        ShapeError: ``impacts`` or ``work`` does not have the shape of ``log``'s.
     """
     t = log.t
     steps = max(len(log) - 1, 0)
     gap = log.gap
-    if impacts is None:
-        impacts = impact_mask(log)
+    impacts = impacts_of(log, impacts)
     step_impacts = impacts[:steps]
-    impact_steps = np.flatnonzero(step_impacts.any(axis=1))
+    impact_rows, impact_columns = impact_cells(step_impacts)
+    impact_steps = np.unique(impact_rows)
     energy_jump, worst_step = 0.0, None
     if impact_steps.size:
         k = impact_steps
-        if work is None:
-            work = step_work(log, theta)
-        jumps = log.energy[k + 1] - log.energy[k] - work[k]  # [J]
+        jumps = log.energy[k + 1] - log.energy[k] - work_of(log, theta, work)[k]  # [J]
         energy_jump, worst_step = float(np.max(jumps)), int(k[np.argmax(jumps)])
     summary = {
         "scene": log.metadata.get("scene", ""),
@@ -64,8 +65,10 @@ def summarize(
         "cpu_time_s": None if cpu_time_s is None else float(cpu_time_s),
         "constraints": log.constraint_names,
         "max_penetration": float(max(0.0, -gap.min())) if gap.size else 0.0,
-        "n_impacts": int(step_impacts.sum()),
-        "n_impacts_per_constraint": step_impacts.sum(axis=0).astype(int).tolist(),
+        "n_impacts": int(impact_rows.size),
+        "n_impacts_per_constraint": np.bincount(
+            impact_columns, minlength=step_impacts.shape[1]
+        ).tolist(),
         "energy_increase_at_impacts": max(0.0, energy_jump),
         "initial_energy": float(log.energy[0]) if len(log) else None,
         "final_energy": float(log.energy[-1]) if len(log) else None,

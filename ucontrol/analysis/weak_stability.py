@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ucontrol.analysis.cycles import CycleEvents, cycle_events, finite_or_none
-from ucontrol.analysis.impacts import impact_mask
+from ucontrol.analysis.cycles import CycleEvents, cycles_of, finite_or_none
+from ucontrol.analysis.impacts import impact_cells, impacts_of
 from ucontrol.control.phase import TRANSITION_PHASES, Phase
 from ucontrol.log import Log
 
@@ -120,13 +120,17 @@ def weak_stability(
             ``phase``, ``contact_phase``, ``events``).
         cycles: ``cycle_events(log)``, or None to compute them.
         impacts: ``impact_mask(log)``, shape (N, n), or None to compute it.
+
+    Raises:
+        InvalidParameterError: ``cycles`` are those of another log.
+        ShapeError: ``impacts`` does not have the shape of ``log``'s.
     """
-    if cycles is None:
-        cycles = cycle_events(log)
-    if impacts is None:
-        impacts = impact_mask(log)
-    stepped = impacts.any(axis=1)  # rows whose step holds an impact
-    return WeakStabilityReport([_cycle(log, cycle, impacts, stepped) for cycle in cycles])
+    impacts = impacts_of(log, impacts)
+    stepped = np.zeros(len(impacts), dtype=bool)  # rows whose step holds an impact
+    stepped[impact_cells(impacts)[0]] = True
+    return WeakStabilityReport(
+        [_cycle(log, cycle, impacts, stepped) for cycle in cycles_of(log, cycles)]
+    )
 
 
 def _cycle(
