@@ -168,13 +168,13 @@ def _contact_measures(
         impacts: ``impact_mask(log)``, shape (N, n).
     """
     columns = [log.constraint_index(name) for name in log.metadata["controller_contacts"]]
-    rows = np.arange(cycle.start, cycle.stop)
+    rows = slice(cycle.start, cycle.stop)
     velocity, jumps, accumulation, force = [], [], [], []
     last_row = len(log) - 1
     for i, column in enumerate(columns):
         t_0, t_f = cycle.first_impact[i], cycle.accumulation_end[i]
         end = t_f if math.isfinite(t_f) else math.inf  # [s]
-        hits = rows[impacts[rows, column] & (log.t[rows] < end)]
+        hits = cycle.start + np.flatnonzero(impacts[rows, column] & (log.t[rows] < end))
         velocity.append(float(log.normal_velocity[hits[0], column]) if hits.size else math.nan)
         steps = hits[hits < last_row]
         jumps.append(float((log.V[steps + 1] - log.V[steps]).sum()))
@@ -184,8 +184,8 @@ def _contact_measures(
             accumulation.append(float(log.t[last] + step - log.t[hits[0]]))
         else:
             accumulation.append(math.nan)
-        held = rows[log.contact_phase[rows, i] == int(Phase.CONSTRAINED)]
-        force.append(float(log.contact_force[held, i].min()) if held.size else math.nan)
+        held = log.contact_phase[rows, i] == int(Phase.CONSTRAINED)
+        force.append(float(log.contact_force[rows, i][held].min()) if held.any() else math.nan)
     return {
         "first_impact_velocity": velocity,
         "contact_impact_jumps": jumps,
