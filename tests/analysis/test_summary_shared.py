@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from conftest import ROBOTS
 
+from ucontrol.analysis.cycle_table import cycle_table
 from ucontrol.analysis.cycles import cycle_events
 from ucontrol.analysis.energy_balance import step_work
 from ucontrol.analysis.impacts import impact_cells, impact_mask
@@ -71,6 +72,32 @@ def test_run_summary_equals_the_analyses_called_one_by_one(name: str) -> None:
     alone.update({key: summary[key] for key in LOOP_KEYS})
     _report_physics(scene, log, alone)
     assert json.dumps(alone, sort_keys=True) == json.dumps(summary, sort_keys=True)
+
+
+def test_cycle_table_rows_are_the_analyses_of_each_cycle() -> None:
+    _, run = _run("two_link_one_constraint")
+    log = run.log
+    rows = cycle_table(log).splitlines()[2:]  # below the header and its rule
+    cycles = cycle_events(log)
+    stability, errors = weak_stability(log).cycles, tracking(log).cycles
+    assert len(rows) == len(cycles) == 2  # one declared contact
+
+    def cell(value: float, spec: str) -> str:
+        return format(value, spec) if np.isfinite(value) else "–"
+
+    for row, cycle, stable, error in zip(rows, cycles, stability, errors, strict=True):
+        times = (cycle.tau0, cycle.first_impact, cycle.accumulation_end, cycle.takeoff)
+        expected = [
+            str(cycle.index),
+            "end_effector/ground",
+            *(cell(t[0], ".3f") for t in times),
+            cell(stable.V_tau0, ".3e"),
+            cell(stable.transition_rise, ".3e"),
+            cell(error.free_error_max, ".2e"),
+            cell(error.force_error_mid[0], ".2e"),
+        ]
+        assert [text.strip() for text in row.strip("|").split("|")] == expected
+    assert rows[1].count("–") == 4  # the second cycle goes on past 15 s
 
 
 @pytest.mark.parametrize("shape", [(0, 3), (4, 0), (1, 1), (7, 2), (2000, 5), (300, 40)])
