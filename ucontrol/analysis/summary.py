@@ -37,10 +37,12 @@ def summarize(
             loaded machine's other work does not add), or None (not measured).
         theta: θ of the position update, used for the actuator work over a step.
         impacts: ``impact_mask(log)``, shape (N, n), or None to compute it.
-        work: ``step_work(log, theta)`` in [J], shape (N - 1,), or None to compute it.
+        work: ``step_work(log, theta)`` in [J], shape (N - 1,), or None to compute it (read
+            only when the run has impacts).
 
     Raises:
-        ShapeError: ``impacts`` or ``work`` does not have the shape of ``log``'s.
+        ShapeError: ``impacts``, or ``work`` where it is read, does not have the shape of
+            ``log``'s.
     """
     t = log.t
     steps = max(len(log) - 1, 0)
