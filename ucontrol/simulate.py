@@ -23,8 +23,8 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ucontrol._validation import as_positive, as_vector
-from ucontrol.analysis.energy_balance import step_work
-from ucontrol.analysis.impacts import impact_mask
+from ucontrol.analysis.energy_balance import step_work, work_of
+from ucontrol.analysis.impacts import impact_cells, impact_mask, impacts_of
 from ucontrol.analysis.summary import summarize
 from ucontrol.control.controller import ContactState, Controller, LoggingController
 from ucontrol.exceptions import (
@@ -421,14 +421,16 @@ def _run_summary(
     """
     log = loop.log
     wall_time, cpu_time = times
+    theta = loop.integrator.theta
+    impacts, work = impact_mask(log), step_work(log, theta)  # shared by summary and checks
     summary = summarize(
-        log, wall_time_s=wall_time, cpu_time_s=cpu_time, theta=loop.integrator.theta
+        log, wall_time_s=wall_time, cpu_time_s=cpu_time, theta=theta, impacts=impacts, work=work
     )
     summary["n_events"] = loop.n_events  # located by event-driven integrators; 0 otherwise
     summary["n_plastic_steps"] = loop.n_plastic  # Moreau–Jean steps redone plastic
     summary["interrupted"] = interrupted is not None
     summary["interrupted_by"] = interrupted
-    _report_physics(scene, log, summary)
+    _report_physics(scene, log, summary, impacts=impacts, work=work)
     return summary
 
 
@@ -489,8 +491,23 @@ def _step_count(scene: Scene, duration: float, h: float) -> int:
     return steps
 
 
-def _report_physics(scene: Scene, log: Log, summary: dict[str, Any]) -> None:
-    """Warnings, and summary entries, for what a run should not have done silently."""
+def _report_physics(
+    scene: Scene,
+    log: Log,
+    summary: dict[str, Any],
+    *,
+    impacts: NDArray[np.bool_] | None = None,
+    work: NDArray[np.float64] | None = None,
+) -> None:
+    """Warnings, and summary entries, for what a run should not have done silently.
+
+    Args:
+        scene: The scene run.
+        log: The run's log.
+        summary: The run's summary, completed in place.
+        impacts: ``impact_mask(log)``, shape (N, n), or None to compute it.
+        work: ``step_work(log)`` in [J], shape (N - 1,), or None to compute it.
+    """
     tolerance = scene.integrator.penetration_tolerance
     beyond = log.gap < -tolerance
     summary["penetration_tolerance"] = tolerance
@@ -512,24 +529,37 @@ def _report_physics(scene: Scene, log: Log, summary: dict[str, Any]) -> None:
         warnings.warn(PlasticRedoWarning(plastic), stacklevel=4)
     dt = float(log.t[1] - log.t[0]) if len(log) > 1 else 0.0  # the run's step [s]
     pushed = [push.sample(dt) for push in scene.pushes] if dt > 0.0 else []
-    _report_energy_gain(log, summary, pushed)
+    _report_energy_gain(log, summary, pushed, impacts_of(log, impacts), work_of(log, None, work))
     if scene.constraints.bilateral is not None:
         _report_bilateral(scene.constraints.bilateral, log, summary)
     if summary.get("integrator") == "moreau_jean":
         _report_iteration_cap(scene.integrator.max_iter, log, summary)
 
 
-def _report_energy_gain(log: Log, summary: dict[str, Any], pushed: list[int]) -> None:
+def _report_energy_gain(
+    log: Log,
+    summary: dict[str, Any],
+    pushed: list[int],
+    impacts: NDArray[np.bool_],
+    work: NDArray[np.float64],
+) -> None:
     r"""The largest rise of the energy, net of the actuators' work, over steps without impact.
 
     The gains :math:`E_{k+1} - E_k - W_k` of the steps without impact and without a push
     (``pushed``: the sample indices of the scene's pushes) are accumulated and
     the largest rise of that sum (after its lowest point before) is compared with
     :data:`ENERGY_GAIN_BOUND` :math:`(1 + \max_k |E_k|)` [J].
+
+    Args:
+        log: The run's log.
+        summary: The run's summary, completed in place.
+        pushed: Sample indices of the scene's pushes.
+        impacts: ``impact_mask(log)``, shape (N, n).
+        work: ``step_work(log)`` in [J], shape (N - 1,).
     """
     steps = max(len(log) - 1, 0)
-    gain = np.diff(log.energy[: steps + 1]) - step_work(log)  # [J] per step
-    gain[impact_mask(log)[:steps].any(axis=1)] = 0.0
+    gain = np.diff(log.energy[: steps + 1]) - work  # [J] per step
+    gain[impact_cells(impacts[:steps])[0]] = 0.0
     gain[[k - 1 for k in pushed if 0 < k <= steps]] = 0.0  # the step that ends at a push
     accumulated = np.concatenate(([0.0], np.cumsum(gain)))
     low = np.minimum.accumulate(accumulated)

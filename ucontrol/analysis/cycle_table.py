@@ -14,14 +14,15 @@ from ucontrol.log import Log
 def cycle_table(log: Log) -> str:
     """One row per cycle and contact: τ0, t0, t_f, t_d, V(τ0), free error, mid force error."""
     contacts = log.metadata.get("controller_contacts", [])
-    stability = weak_stability(log).cycles
-    errors = tracking(log).cycles
+    cycles = cycle_events(log)
+    stability = weak_stability(log, cycles=cycles).cycles
+    errors = tracking(log, cycles=cycles).cycles
     lines = [
         "| cycle | contact | τ0 [s] | t0 [s] | t_f [s] | t_d [s] | V(τ0) [J] | "
         "rise of V over I_k [J] | free error max [m] | mean-force error mid [-] |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for cycle, stable, error in zip(cycle_events(log), stability, errors, strict=True):
+    for cycle, stable, error in zip(cycles, stability, errors, strict=True):
         for i, name in enumerate(contacts):
             lines.append(
                 f"| {cycle.index} | {name} | {_f(cycle.tau0[i], '.3f')} | "

@@ -13,8 +13,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ucontrol.control.phase import Event
+from ucontrol.exceptions import InvalidParameterError
 from ucontrol.log import Log
 
 #: Log fields a phase-machine controller writes and the cycle analyses read.
@@ -57,17 +59,19 @@ class CycleEvents:
 
 def cycle_events(log: Log) -> list[CycleEvents]:
     """The cycles of ``log``, each with its rows and event times (see the module docstring)."""
-    events = log.events
-    starts = np.flatnonzero(events[:, 0] & Event.TAU0)
+    events = log.events  # (N, contacts) flags, zero in most rows
+    rows, contacts = np.nonzero(events)  # the few flagged cells, rows ascending
+    flags = events[rows, contacts]
+    starts = rows[(contacts == 0) & ((flags & Event.TAU0) != 0)]
     bounds = [*starts.tolist(), len(log)]
     cycles = []
     for k in range(len(starts)):
-        window = slice(bounds[k], bounds[k + 1])
+        within = (rows >= bounds[k]) & (rows < bounds[k + 1])
 
-        def times(flag: Event, window: slice = window) -> list[float]:
-            rows = events[window]
-            found = [np.flatnonzero(rows[:, i] & flag) for i in range(rows.shape[1])]
-            return [float(log.t[window][f[0]]) if f.size else math.nan for f in found]
+        def times(flag: Event, within: NDArray[np.bool_] = within) -> list[float]:
+            marked = within & ((flags & flag) != 0)
+            found = [rows[marked & (contacts == i)] for i in range(events.shape[1])]
+            return [float(log.t[f[0]]) if f.size else math.nan for f in found]
 
         cycles.append(
             CycleEvents(
@@ -79,6 +83,28 @@ def cycle_events(log: Log) -> list[CycleEvents]:
                 accumulation_end=times(Event.ACCUMULATION_END),
                 takeoff=times(Event.TAKEOFF),
             )
+        )
+    return cycles
+
+
+def cycles_of(log: Log, cycles: list[CycleEvents] | None) -> list[CycleEvents]:
+    """The cycles of ``log``: ``cycles`` when a caller found them already, else found.
+
+    Args:
+        log: The run's log.
+        cycles: ``cycle_events(log)``, or None.
+
+    Raises:
+        InvalidParameterError: ``cycles`` are not cycle records ending at the last row of
+            ``log`` (those of another log).
+    """
+    if cycles is None:
+        return cycle_events(log)
+    if not all(isinstance(cycle, CycleEvents) for cycle in cycles) or (
+        cycles and cycles[-1].stop != len(log)
+    ):
+        raise InvalidParameterError(
+            "cycles", cycles, f"cycle_events(log) of this log (the last ending at row {len(log)})"
         )
     return cycles
 

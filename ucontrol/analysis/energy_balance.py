@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ucontrol.exceptions import ShapeError
 from ucontrol.log import Log
 
 
@@ -40,6 +41,25 @@ def step_work(log: Log, theta: float | None = None) -> NDArray[np.float64]:
     w = input_velocities(log)
     w_mid = (1.0 - theta) * w[:-1] + theta * w[1:]  # [rad/s]
     return np.einsum("ij,ij->i", log.u[:-1], w_mid) * np.diff(log.t)
+
+
+def work_of(log: Log, theta: float | None, work: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    """The actuators' work over each step of ``log``: ``work`` when a caller computed it already.
+
+    Args:
+        log: The run's log.
+        theta: θ of the position update (:func:`step_work`), used when ``work`` is None.
+        work: ``step_work(log, theta)`` in [J], shape (N - 1,), or None.
+
+    Raises:
+        ShapeError: ``work`` does not have one entry per step of ``log``.
+    """
+    if work is None:
+        return step_work(log, theta)
+    expected = (max(len(log) - 1, 0),)
+    if np.shape(work) != expected:
+        raise ShapeError("work", expected, np.shape(work))
+    return work
 
 
 def actuator_work(log: Log) -> NDArray[np.float64]:

@@ -7,8 +7,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from ucontrol.analysis.cycles import CycleEvents, cycle_events, finite_or_none
+from ucontrol.analysis.cycles import CycleEvents, cycles_of, finite_or_none
 from ucontrol.control.phase import Phase
 from ucontrol.log import Log
 
@@ -85,15 +86,37 @@ class TrackingReport:
         }
 
 
-def tracking(log: Log) -> TrackingReport:
-    """Tracking and force errors of a run of :class:`ucontrol.control.BrogliatoController`."""
-    error = np.linalg.norm(log.task_position - log.task_desired, axis=1)  # [m]
-    cycles = cycle_events(log)
+def tracking(log: Log, *, cycles: list[CycleEvents] | None = None) -> TrackingReport:
+    """Tracking and force errors of a run of :class:`ucontrol.control.BrogliatoController`.
+
+    Args:
+        log: The run's log.
+        cycles: ``cycle_events(log)``, or None to compute them.
+
+    Raises:
+        InvalidParameterError: ``cycles`` are those of another log.
+    """
+    error = _row_norms(log.task_position - log.task_desired)  # [m]
+    cycles = cycles_of(log, cycles)
     first = cycles[0].start if cycles else len(log)
     return TrackingReport(
         initial_free_error_max=float(error[:first].max(initial=0.0)),
         cycles=[_cycle(log, cycle, error) for cycle in cycles],
     )
+
+
+def _row_norms(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Euclidean norm of each row of ``x``, shape (N, m) -> (N,).
+
+    The squares are summed column after column, as whole columns (numpy reduces a short second
+    axis row by row). Up to m = 7 these are the floats of ``np.linalg.norm(x, axis=1)``; numpy
+    sums longer rows pairwise, and may round them differently in the last bit.
+    """
+    squares = x * x
+    total = squares[:, 0].copy()
+    for column in squares.T[1:]:
+        total += column
+    return np.sqrt(total)
 
 
 def _cycle(log: Log, cycle: CycleEvents, error: np.ndarray) -> CycleTracking:

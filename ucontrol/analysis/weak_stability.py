@@ -21,9 +21,10 @@ from itertools import pairwise
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from ucontrol.analysis.cycles import CycleEvents, cycle_events, finite_or_none
-from ucontrol.analysis.impacts import impact_mask
+from ucontrol.analysis.cycles import CycleEvents, cycles_of, finite_or_none
+from ucontrol.analysis.impacts import impact_cells, impacts_of
 from ucontrol.control.phase import TRANSITION_PHASES, Phase
 from ucontrol.log import Log
 
@@ -106,22 +107,42 @@ class WeakStabilityReport:
         }
 
 
-def weak_stability(log: Log) -> WeakStabilityReport:
+def weak_stability(
+    log: Log,
+    *,
+    cycles: list[CycleEvents] | None = None,
+    impacts: NDArray[np.bool_] | None = None,
+) -> WeakStabilityReport:
     """Measure the weak-stability conditions on a log of a phase-machine controller.
 
     Args:
         log: A run of :class:`ucontrol.control.BrogliatoController` (fields ``V``, ``V1``,
             ``phase``, ``contact_phase``, ``events``).
+        cycles: ``cycle_events(log)``, or None to compute them.
+        impacts: ``impact_mask(log)``, shape (N, n), or None to compute it.
+
+    Raises:
+        InvalidParameterError: ``cycles`` are those of another log.
+        ShapeError: ``impacts`` does not have the shape of ``log``'s.
     """
-    return WeakStabilityReport([_cycle(log, cycle) for cycle in cycle_events(log)])
+    impacts = impacts_of(log, impacts)
+    stepped = np.zeros(len(impacts), dtype=bool)  # rows whose step holds an impact
+    stepped[impact_cells(impacts)[0]] = True
+    return WeakStabilityReport(
+        [_cycle(log, cycle, impacts, stepped) for cycle in cycles_of(log, cycles)]
+    )
 
 
-def _cycle(log: Log, cycle: CycleEvents) -> CycleStability:
+def _cycle(
+    log: Log,
+    cycle: CycleEvents,
+    impacts: NDArray[np.bool_],
+    stepped: NDArray[np.bool_],
+) -> CycleStability:
     rows = slice(cycle.start, cycle.stop)
     V = log.V[rows]
     transiting = np.isin(log.phase[rows], [int(phase) for phase in TRANSITION_PHASES])
     rise = np.diff(V, append=V[-1])  # V[k+1] - V[k]: the change over the step from row k
-    impacts = impact_mask(log)[rows].any(axis=1)
     return CycleStability(
         index=cycle.index,
         tau0=float(log.t[cycle.start]),
@@ -129,35 +150,42 @@ def _cycle(log: Log, cycle: CycleEvents) -> CycleStability:
         V_tau0=float(V[0]),
         V1_tau0=float(log.V1[cycle.start]),
         transition_rise=float(np.maximum(rise[transiting], 0.0).sum()),
-        impact_jumps=float(rise[transiting & impacts].sum()),
+        impact_jumps=float(rise[transiting & stepped[rows]].sum()),
         omega_max_rise=_max_rise(V, ~transiting),
         V_end=float(V[-1]),
-        **_contact_measures(log, cycle),
+        **_contact_measures(log, cycle, impacts),
     )
 
 
-def _contact_measures(log: Log, cycle: CycleEvents) -> dict[str, list[float]]:
-    """First-impact velocity, jumps of V, accumulation time and constrained force per contact."""
+def _contact_measures(
+    log: Log, cycle: CycleEvents, impacts: NDArray[np.bool_]
+) -> dict[str, list[float]]:
+    """First-impact velocity, jumps of V, accumulation time and constrained force per contact.
+
+    Args:
+        log: The run's log.
+        cycle: The cycle measured.
+        impacts: ``impact_mask(log)``, shape (N, n).
+    """
     columns = [log.constraint_index(name) for name in log.metadata["controller_contacts"]]
-    impacts = impact_mask(log)
-    dt = np.diff(log.t, append=log.t[-1])  # length of the step from each row [s]
-    rows = np.arange(cycle.start, cycle.stop)
+    rows = slice(cycle.start, cycle.stop)
     velocity, jumps, accumulation, force = [], [], [], []
     last_row = len(log) - 1
     for i, column in enumerate(columns):
         t_0, t_f = cycle.first_impact[i], cycle.accumulation_end[i]
         end = t_f if math.isfinite(t_f) else math.inf  # [s]
-        hits = rows[impacts[rows, column] & (log.t[rows] < end)]
+        hits = cycle.start + np.flatnonzero(impacts[rows, column] & (log.t[rows] < end))
         velocity.append(float(log.normal_velocity[hits[0], column]) if hits.size else math.nan)
         steps = hits[hits < last_row]
         jumps.append(float((log.V[steps + 1] - log.V[steps]).sum()))
         if hits.size and math.isfinite(t_0) and math.isfinite(t_f):
             last = hits[-1]
-            accumulation.append(float(log.t[last] + dt[last] - log.t[hits[0]]))
+            step = log.t[last + 1] - log.t[last] if last < last_row else 0.0  # [s]
+            accumulation.append(float(log.t[last] + step - log.t[hits[0]]))
         else:
             accumulation.append(math.nan)
-        held = rows[log.contact_phase[rows, i] == int(Phase.CONSTRAINED)]
-        force.append(float(log.contact_force[held, i].min()) if held.size else math.nan)
+        held = log.contact_phase[rows, i] == int(Phase.CONSTRAINED)
+        force.append(float(log.contact_force[rows, i][held].min()) if held.any() else math.nan)
     return {
         "first_impact_velocity": velocity,
         "contact_impact_jumps": jumps,
