@@ -70,7 +70,8 @@ _POLL_S = 0.1
 #: Modules the workers of a local cluster import as soon as they are up, all at once and before
 #: the first run (the scene layer, the closed loop, Pinocchio): a run's time is its own. A worker
 #: started later (after one died) imports them in its first run. :func:`prepare_worker` then
-#: builds the first run's objects, which imports the rest (its controller, sensors, summary).
+#: builds the first run's objects and runs its first steps, which imports the rest (its
+#: controller, sensors, summary).
 WORKER_IMPORTS = ("ucontrol.campaign.prebuilt_scene", "ucontrol.simulate")
 #: Dask settings of the local cluster. A run whose worker dies is tried once more on a fresh
 #: worker, then recorded as killed; each worker holds only the run it executes (with dask's
@@ -216,17 +217,22 @@ def prepare_worker(task: Mapping[str, Any], cache: BuildCache = WORKER_CACHE) ->
     """Ready this process for a campaign's runs: imports, libraries and the first run's builds.
 
     Run on each worker of a local cluster before any run (``Client.run``): it imports
-    :data:`WORKER_IMPORTS` and builds the integrator and the controller of ``task`` (a run's
+    :data:`WORKER_IMPORTS`, builds the integrator and the controller of ``task`` (a run's
     task, as for :func:`run_task`), which imports their modules and loads their compiled
-    libraries. With ``reuse`` (the default) both are kept in ``cache`` for the runs that
-    build them the same, which reset them as after a run (their logs are those of fresh
-    builds); without, they are dropped. Nothing is simulated and nothing raises: a task
-    whose builds fail is left to its run, which records the error.
+    libraries, and runs the first steps of that run (its sensors' delay and two more) with its
+    summary, which imports and loads what a run's steps and summary do (the sensors' noise
+    generators, the analyses of the summary). With ``reuse`` (the default) both objects are
+    kept in ``cache`` for the runs of their families, which reset them as after a run (their
+    logs are those of fresh builds); without, they are dropped. Nothing is written and nothing
+    raises: a task whose builds or first steps fail is left to its run, which records the
+    error (its objects are dropped).
 
     Returns:
-        The error of the builds as ``"Type: message"``, or ``""`` when they were made.
+        The error of the builds or steps as ``"Type: message"``, or ``""``.
     """
     import importlib
+
+    from ucontrol.simulate import simulate
 
     for module in WORKER_IMPORTS:
         importlib.import_module(module)
@@ -235,6 +241,9 @@ def prepare_worker(task: Mapping[str, Any], cache: BuildCache = WORKER_CACHE) ->
         table = apply_overrides(task["scene"], task["parameters"])
         scene, keys, families = _cached_scene(table, path)
         integrator, controller = scene.build_integrator(), scene.build_controller()
+        delay = 0 if scene.sensors is None else scene.sensors.delay  # [control periods]
+        duration = (delay + 2) * integrator.dt  # [s] (every step a control period)
+        simulate(scene.use_integrator(integrator), controller, duration, progress=False)
     except Exception as error:  # the run builds again and records it
         return f"{type(error).__name__}: {error}"
     if task.get("reuse", True):
