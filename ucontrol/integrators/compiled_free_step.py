@@ -223,6 +223,7 @@ class CompiledFreeStep:
         self._several: CompiledFunction | None = None
         # (the ends of the terms it reads: v_free, q_free, gaps, W⁻¹Jᵀ, JW⁻¹Jᵀ, impact law)
         self._several_definition = (nv, size, n, tuple(self._split), rules, elastic)
+        self._elastic = elastic  # the rows whose rebound terms are not constants 0
         self.several_rows = several_rows
         self._positions = positions
         buffer = self.function.input_buffer
@@ -250,7 +251,7 @@ class CompiledFreeStep:
                 converse (the rebound terms of the rows without restitution are constants 0
                 of the call).
         """
-        elastic = self._several_definition[5]
+        elastic = self._elastic
         given = np.asarray(restitution, dtype=float)
         if given.shape != (len(elastic),) or tuple((given != 0.0).tolist()) != elastic:
             raise InvalidParameterError(
